@@ -1,0 +1,157 @@
+//! Point, body and contact Jacobians and their J̇q̇ products.
+//!
+//! Column d of a full-coordinate Jacobian is the motion subspace s_d of every dof d on the
+//! path from ground to the body; the reduced Jacobian is J = J_full Φ, accumulated sparsely.
+//! J̇q̇ is the acceleration the body or point has when q̈ = 0 and gravity is off.
+
+use super::forward_kinematics::propagate_accelerations;
+use super::{Data, Stage, point_acceleration_from};
+use crate::model::Model;
+use crate::spatial::{Motion, Vec3};
+use nalgebra::DMatrix;
+
+/// The last full coordinate on the path from ground to `body`.
+fn last_dof(model: &Model, mut body: usize) -> Option<usize> {
+    while let Some(j) = model.bodies[body].joint {
+        let r = &model.joints[j].dof_range;
+        if !r.is_empty() {
+            return Some(r.end - 1);
+        }
+        body = model.joints[j].parent_body;
+    }
+    None
+}
+
+fn check_body(model: &Model, body: usize) -> crate::Result<()> {
+    if body >= model.bodies.len() {
+        return Err(crate::Error::invalid("body", format!("index {body} out of range ({} bodies)", model.bodies.len())));
+    }
+    Ok(())
+}
+
+fn check_shape(out: &DMatrix<f64>, rows: usize, n: usize) -> crate::Result<()> {
+    if out.shape() != (rows, n) {
+        return Err(crate::Error::invalid("out", format!("must be {rows} × {n}, is {:?}", out.shape())));
+    }
+    Ok(())
+}
+
+/// Adds the rows of `f(s_d)` for every dof on the path to `body` into `out` starting at
+/// `row0`, weighted by Φ: out[row0.., j] += Φ_dj f(s_d).
+fn accumulate<const R: usize>(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    out: &mut DMatrix<f64>,
+    row0: usize,
+    f: impl Fn(&Motion) -> [f64; R],
+) {
+    let r = &model.reduction;
+    let mut d = last_dof(model, body);
+    while let Some(di) = d {
+        let col = f(&data.dof_motion[di]);
+        for e in r.phi_row(di) {
+            let j = r.dep_index[e];
+            let a = data.node_grad[e];
+            for (i, c) in col.iter().enumerate() {
+                out[(row0 + i, j)] += a * c;
+            }
+        }
+        d = model.dofs[di].parent_dof;
+    }
+}
+
+fn require_reduced(data: &Data, algorithm: &'static str) -> crate::Result<()> {
+    data.require(Stage::Position, algorithm)?;
+    if data.node_grad.first().is_some_and(|g| g.is_nan()) {
+        return Err(crate::Error::StageNotComputed { algorithm, needs: "forward_kinematics (not forward_kinematics_full)" });
+    }
+    Ok(())
+}
+
+/// J (3 × n) of a point fixed in `body` (`point` in body coordinates): ṗ = J q̇.
+pub fn point_jacobian(model: &Model, data: &Data, body: usize, point: &Vec3, out: &mut DMatrix<f64>) -> crate::Result<()> {
+    require_reduced(data, "point_jacobian")?;
+    check_body(model, body)?;
+    check_shape(out, 3, model.nq())?;
+    out.fill(0.0);
+    let off = data.point_position(body, point) - data.reference_point;
+    accumulate(model, data, body, out, 0, |s| {
+        let v = s.linear_at(&off);
+        [v.x, v.y, v.z]
+    });
+    Ok(())
+}
+
+/// J (6 × n) of a body: rows 0–2 map q̇ to its angular velocity, rows 3–5 to the velocity
+/// of its origin, both in ground axes.
+pub fn body_jacobian(model: &Model, data: &Data, body: usize, out: &mut DMatrix<f64>) -> crate::Result<()> {
+    require_reduced(data, "body_jacobian")?;
+    check_body(model, body)?;
+    check_shape(out, 6, model.nq())?;
+    out.fill(0.0);
+    let off = data.body_pos[body] - data.reference_point;
+    accumulate(model, data, body, out, 0, |s| {
+        let v = s.linear_at(&off);
+        [s.ang.x, s.ang.y, s.ang.z, v.x, v.y, v.z]
+    });
+    Ok(())
+}
+
+/// The contact Jacobian J_c (3k × n) of k body-fixed points: rows 3i..3i+3 map q̇ to the
+/// velocity of point i in ground.
+pub fn contact_jacobian(model: &Model, data: &Data, points: &[(usize, Vec3)], out: &mut DMatrix<f64>) -> crate::Result<()> {
+    require_reduced(data, "contact_jacobian")?;
+    check_shape(out, 3 * points.len(), model.nq())?;
+    out.fill(0.0);
+    for (i, (body, p)) in points.iter().enumerate() {
+        check_body(model, *body)?;
+        let off = data.point_position(*body, p) - data.reference_point;
+        accumulate(model, data, *body, out, 3 * i, |s| {
+            let v = s.linear_at(&off);
+            [v.x, v.y, v.z]
+        });
+    }
+    Ok(())
+}
+
+/// Spatial accelerations with q̈ = 0 and no gravity (needs the velocity stage).
+fn ensure_bias_accelerations(model: &Model, data: &mut Data, algorithm: &'static str) -> crate::Result<()> {
+    data.require(Stage::Velocity, algorithm)?;
+    if !data.body_acc_bias_valid {
+        let nc = model.reduction.n_coordinates;
+        let Data { dof_motion, body_vel, node_vel, node_acc_bias, body_acc_bias, .. } = data;
+        // θ̈ = Φ̇q̇ when q̈ = 0
+        propagate_accelerations(model, dof_motion, body_vel, &node_vel[nc..], &node_acc_bias[nc..], Motion::ZERO, body_acc_bias);
+        data.body_acc_bias_valid = true;
+    }
+    Ok(())
+}
+
+/// J̇q̇ of a body-fixed point: its acceleration when q̈ = 0 (velocity stage).
+pub fn point_jacobian_dot_qd(model: &Model, data: &mut Data, body: usize, point: &Vec3) -> crate::Result<Vec3> {
+    check_body(model, body)?;
+    ensure_bias_accelerations(model, data, "point_jacobian_dot_qd")?;
+    let off = data.point_position(body, point) - data.reference_point;
+    Ok(point_acceleration_from(&data.body_vel[body], &data.body_acc_bias[body], off).1)
+}
+
+/// J̇q̇ of a body: (angular acceleration, acceleration of the origin) when q̈ = 0.
+pub fn body_jacobian_dot_qd(model: &Model, data: &mut Data, body: usize) -> crate::Result<(Vec3, Vec3)> {
+    check_body(model, body)?;
+    ensure_bias_accelerations(model, data, "body_jacobian_dot_qd")?;
+    let off = data.body_pos[body] - data.reference_point;
+    Ok(point_acceleration_from(&data.body_vel[body], &data.body_acc_bias[body], off))
+}
+
+/// J̇_c q̇ (3k) of k body-fixed points.
+pub fn contact_jacobian_dot_qd(model: &Model, data: &mut Data, points: &[(usize, Vec3)], out: &mut [f64]) -> crate::Result<()> {
+    if out.len() != 3 * points.len() {
+        return Err(crate::Error::invalid("out", format!("needs length {}, has {}", 3 * points.len(), out.len())));
+    }
+    for (i, (body, p)) in points.iter().enumerate() {
+        let a = point_jacobian_dot_qd(model, data, *body, p)?;
+        out[3 * i..3 * i + 3].copy_from_slice(a.as_slice());
+    }
+    Ok(())
+}

@@ -1,0 +1,63 @@
+//! The crate's error type. Every error carries the context a user needs to find the
+//! problem: the file, the element and its line for model XML; the argument name for
+//! bad inputs to an algorithm.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout musculo.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in musculo. Bad input is always an `Err`, never a panic.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+
+    /// The file is not well-formed XML.
+    #[error("{file}:{line}:{column}: malformed XML: {message}")]
+    Xml {
+        file: String,
+        line: u32,
+        column: u32,
+        message: String,
+    },
+
+    /// The XML is well-formed but describes an invalid or unsupported model.
+    /// `element` names the element (e.g. `CustomJoint "knee_r" > TransformAxis "translation1"`).
+    #[error("{file}:{line}: {element}: {message}")]
+    Model {
+        file: String,
+        line: u32,
+        element: String,
+        message: String,
+    },
+
+    /// An argument passed to a library function has the wrong size or an invalid value.
+    #[error("invalid argument `{argument}`: {message}")]
+    InvalidArgument {
+        argument: &'static str,
+        message: String,
+    },
+
+    /// An algorithm was called before the stage it depends on was computed for this Data
+    /// (e.g. a Jacobian before forward kinematics).
+    #[error("{algorithm} needs {needs} to be computed first for this Data")]
+    StageNotComputed {
+        algorithm: &'static str,
+        needs: &'static str,
+    },
+}
+
+impl Error {
+    pub(crate) fn invalid(argument: &'static str, message: impl Into<String>) -> Self {
+        Error::InvalidArgument {
+            argument,
+            message: message.into(),
+        }
+    }
+}

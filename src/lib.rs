@@ -1,0 +1,29 @@
+//! # musculo
+//!
+//! Musculoskeletal dynamics for motion datasets: reads OpenSim 4.x models, reduces them to
+//! their independent coordinates, and computes forward kinematics, the mass matrix, inverse
+//! dynamics, bias forces, Jacobians, centre of mass and momentum — fast and exactly.
+//!
+//! ```
+//! use musculo::{Model, Data, dynamics};
+//! let model = Model::demo();
+//! let mut data = Data::new(&model);
+//! let q = model.default_q();
+//! let m = dynamics::crba(&model, &mut data, &q).unwrap();
+//! assert_eq!(m.nrows(), model.nq());
+//! ```
+//!
+//! The library never prints; the `musculo` binary is a thin command-line layer on top.
+
+pub mod dynamics;
+pub mod error;
+pub mod model;
+pub mod reference;
+pub mod spatial;
+
+pub use dynamics::Data;
+pub use error::{Error, Result};
+pub use model::Model;
+
+/// The built-in demonstration model, `models/demo.osim`.
+pub const DEMO_MODEL_OSIM: &str = include_str!("../models/demo.osim");

@@ -1,0 +1,454 @@
+//! Scalar functions of coordinates, as OpenSim defines them: `Constant`, `LinearFunction`,
+//! `PolynomialFunction`, `SimmSpline` (= `NaturalCubicSpline`, which OpenSim reads as a
+//! `SimmSpline`), `PiecewiseLinearFunction`, `GCVSpline` and `MultiplierFunction`.
+//!
+//! Every function returns its value and its first and second partial derivatives, which the
+//! coordinate reduction needs for Φ and Φ̇q̇.
+
+use super::natural_spline::NaturalSpline;
+
+/// A function of zero or more coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Function {
+    /// f = value, for any number of arguments.
+    Constant(f64),
+    /// OpenSim `LinearFunction`: coefficients `[a_1, …, a_k, b]`, f(x) = Σ a_i x_i + b.
+    Linear(Vec<f64>),
+    /// OpenSim `PolynomialFunction`: coefficients from the highest power to the constant,
+    /// f(x) = c_0 xⁿ + c_1 xⁿ⁻¹ + … + c_n.
+    Polynomial(Vec<f64>),
+    /// OpenSim `SimmSpline` / `NaturalCubicSpline`.
+    SimmSpline(SimmSpline),
+    /// OpenSim `PiecewiseLinearFunction`.
+    PiecewiseLinear(PiecewiseLinear),
+    /// OpenSim `GCVSpline` with `error_variance` = 0: the interpolating natural spline of
+    /// degree 2·half_order − 1.
+    GcvSpline(NaturalSpline),
+    /// OpenSim `MultiplierFunction`: f = scale · g.
+    Multiplier(Box<Function>, f64),
+}
+
+/// How many arguments a function accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Arity {
+    Any,
+    Exactly(usize),
+}
+
+impl Function {
+    /// The number of arguments this function takes.
+    pub fn arity(&self) -> Arity {
+        match self {
+            Function::Constant(_) => Arity::Any,
+            Function::Linear(c) => Arity::Exactly(c.len().saturating_sub(1)),
+            Function::Multiplier(f, _) => f.arity(),
+            _ => Arity::Exactly(1),
+        }
+    }
+
+    /// The OpenSim element name of this function.
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Function::Constant(_) => "Constant",
+            Function::Linear(_) => "LinearFunction",
+            Function::Polynomial(_) => "PolynomialFunction",
+            Function::SimmSpline(_) => "SimmSpline",
+            Function::PiecewiseLinear(_) => "PiecewiseLinearFunction",
+            Function::GcvSpline(_) => "GCVSpline",
+            Function::Multiplier(_, _) => "MultiplierFunction",
+        }
+    }
+
+    /// True when the function is a constant whatever its arguments.
+    pub fn is_constant(&self) -> bool {
+        match self {
+            Function::Constant(_) => true,
+            Function::Multiplier(f, s) => *s == 0.0 || f.is_constant(),
+            _ => false,
+        }
+    }
+
+    /// Value, first and second derivative of a function of one argument. A `Constant`
+    /// returns zero derivatives. For a `LinearFunction` of one argument the slope is used.
+    #[inline]
+    pub fn eval1(&self, x: f64) -> (f64, f64, f64) {
+        match self {
+            Function::Constant(v) => (*v, 0.0, 0.0),
+            Function::Linear(c) => {
+                if c.len() == 2 {
+                    (c[0] * x + c[1], c[0], 0.0)
+                } else {
+                    (c.last().copied().unwrap_or(0.0), 0.0, 0.0)
+                }
+            }
+            Function::Polynomial(c) => polynomial(c, x),
+            Function::SimmSpline(s) => s.eval(x),
+            Function::PiecewiseLinear(p) => p.eval(x),
+            Function::GcvSpline(s) => s.eval(x),
+            Function::Multiplier(f, s) => {
+                let (v, d1, d2) = f.eval1(x);
+                (s * v, s * d1, s * d2)
+            }
+        }
+    }
+
+    /// Value of a function of `x.len()` arguments, with its gradient written to `grad`
+    /// (length k) and its Hessian to `hess` (k×k, row-major). The caller guarantees that `x`
+    /// matches `arity()` and the slices have the right lengths.
+    pub fn eval(&self, x: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64 {
+        match (self, x.len()) {
+            (Function::Constant(v), _) => {
+                grad.fill(0.0);
+                hess.fill(0.0);
+                *v
+            }
+            (Function::Linear(c), k) if k + 1 == c.len() => {
+                hess.fill(0.0);
+                let mut v = c[k];
+                for i in 0..k {
+                    grad[i] = c[i];
+                    v += c[i] * x[i];
+                }
+                v
+            }
+            (Function::Multiplier(f, s), _) => {
+                let v = f.eval(x, grad, hess);
+                grad.iter_mut().for_each(|g| *g *= s);
+                hess.iter_mut().for_each(|h| *h *= s);
+                s * v
+            }
+            (_, 1) => {
+                let (v, d1, d2) = self.eval1(x[0]);
+                grad[0] = d1;
+                hess[0] = d2;
+                v
+            }
+            _ => {
+                // Unreachable for functions validated against their arity at model load.
+                grad.fill(f64::NAN);
+                hess.fill(f64::NAN);
+                f64::NAN
+            }
+        }
+    }
+}
+
+/// Horner evaluation of a polynomial (highest power first) and its two derivatives.
+fn polynomial(c: &[f64], x: f64) -> (f64, f64, f64) {
+    // p = Σ c_i x^(n-i); p' and p'' accumulated alongside (Horner's scheme for derivatives).
+    let (mut p, mut d1, mut d2) = (0.0, 0.0, 0.0);
+    for &ci in c {
+        d2 = d2 * x + 2.0 * d1;
+        d1 = d1 * x + p;
+        p = p * x + ci;
+    }
+    (p, d1, d2)
+}
+
+fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), String> {
+    if x.len() != y.len() {
+        return Err(format!(
+            "x has {} values but y has {}",
+            x.len(),
+            y.len()
+        ));
+    }
+    if x.len() < min_points {
+        return Err(format!(
+            "needs at least {min_points} points, has {}",
+            x.len()
+        ));
+    }
+    if let Some(i) = x.iter().chain(y.iter()).position(|v| !v.is_finite()) {
+        let (name, j) = if i < x.len() { ("x", i) } else { ("y", i - x.len()) };
+        return Err(format!("{name}[{j}] is not a finite number"));
+    }
+    for i in 1..x.len() {
+        if x[i] <= x[i - 1] {
+            return Err(format!(
+                "x values must be strictly increasing (x[{i}] = {} after x[{}] = {})",
+                x[i],
+                i - 1,
+                x[i - 1]
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Index k of the interval [x_k, x_{k+1}] holding t, for x[0] ≤ t ≤ x[n-1].
+#[inline]
+fn interval(x: &[f64], t: f64) -> usize {
+    let n = x.len();
+    // partition_point gives the first index with x > t.
+    let k = x.partition_point(|&xi| xi <= t);
+    k.saturating_sub(1).min(n - 2)
+}
+
+/// OpenSim's `SimmSpline`: the cubic spline of Forsythe, Malcolm & Moler (1977,
+/// *Computer Methods for Mathematical Computations*, routine SPLINE). Its end conditions
+/// match the third derivative at each end to that of the cubic through the four nearest
+/// points (so it reproduces any cubic exactly); with three points the end third derivatives
+/// are zero, and two points give a straight line. Outside [x_0, x_{n−1}] it extrapolates
+/// linearly with the end slope, as OpenSim does.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimmSpline {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    // On [x_i, x_{i+1}]: s(t) = y_i + b_i dt + c_i dt² + d_i dt³, dt = t − x_i.
+    b: Vec<f64>,
+    c: Vec<f64>,
+    d: Vec<f64>,
+}
+
+impl SimmSpline {
+    pub fn new(x: Vec<f64>, y: Vec<f64>) -> Result<Self, String> {
+        check_xy(&x, &y, 2)?;
+        let n = x.len();
+        let mut b = vec![0.0; n];
+        let mut c = vec![0.0; n];
+        let mut d = vec![0.0; n];
+        if n == 2 {
+            let slope = (y[1] - y[0]) / (x[1] - x[0]);
+            b.fill(slope);
+            return Ok(SimmSpline { x, y, b, c, d });
+        }
+        // Unknowns σ_i = s''(x_i)/6. Interior rows (h_i = x_{i+1} − x_i, δ_i the divided
+        // difference (y_{i+1} − y_i)/h_i):
+        //   h_{i−1} σ_{i−1} + 2 (h_{i−1} + h_i) σ_i + h_i σ_{i+1} = δ_i − δ_{i−1}.
+        // End rows match the third derivative s''' = 6 (σ_1 − σ_0)/h_0 to that of the
+        // interpolating cubic through the first four points (likewise at the end):
+        //   −h_0 σ_0 + h_0 σ_1 = h_0² Δ³_0,   h_{n−2} σ_{n−2} − h_{n−2} σ_{n−1} = −h_{n−2}² Δ³_{n−4}
+        // with Δ³ the third divided difference; zero right-hand sides when n = 3.
+        let h: Vec<f64> = (0..n - 1).map(|i| x[i + 1] - x[i]).collect();
+        let delta: Vec<f64> = (0..n - 1).map(|i| (y[i + 1] - y[i]) / h[i]).collect();
+        let mut diag = vec![0.0; n];
+        let mut rhs = vec![0.0; n];
+        diag[0] = -h[0];
+        diag[n - 1] = -h[n - 2];
+        for i in 1..n - 1 {
+            diag[i] = 2.0 * (h[i - 1] + h[i]);
+            rhs[i] = delta[i] - delta[i - 1];
+        }
+        if n > 3 {
+            let dd2 = |i: usize| (delta[i + 1] - delta[i]) / (x[i + 2] - x[i]);
+            let third_first = (dd2(1) - dd2(0)) / (x[3] - x[0]);
+            let third_last = (dd2(n - 3) - dd2(n - 4)) / (x[n - 1] - x[n - 4]);
+            rhs[0] = h[0] * h[0] * third_first;
+            rhs[n - 1] = -h[n - 2] * h[n - 2] * third_last;
+        }
+        // Symmetric tridiagonal system with off-diagonal h_i: Gaussian elimination without
+        // pivoting (the matrix is diagonally dominant in the interior), then back substitution.
+        for i in 1..n {
+            let t = h[i - 1] / diag[i - 1];
+            diag[i] -= t * h[i - 1];
+            rhs[i] -= t * rhs[i - 1];
+        }
+        let mut sigma = vec![0.0; n];
+        sigma[n - 1] = rhs[n - 1] / diag[n - 1];
+        for i in (0..n - 1).rev() {
+            sigma[i] = (rhs[i] - h[i] * sigma[i + 1]) / diag[i];
+        }
+        // Polynomial coefficients on each interval from σ:
+        //   b_i = δ_i − h_i (σ_{i+1} + 2σ_i),  c_i = 3σ_i,  d_i = (σ_{i+1} − σ_i)/h_i.
+        for i in 0..n - 1 {
+            b[i] = delta[i] - h[i] * (sigma[i + 1] + 2.0 * sigma[i]);
+            c[i] = 3.0 * sigma[i];
+            d[i] = (sigma[i + 1] - sigma[i]) / h[i];
+        }
+        // Slope at the last knot, used for extrapolation: s'(x_{n−1}) = δ_{n−2} + h_{n−2}(σ_{n−2} + 2σ_{n−1}).
+        b[n - 1] = delta[n - 2] + h[n - 2] * (sigma[n - 2] + 2.0 * sigma[n - 1]);
+        c[n - 1] = 3.0 * sigma[n - 1];
+        d[n - 1] = d[n - 2];
+        Ok(SimmSpline { x, y, b, c, d })
+    }
+
+    pub fn x(&self) -> &[f64] {
+        &self.x
+    }
+
+    pub fn y(&self) -> &[f64] {
+        &self.y
+    }
+
+    /// Value, first and second derivative at t.
+    #[inline]
+    pub fn eval(&self, t: f64) -> (f64, f64, f64) {
+        let n = self.x.len();
+        if t < self.x[0] {
+            return (self.y[0] + (t - self.x[0]) * self.b[0], self.b[0], 0.0);
+        }
+        if t > self.x[n - 1] {
+            return (
+                self.y[n - 1] + (t - self.x[n - 1]) * self.b[n - 1],
+                self.b[n - 1],
+                0.0,
+            );
+        }
+        let k = interval(&self.x, t);
+        let dt = t - self.x[k];
+        let (b, c, d) = (self.b[k], self.c[k], self.d[k]);
+        (
+            self.y[k] + dt * (b + dt * (c + dt * d)),
+            b + dt * (2.0 * c + 3.0 * dt * d),
+            2.0 * c + 6.0 * dt * d,
+        )
+    }
+}
+
+/// OpenSim's `PiecewiseLinearFunction`: linear interpolation between the points, linear
+/// extrapolation with the first (last) segment's slope outside the range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PiecewiseLinear {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    slope: Vec<f64>,
+}
+
+impl PiecewiseLinear {
+    pub fn new(x: Vec<f64>, y: Vec<f64>) -> Result<Self, String> {
+        check_xy(&x, &y, 2)?;
+        let slope = (0..x.len() - 1)
+            .map(|i| (y[i + 1] - y[i]) / (x[i + 1] - x[i]))
+            .collect();
+        Ok(PiecewiseLinear { x, y, slope })
+    }
+
+    #[inline]
+    pub fn eval(&self, t: f64) -> (f64, f64, f64) {
+        let k = if t < self.x[0] {
+            0
+        } else if t > self.x[self.x.len() - 1] {
+            self.slope.len() - 1
+        } else {
+            interval(&self.x, t)
+        };
+        (self.y[k] + (t - self.x[k]) * self.slope[k], self.slope[k], 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cubic(t: f64) -> (f64, f64, f64) {
+        (
+            0.5 - 1.2 * t + 0.7 * t * t - 0.3 * t * t * t,
+            -1.2 + 1.4 * t - 0.9 * t * t,
+            1.4 - 1.8 * t,
+        )
+    }
+
+    #[test]
+    fn simm_spline_reproduces_any_cubic_exactly() {
+        // FMM end conditions match the third derivative of the cubic through the end points,
+        // so sampled cubic data is reproduced exactly inside the range.
+        let x = vec![-2.0, -1.3, -0.2, 0.1, 0.9, 1.7, 2.5];
+        let y: Vec<f64> = x.iter().map(|&t| cubic(t).0).collect();
+        let s = SimmSpline::new(x, y).unwrap();
+        for i in 0..=100 {
+            let t = -2.0 + 4.5 * i as f64 / 100.0;
+            let (v, d1, d2) = s.eval(t);
+            let (ev, ed1, ed2) = cubic(t);
+            assert!((v - ev).abs() < 1e-12, "value at {t}");
+            assert!((d1 - ed1).abs() < 1e-11, "slope at {t}");
+            assert!((d2 - ed2).abs() < 1e-10, "curvature at {t}");
+        }
+    }
+
+    #[test]
+    fn simm_spline_extrapolates_linearly_with_end_slopes() {
+        let x = vec![0.0, 1.0, 2.5, 3.0, 4.0];
+        let y: Vec<f64> = x.iter().map(|&t| cubic(t).0).collect();
+        let s = SimmSpline::new(x, y).unwrap();
+        let (y0, b0, _) = s.eval(0.0);
+        let (v, d1, d2) = s.eval(-0.5);
+        assert!((v - (y0 - 0.5 * b0)).abs() < 1e-14 && d1 == b0 && d2 == 0.0);
+        let (yn, bn, _) = s.eval(4.0);
+        assert!((yn - cubic(4.0).0).abs() < 1e-12 && (bn - cubic(4.0).1).abs() < 1e-10);
+        let (v, _, _) = s.eval(5.0);
+        assert!((v - (yn + bn)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn simm_spline_with_three_points_has_zero_end_third_derivative_conditions() {
+        // n = 3: s'''(x_0) from the first interval equals s''' on the second interval
+        // (σ_1 − σ_0 = 0 and σ_2 − σ_1 = 0 ⇒ a single parabola through the three points).
+        let x = vec![0.0, 1.0, 3.0];
+        let p = |t: f64| 1.0 + 2.0 * t - 0.5 * t * t;
+        let s = SimmSpline::new(x.clone(), x.iter().map(|&t| p(t)).collect()).unwrap();
+        for t in [0.2, 0.9, 1.7, 2.9] {
+            assert!((s.eval(t).0 - p(t)).abs() < 1e-13);
+        }
+    }
+
+    #[test]
+    fn simm_spline_derivatives_match_finite_differences() {
+        let x = vec![-2.0944, -1.22173, -0.523599, -0.349066, -0.174533, 0.159149, 2.0944];
+        let y = vec![-0.4226, -0.4082, -0.399, -0.3976, -0.3966, -0.395264, -0.396];
+        let s = SimmSpline::new(x, y).unwrap();
+        let h = 1e-6;
+        for i in 0..50 {
+            let t = -2.0 + 4.0 * i as f64 / 49.0 + 1e-3;
+            let (_, d1, d2) = s.eval(t);
+            let fd1 = (s.eval(t + h).0 - s.eval(t - h).0) / (2.0 * h);
+            let fd2 = (s.eval(t + h).1 - s.eval(t - h).1) / (2.0 * h);
+            assert!((d1 - fd1).abs() < 1e-7, "{t}: {d1} vs {fd1}");
+            assert!((d2 - fd2).abs() < 1e-6, "{t}: {d2} vs {fd2}");
+        }
+    }
+
+    #[test]
+    fn spline_interpolates_knots_and_is_c2() {
+        let x = vec![0.0, 0.3, 0.5, 1.1, 1.4, 2.0];
+        let y = vec![0.0, 0.2, -0.1, 0.5, 0.4, 1.0];
+        let s = SimmSpline::new(x.clone(), y.clone()).unwrap();
+        for i in 0..x.len() {
+            assert!((s.eval(x[i]).0 - y[i]).abs() < 1e-14);
+        }
+        for &k in &x[1..x.len() - 1] {
+            let l = s.eval(k - 1e-9);
+            let r = s.eval(k + 1e-9);
+            assert!((l.1 - r.1).abs() < 1e-7 && (l.2 - r.2).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn polynomial_uses_highest_power_first() {
+        let f = Function::Polynomial(vec![2.0, -3.0, 0.5, 4.0]); // 2x³ − 3x² + 0.5x + 4
+        let (v, d1, d2) = f.eval1(1.5);
+        assert!((v - (2.0 * 3.375 - 3.0 * 2.25 + 0.75 + 4.0)).abs() < 1e-14);
+        assert!((d1 - (6.0 * 2.25 - 6.0 * 1.5 + 0.5)).abs() < 1e-14);
+        assert!((d2 - (12.0 * 1.5 - 6.0)).abs() < 1e-14);
+    }
+
+    #[test]
+    fn piecewise_linear_interpolates_and_extrapolates() {
+        let f = PiecewiseLinear::new(vec![0.0, 1.0, 3.0], vec![1.0, 3.0, 2.0]).unwrap();
+        assert_eq!(f.eval(0.5), (2.0, 2.0, 0.0));
+        assert_eq!(f.eval(2.0), (2.5, -0.5, 0.0));
+        assert_eq!(f.eval(-1.0), (-1.0, 2.0, 0.0));
+        assert_eq!(f.eval(5.0), (1.0, -0.5, 0.0));
+    }
+
+    #[test]
+    fn multiplier_and_linear_of_several_arguments() {
+        let f = Function::Multiplier(Box::new(Function::Linear(vec![2.0, -1.0, 0.5])), 3.0);
+        assert_eq!(f.arity(), Arity::Exactly(2));
+        let mut g = [0.0; 2];
+        let mut h = [1.0; 4];
+        let v = f.eval(&[1.0, 4.0], &mut g, &mut h);
+        assert_eq!(v, 3.0 * (2.0 - 4.0 + 0.5));
+        assert_eq!(g, [6.0, -3.0]);
+        assert_eq!(h, [0.0; 4]);
+    }
+
+    #[test]
+    fn bad_spline_input_is_rejected() {
+        assert!(SimmSpline::new(vec![0.0, 1.0], vec![0.0]).is_err());
+        assert!(SimmSpline::new(vec![0.0], vec![0.0]).is_err());
+        assert!(SimmSpline::new(vec![0.0, 0.0, 1.0], vec![0.0, 1.0, 2.0]).is_err());
+        assert!(SimmSpline::new(vec![0.0, f64::NAN], vec![0.0, 1.0]).is_err());
+        assert!(PiecewiseLinear::new(vec![1.0, 0.0], vec![0.0, 1.0]).is_err());
+    }
+}

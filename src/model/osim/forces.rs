@@ -1,0 +1,347 @@
+//! Markers, contact geometry, wrap objects and the force set (muscles with their geometry
+//! paths, actuators, other forces), kept for the later stages.
+
+use super::functions::{function_child, parse_function};
+use super::xml::{Ctx, XNode, child, elements, set_members};
+use crate::error::Error;
+use crate::model::frames::{FrameRegistry, resolve_path};
+use crate::model::{
+    Arity, ContactGeometry, ContactShape, ForceElement, Function, GeometryPath, Marker, Model,
+    PathPoint, PathPointKind, PathWrap, WrapObject, WrapShape,
+};
+use crate::spatial::{Transform, Vec3};
+
+/// Muscle classes whose physics musculo implements (or will, in its muscle stage).
+pub const SUPPORTED_MUSCLES: &[&str] = &[
+    "Thelen2003Muscle",
+    "Millard2012EquilibriumMuscle",
+    "DeGrooteFregly2016Muscle",
+];
+
+/// Actuators used as they are by the optimisation stages.
+pub const ACTUATORS: &[&str] = &[
+    "CoordinateActuator",
+    "PointActuator",
+    "TorqueActuator",
+    "PathActuator",
+];
+
+/// Resolves a socket path naming a coordinate (e.g. `/jointset/knee_r/knee_angle_r` or a bare
+/// name) to its index.
+fn coordinate_from_socket(ctx: &Ctx, node: XNode, model: &Model, tag: &str) -> Result<usize, Error> {
+    let path = ctx
+        .text(node, tag)
+        .filter(|s| !s.is_empty())
+        .ok_or_else(|| ctx.err(node, format!("missing <{tag}>")))?;
+    let name = path.rsplit('/').next().unwrap_or(path);
+    let idx = model
+        .coordinate_index(name)
+        .ok_or_else(|| ctx.err(node, format!("<{tag}>: unknown coordinate `{path}`")))?;
+    // When the path names the joint too, it must be the coordinate's joint.
+    let segs: Vec<&str> = path.split('/').filter(|s| !s.is_empty()).collect();
+    if segs.len() >= 3 && segs[segs.len() - 3] == "jointset" {
+        let joint = segs[segs.len() - 2];
+        if model.joints[model.coordinates[idx].joint].name != joint {
+            return Err(ctx.err(node, format!("<{tag}>: coordinate `{name}` does not belong to joint `{joint}`")));
+        }
+    }
+    Ok(idx)
+}
+
+fn frame_socket(
+    ctx: &Ctx,
+    node: XNode,
+    frames: &mut FrameRegistry,
+    owner: &str,
+    tag: &str,
+) -> Result<(usize, Transform), Error> {
+    let socket = ctx
+        .text(node, tag)
+        .filter(|s| !s.is_empty())
+        .ok_or_else(|| ctx.err(node, format!("missing <{tag}>")))?;
+    frames
+        .resolve(owner, socket)
+        .map_err(|e| ctx.err(node, format!("<{tag}>: {e}")))
+}
+
+pub(super) fn read_marker(ctx: &mut Ctx, m: XNode, frames: &mut FrameRegistry) -> Result<Marker, Error> {
+    let name = ctx.name(m)?;
+    let owner = format!("/markerset/{name}");
+    let (body, x) = frame_socket(ctx, m, frames, &owner, "socket_parent_frame")?;
+    let location = ctx.vec3_or(m, "location", Vec3::zeros())?;
+    for c in elements(m) {
+        match c.tag_name().name() {
+            "socket_parent_frame" | "location" | "fixed" => {}
+            _ => ctx.unknown(c),
+        }
+    }
+    Ok(Marker {
+        name,
+        body,
+        location_in_body: x.apply_point(&location),
+        fixed: ctx.bool_or(m, "fixed", false)?,
+    })
+}
+
+pub(super) fn read_contact_geometry(
+    ctx: &mut Ctx,
+    g: XNode,
+    frames: &mut FrameRegistry,
+) -> Result<Option<ContactGeometry>, Error> {
+    let tag = g.tag_name().name();
+    let shape = match tag {
+        "ContactSphere" => {
+            let radius = ctx.req_f64(g, "radius")?;
+            if radius <= 0.0 {
+                return Err(ctx.err(g, format!("radius {radius} must be positive")));
+            }
+            ContactShape::Sphere { radius }
+        }
+        "ContactHalfSpace" => ContactShape::HalfSpace,
+        _ => {
+            ctx.warn(g, format!("contact geometry `{tag}` is not supported; ignored"));
+            return Ok(None);
+        }
+    };
+    let name = ctx.name(g)?;
+    let owner = format!("/contactgeometryset/{name}");
+    let (body, x) = frame_socket(ctx, g, frames, &owner, "socket_frame")?;
+    let location = ctx.vec3_or(g, "location", Vec3::zeros())?;
+    let orientation = ctx.vec3_or(g, "orientation", Vec3::zeros())?;
+    for c in elements(g) {
+        match c.tag_name().name() {
+            "socket_frame" | "location" | "orientation" | "radius" => {}
+            _ => ctx.unknown(c),
+        }
+    }
+    Ok(Some(ContactGeometry {
+        name,
+        body,
+        pose_in_body: x.compose(&Transform::from_translation_xyz_body(location, orientation)),
+        shape,
+    }))
+}
+
+pub(super) fn read_wrap_object(ctx: &mut Ctx, w: XNode, body: usize) -> Result<Option<WrapObject>, Error> {
+    let tag = w.tag_name().name();
+    let positive = |ctx: &Ctx, tag: &str| -> Result<f64, Error> {
+        let v = ctx.req_f64(w, tag)?;
+        if v <= 0.0 {
+            return Err(ctx.err(w, format!("<{tag}> must be positive, found {v}")));
+        }
+        Ok(v)
+    };
+    let shape = match tag {
+        "WrapSphere" => WrapShape::Sphere { radius: positive(ctx, "radius")? },
+        "WrapCylinder" => WrapShape::Cylinder {
+            radius: positive(ctx, "radius")?,
+            length: ctx.f64_or(w, "length", 1.0)?,
+        },
+        "WrapEllipsoid" => {
+            let d = ctx.vec3_or(w, "dimensions", Vec3::zeros())?;
+            if child(w, "dimensions").is_none() || d.iter().any(|&v| v <= 0.0) {
+                return Err(ctx.err(w, "<dimensions> must hold three positive radii"));
+            }
+            WrapShape::Ellipsoid { dimensions: d }
+        }
+        "WrapTorus" => WrapShape::Torus {
+            inner_radius: positive(ctx, "inner_radius")?,
+            outer_radius: positive(ctx, "outer_radius")?,
+        },
+        _ => {
+            ctx.warn(w, format!("wrap object type `{tag}` is not supported; paths that use it are reported"));
+            return Ok(None);
+        }
+    };
+    for c in elements(w) {
+        match c.tag_name().name() {
+            "active" | "xyz_body_rotation" | "translation" | "quadrant" | "radius" | "length"
+            | "dimensions" | "inner_radius" | "outer_radius" | "display_preference" | "color" => {}
+            _ => ctx.unknown(c),
+        }
+    }
+    Ok(Some(WrapObject {
+        name: ctx.name(w)?,
+        body,
+        pose_in_body: Transform::from_translation_xyz_body(
+            ctx.vec3_or(w, "translation", Vec3::zeros())?,
+            ctx.vec3_or(w, "xyz_body_rotation", Vec3::zeros())?,
+        ),
+        shape,
+        quadrant: ctx.text(w, "quadrant").unwrap_or("all").to_string(),
+        active: ctx.bool_or(w, "active", true)?,
+        line: ctx.line(w),
+    }))
+}
+
+pub(super) fn read_force(
+    ctx: &mut Ctx,
+    f: XNode,
+    frames: &mut FrameRegistry,
+    model: &Model,
+) -> Result<ForceElement, Error> {
+    let name = ctx.name(f)?;
+    let kind = f.tag_name().name().to_string();
+    let path = match child(f, "GeometryPath") {
+        Some(gp) => Some(read_geometry_path(ctx, gp, frames, model, &format!("/forceset/{name}"))?),
+        None => None,
+    };
+    let is_muscle = kind.ends_with("Muscle") || kind.contains("Muscle_");
+    if is_muscle {
+        for (tag, min_exclusive) in [
+            ("optimal_fiber_length", true),
+            ("max_isometric_force", false),
+            ("tendon_slack_length", false),
+            ("max_contraction_velocity", true),
+        ] {
+            if child(f, tag).is_some() {
+                let v = ctx.req_f64(f, tag)?;
+                if (min_exclusive && v <= 0.0) || v < 0.0 {
+                    let need = if min_exclusive { "positive" } else { "non-negative" };
+                    return Err(ctx.err(f, format!("<{tag}> must be {need}, found {v}")));
+                }
+            }
+        }
+        if !SUPPORTED_MUSCLES.contains(&kind.as_str()) {
+            ctx.warn(f, format!(
+                "muscle model `{kind}` is not one musculo implements ({}); its path is kept",
+                SUPPORTED_MUSCLES.join(", ")
+            ));
+        }
+        if path.is_none() {
+            return Err(ctx.err(f, "muscle without a <GeometryPath>"));
+        }
+    } else if !ACTUATORS.contains(&kind.as_str()) {
+        ctx.warn(f, format!("force element `{kind}` is kept but not applied by musculo's dynamics"));
+    }
+    Ok(ForceElement {
+        name,
+        kind,
+        path,
+        raw: ctx.raw(f),
+        line: ctx.line(f),
+    })
+}
+
+fn read_geometry_path(
+    ctx: &mut Ctx,
+    gp: XNode,
+    frames: &mut FrameRegistry,
+    model: &Model,
+    owner: &str,
+) -> Result<GeometryPath, Error> {
+    let gp_owner = resolve_path(owner, gp.attribute("name").unwrap_or("geometrypath"));
+    let mut path = GeometryPath::default();
+    for c in elements(gp) {
+        match c.tag_name().name() {
+            "PathPointSet" => {
+                for p in set_members(c) {
+                    path.points.push(read_path_point(ctx, p, frames, model, &gp_owner)?);
+                }
+            }
+            "PathWrapSet" => {
+                for w in set_members(c) {
+                    path.wraps.push(read_path_wrap(ctx, w, model)?);
+                }
+            }
+            "default_color" => {}
+            _ => ctx.unknown(c),
+        }
+    }
+    if path.points.len() < 2 {
+        return Err(ctx.err(gp, format!("a path needs at least 2 points, found {}", path.points.len())));
+    }
+    Ok(path)
+}
+
+fn read_path_point(
+    ctx: &mut Ctx,
+    p: XNode,
+    frames: &mut FrameRegistry,
+    model: &Model,
+    owner: &str,
+) -> Result<PathPoint, Error> {
+    let tag = p.tag_name().name();
+    let name = ctx.name(p)?;
+    let point_owner = resolve_path(owner, &name);
+    let (body, frame_in_body) = frame_socket(ctx, p, frames, &point_owner, "socket_parent_frame")?;
+    let mut location = ctx.vec3_or(p, "location", Vec3::zeros())?;
+    let kind = match tag {
+        "PathPoint" => PathPointKind::Fixed,
+        "ConditionalPathPoint" => {
+            let coordinate = coordinate_from_socket(ctx, p, model, "socket_coordinate")?;
+            let r = ctx
+                .vec_opt(p, "range")?
+                .ok_or_else(|| ctx.err(p, "missing <range>"))?;
+            if r.len() != 2 || r[0] > r[1] {
+                return Err(ctx.err(p, "<range> must be two numbers, minimum first"));
+            }
+            PathPointKind::Conditional { coordinate, range: [r[0], r[1]] }
+        }
+        "MovingPathPoint" => {
+            let comp = |axis: &str| -> Result<(Function, usize), Error> {
+                let holder = child(p, &format!("{axis}_location"))
+                    .ok_or_else(|| ctx.err(p, format!("missing <{axis}_location>")))?;
+                let fnode = function_child(holder)
+                    .ok_or_else(|| ctx.err(holder, "holds no function element"))?;
+                let f = parse_function(ctx, fnode)?;
+                if !matches!(f.arity(), Arity::Any | Arity::Exactly(1)) {
+                    return Err(ctx.err(fnode, "a moving point's location must be a function of one coordinate"));
+                }
+                let c = coordinate_from_socket(ctx, p, model, &format!("socket_{axis}_coordinate"))?;
+                Ok((f, c))
+            };
+            let (x, y, z) = (comp("x")?, comp("y")?, comp("z")?);
+            // Location at the model's default coordinate values.
+            let at = |(f, c): &(Function, usize)| f.eval1(model.coordinates[*c].default_value).0;
+            location = Vec3::new(at(&x), at(&y), at(&z));
+            PathPointKind::Moving { x, y, z }
+        }
+        _ => return Err(ctx.err(p, format!("unsupported path point type `{tag}`"))),
+    };
+    for c in elements(p) {
+        match c.tag_name().name() {
+            "socket_parent_frame" | "location" | "socket_coordinate" | "range" | "x_location"
+            | "y_location" | "z_location" | "socket_x_coordinate" | "socket_y_coordinate"
+            | "socket_z_coordinate" => {}
+            _ => ctx.unknown(c),
+        }
+    }
+    Ok(PathPoint {
+        name,
+        body,
+        frame_in_body,
+        location,
+        kind,
+        line: ctx.line(p),
+    })
+}
+
+fn read_path_wrap(ctx: &mut Ctx, w: XNode, model: &Model) -> Result<PathWrap, Error> {
+    if w.tag_name().name() != "PathWrap" {
+        return Err(ctx.err(w, format!("unsupported path wrap type `{}`", w.tag_name().name())));
+    }
+    let obj = ctx.req_text(w, "wrap_object")?;
+    let hits: Vec<usize> = (0..model.wrap_objects.len())
+        .filter(|&i| model.wrap_objects[i].name == obj)
+        .collect();
+    let wrap_object = match hits.as_slice() {
+        [i] => *i,
+        [] => {
+            return Err(ctx.err(w, format!(
+                "unknown wrap object `{obj}` (or one of a type musculo does not support: see the warnings)"
+            )));
+        }
+        _ => return Err(ctx.err(w, format!("wrap object name `{obj}` is used by several bodies"))),
+    };
+    let range = match ctx.vec_opt(w, "range")? {
+        None => [-1, -1],
+        Some(r) if r.len() == 2 && r.iter().all(|v| v.fract() == 0.0) => [r[0] as i32, r[1] as i32],
+        Some(_) => return Err(ctx.err(w, "<range> must be two integers")),
+    };
+    Ok(PathWrap {
+        wrap_object,
+        method: ctx.text(w, "method").unwrap_or("hybrid").to_string(),
+        range,
+    })
+}

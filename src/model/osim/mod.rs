@@ -1,0 +1,470 @@
+//! The OpenSim 4.x `.osim` reader: XML (roxmltree) → [`Model`].
+//!
+//! Everything in the file is either read, counted as display-only (meshes, appearance), or
+//! reported: an unsupported element that would change the dynamics is an error; one that
+//! musculo keeps but does not use is a named [`Warning`].
+
+mod forces;
+mod functions;
+mod joints;
+mod xml;
+
+use self::functions::{function_child, parse_function};
+use self::xml::{Ctx, XNode, child, elements, set_members};
+use super::frames::{FrameRegistry, OffsetFrameDef, resolve_path};
+use super::{
+    Body, CoordinateRole, CouplerConstraint, Model,
+    reduction::Reduction,
+};
+use crate::error::Error;
+use crate::spatial::{Mat3, Transform, Vec3};
+use roxmltree::{Document, ParsingOptions};
+
+/// Options for reading a model file.
+#[derive(Clone, Debug, Default)]
+pub struct LoadOptions {
+    /// Accept bodies whose principal moments of inertia violate the triangle inequality
+    /// (I₁ + I₂ ≥ I₃), as release builds of OpenSim do, recording a warning for each instead
+    /// of failing. Off by default: such an inertia cannot belong to a real body.
+    pub allow_nonphysical_inertia: bool,
+}
+
+/// The oldest file version read: OpenSim 4.0 writes `Version="40000"`.
+const MIN_VERSION: u32 = 40000;
+
+pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<Model, Error> {
+    let doc = Document::parse_with_options(
+        text,
+        ParsingOptions {
+            allow_dtd: true,
+            ..ParsingOptions::default()
+        },
+    )
+    .map_err(|e| {
+        let pos = e.pos();
+        Error::Xml {
+            file: source.to_string(),
+            line: pos.row,
+            column: pos.col,
+            message: e.to_string(),
+        }
+    })?;
+    let mut ctx = Ctx {
+        doc: &doc,
+        file: source,
+        warnings: Vec::new(),
+        visual: 0,
+    };
+    let root = doc.root_element();
+    if root.tag_name().name() != "OpenSimDocument" {
+        return Err(ctx.err(root, "the root element must be <OpenSimDocument>"));
+    }
+    let version: u32 = root
+        .attribute("Version")
+        .and_then(|v| v.trim().parse().ok())
+        .ok_or_else(|| ctx.err(root, "missing or invalid `Version` attribute"))?;
+    if version < MIN_VERSION {
+        return Err(ctx.err(
+            root,
+            format!(
+                "file format Version {version} is OpenSim 3.x or older; musculo reads OpenSim 4.x \
+                 files (Version ≥ {MIN_VERSION}): open and save the model in OpenSim 4 first"
+            ),
+        ));
+    }
+    let mut model_node = None;
+    for c in elements(root) {
+        if c.tag_name().name() == "Model" && model_node.is_none() {
+            model_node = Some(c);
+        } else {
+            ctx.unknown(c);
+        }
+    }
+    let model_node = model_node.ok_or_else(|| ctx.err(root, "no <Model> element"))?;
+    ModelReader::default().read(&mut ctx, model_node, source, options)
+}
+
+/// A body as read, before topological ordering.
+struct BodyDef {
+    name: String,
+    mass: f64,
+    com: Vec3,
+    inertia: Mat3,
+    line: u32,
+}
+
+#[derive(Default)]
+struct ModelReader<'a, 'i> {
+    frames: FrameRegistry,
+    bodies: Vec<BodyDef>,
+    /// Wrap-object elements with their (file-order) body index.
+    wrap_nodes: Vec<(XNode<'a, 'i>, usize)>,
+    joint_nodes: Vec<XNode<'a, 'i>>,
+    constraint_nodes: Vec<XNode<'a, 'i>>,
+    force_nodes: Vec<XNode<'a, 'i>>,
+    marker_nodes: Vec<XNode<'a, 'i>>,
+    contact_nodes: Vec<XNode<'a, 'i>>,
+}
+
+impl<'a, 'i> ModelReader<'a, 'i> {
+    fn read(
+        mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        model: XNode<'a, 'i>,
+        source: &str,
+        options: &LoadOptions,
+    ) -> Result<Model, Error> {
+        let name = model.attribute("name").unwrap_or("model").to_string();
+        let mut gravity = Vec3::new(0.0, -9.80665, 0.0);
+        let mut ground = None;
+        for c in elements(model) {
+            match c.tag_name().name() {
+                "Ground" => ground = Some(c),
+                "gravity" => gravity = ctx.vec3_or(model, "gravity", gravity)?,
+                "credits" | "publications" => {}
+                "length_units" => {
+                    let u = c.text().unwrap_or("").trim();
+                    if !matches!(u, "meters" | "meter" | "m") {
+                        return Err(ctx.err(c, format!("length units `{u}` are not supported; musculo reads models in meters")));
+                    }
+                }
+                "force_units" => {
+                    let u = c.text().unwrap_or("").trim();
+                    if !matches!(u, "N" | "newtons" | "Newtons") {
+                        return Err(ctx.err(c, format!("force units `{u}` are not supported; musculo reads models in N")));
+                    }
+                }
+                "BodySet" => {
+                    for b in set_members(c) {
+                        if b.tag_name().name() == "Body" {
+                            self.read_body(ctx, b, options)?;
+                        } else {
+                            return Err(ctx.err(b, format!("unsupported body type `{}`", b.tag_name().name())));
+                        }
+                    }
+                }
+                "JointSet" => self.joint_nodes.extend(set_members(c)),
+                "ConstraintSet" => self.constraint_nodes.extend(set_members(c)),
+                "ForceSet" => self.force_nodes.extend(set_members(c)),
+                "MarkerSet" => self.marker_nodes.extend(set_members(c)),
+                "ContactGeometrySet" => self.contact_nodes.extend(set_members(c)),
+                "ComponentSet" | "components" => {
+                    let base = if c.tag_name().name() == "ComponentSet" { "/componentset" } else { "" };
+                    for m in set_members(c) {
+                        self.read_component(ctx, m, base)?;
+                    }
+                }
+                "ControllerSet" | "ProbeSet" => {
+                    let n = set_members(c).len();
+                    if n > 0 {
+                        ctx.warn(c, format!("{n} element(s) kept out of the model: musculo computes controls and analyses itself"));
+                    }
+                }
+                "defaults" => {}
+                _ => ctx.unknown(c),
+            }
+        }
+        // Ground is body 0 in file order too.
+        let ground_name = ground
+            .and_then(|g| g.attribute("name"))
+            .unwrap_or("ground")
+            .to_string();
+        self.bodies.insert(
+            0,
+            BodyDef {
+                name: ground_name,
+                mass: 0.0,
+                com: Vec3::zeros(),
+                inertia: Mat3::zeros(),
+                line: ground.map(|g| ctx.line(g)).unwrap_or(0),
+            },
+        );
+        // Bodies were read with indices starting at 0; shift them by one for ground.
+        for (_, b) in self.wrap_nodes.iter_mut() {
+            *b += 1;
+        }
+        self.frames.add_body("/ground".to_string(), 0);
+        for (i, b) in self.bodies.iter().enumerate().skip(1) {
+            self.frames.add_body(format!("/bodyset/{}", b.name), i);
+        }
+        if let Some(g) = ground {
+            for c in elements(g) {
+                match c.tag_name().name() {
+                    "WrapObjectSet" => self.wrap_nodes.extend(set_members(c).into_iter().map(|w| (w, 0))),
+                    "components" => {
+                        for m in set_members(c) {
+                            self.read_component(ctx, m, "/ground")?;
+                        }
+                    }
+                    _ => ctx.unknown(c),
+                }
+            }
+        }
+        {
+            let mut seen = std::collections::HashSet::new();
+            for b in &self.bodies {
+                if !seen.insert(b.name.clone()) {
+                    return Err(Error::Model {
+                        file: ctx.file.to_string(),
+                        line: b.line,
+                        element: format!("Body \"{}\"", b.name),
+                        message: "two bodies have this name".into(),
+                    });
+                }
+            }
+        }
+
+        // Joints: register their frames first (a joint may refer to another joint's frame).
+        let joint_defs = joints::read_joints(ctx, &self.joint_nodes, &mut self.frames)?;
+        let tree = joints::build_tree(ctx, joint_defs, &mut self.frames, self.bodies.len())?;
+
+        // Bodies in topological order.
+        let bodies: Vec<Body> = tree
+            .body_order
+            .iter()
+            .enumerate()
+            .map(|(new, &old)| {
+                let d = &self.bodies[old];
+                Body {
+                    name: d.name.clone(),
+                    mass: d.mass,
+                    com_in_body: d.com,
+                    inertia_about_com: d.inertia,
+                    joint: tree.body_joint[new],
+                    parent: tree.body_parent[new],
+                    line: d.line,
+                }
+            })
+            .collect();
+        let new_index = |old: usize| tree.body_new_index[old];
+        self.frames.renumber_bodies(&tree.body_new_index);
+
+        let mut model = Model {
+            name,
+            source: source.to_string(),
+            gravity,
+            bodies,
+            joints: tree.joints,
+            coordinates: tree.coordinates,
+            dofs: tree.dofs,
+            couplers: Vec::new(),
+            markers: Vec::new(),
+            contact_geometry: Vec::new(),
+            forces: Vec::new(),
+            wrap_objects: Vec::new(),
+            warnings: Vec::new(),
+            visual_elements_skipped: 0,
+            reduction: Reduction::default(),
+        };
+
+        for c in std::mem::take(&mut self.constraint_nodes) {
+            self.read_constraint(ctx, c, &mut model)?;
+        }
+        model.reduction = Reduction::build(&model).map_err(|(coupler, message)| {
+            let c = &model.couplers[coupler];
+            Error::Model {
+                file: ctx.file.to_string(),
+                line: c.line,
+                element: format!("CoordinateCouplerConstraint \"{}\"", c.name),
+                message,
+            }
+        })?;
+        for c in model.coordinates.iter_mut() {
+            if !matches!(c.role, CoordinateRole::Dependent(_)) {
+                c.role = CoordinateRole::Locked;
+            }
+        }
+        for (j, &c) in model.reduction.independent.iter().enumerate() {
+            model.coordinates[c].role = CoordinateRole::Independent(j);
+        }
+
+        for &(w, body) in &self.wrap_nodes {
+            if let Some(obj) = forces::read_wrap_object(ctx, w, new_index(body))? {
+                model.wrap_objects.push(obj);
+            }
+        }
+        for &m in &self.marker_nodes {
+            model.markers.push(forces::read_marker(ctx, m, &mut self.frames)?);
+        }
+        for &c in &self.contact_nodes {
+            if let Some(g) = forces::read_contact_geometry(ctx, c, &mut self.frames)? {
+                model.contact_geometry.push(g);
+            }
+        }
+        for &f in &self.force_nodes {
+            let force = forces::read_force(ctx, f, &mut self.frames, &model)?;
+            model.forces.push(force);
+        }
+        model.warnings = std::mem::take(&mut ctx.warnings);
+        model.visual_elements_skipped = ctx.visual;
+        Ok(model)
+    }
+
+    fn read_body(&mut self, ctx: &mut Ctx<'a, 'i>, b: XNode<'a, 'i>, options: &LoadOptions) -> Result<(), Error> {
+        let name = ctx.name(b)?;
+        let index = self.bodies.len(); // file-order index before ground is inserted
+        let mass = ctx.f64_or(b, "mass", 0.0)?;
+        if mass < 0.0 {
+            return Err(ctx.err(b, format!("negative mass {mass} kg")));
+        }
+        let com = ctx.vec3_or(b, "mass_center", Vec3::zeros())?;
+        let iv = ctx.vec_opt(b, "inertia")?.unwrap_or_else(|| vec![0.0; 6]);
+        if iv.len() != 6 {
+            return Err(ctx.err(b, format!("<inertia> must hold 6 numbers [Ixx Iyy Izz Ixy Ixz Iyz], found {}", iv.len())));
+        }
+        let inertia = Mat3::new(iv[0], iv[3], iv[4], iv[3], iv[1], iv[5], iv[4], iv[5], iv[2]);
+        check_inertia(ctx, b, &inertia, options)?;
+        for c in elements(b) {
+            match c.tag_name().name() {
+                "mass" | "mass_center" | "inertia" => {}
+                "WrapObjectSet" => self.wrap_nodes.extend(set_members(c).into_iter().map(|w| (w, index))),
+                "components" => {
+                    for m in set_members(c) {
+                        self.read_component(ctx, m, &format!("/bodyset/{name}"))?;
+                    }
+                }
+                _ => ctx.unknown(c),
+            }
+        }
+        self.bodies.push(BodyDef {
+            name,
+            mass,
+            com,
+            inertia,
+            line: ctx.line(b),
+        });
+        Ok(())
+    }
+
+    /// A member of `components` / `ComponentSet`: offset frames are registered, anything
+    /// else is reported.
+    fn read_component(&mut self, ctx: &mut Ctx<'a, 'i>, c: XNode<'a, 'i>, owner: &str) -> Result<(), Error> {
+        if c.tag_name().name() == "PhysicalOffsetFrame" {
+            let def = read_offset_frame(ctx, c, owner)?;
+            if !self.frames.add_offset(def) {
+                return Err(ctx.err(c, "another frame has the same path"));
+            }
+            Ok(())
+        } else {
+            ctx.warn(c, format!("component of type `{}` is not used by musculo", c.tag_name().name()));
+            Ok(())
+        }
+    }
+
+    fn read_constraint(&mut self, ctx: &mut Ctx<'a, 'i>, c: XNode<'a, 'i>, model: &mut Model) -> Result<(), Error> {
+        if c.tag_name().name() != "CoordinateCouplerConstraint" {
+            ctx.warn(c, format!(
+                "constraint type `{}` is not supported and is NOT enforced: the dynamics are computed without it",
+                c.tag_name().name()
+            ));
+            return Ok(());
+        }
+        let name = ctx.name(c)?;
+        if !ctx.bool_or(c, "isEnforced", true)? {
+            ctx.warn(c, "isEnforced is false: the coupling is ignored, as in OpenSim");
+            return Ok(());
+        }
+        let find = |n: &str| model.coordinate_index(n);
+        let dep_name = ctx.req_text(c, "dependent_coordinate_name")?;
+        let dependent = find(dep_name)
+            .ok_or_else(|| ctx.err(c, format!("unknown dependent coordinate `{dep_name}`")))?;
+        let indep_text = ctx.req_text(c, "independent_coordinate_names")?;
+        let mut independents = Vec::new();
+        for n in indep_text.split_whitespace() {
+            let i = find(n).ok_or_else(|| ctx.err(c, format!("unknown independent coordinate `{n}`")))?;
+            if i == dependent {
+                return Err(ctx.err(c, format!("coordinate `{n}` cannot depend on itself")));
+            }
+            independents.push(i);
+        }
+        let holder = child(c, "coupled_coordinates_function")
+            .ok_or_else(|| ctx.err(c, "missing <coupled_coordinates_function>"))?;
+        let fnode = function_child(holder)
+            .ok_or_else(|| ctx.err(holder, "holds no function element"))?;
+        let function = parse_function(ctx, fnode)?;
+        if let super::Arity::Exactly(k) = function.arity() {
+            if k != independents.len() {
+                return Err(ctx.err(fnode, format!(
+                    "function of {k} argument(s) given {} independent coordinate(s)",
+                    independents.len()
+                )));
+            }
+        }
+        let scale = ctx.f64_or(c, "scale_factor", 1.0)?;
+        let coord = &mut model.coordinates[dependent];
+        if coord.locked {
+            return Err(ctx.err(c, format!(
+                "coordinate `{dep_name}` is both locked and the dependent coordinate of this coupler"
+            )));
+        }
+        if let CoordinateRole::Dependent(other) = coord.role {
+            return Err(ctx.err(c, format!(
+                "coordinate `{dep_name}` is already the dependent coordinate of coupler `{}`",
+                model.couplers[other].name
+            )));
+        }
+        coord.role = CoordinateRole::Dependent(model.couplers.len());
+        model.couplers.push(CouplerConstraint {
+            name,
+            dependent,
+            independents,
+            function,
+            scale,
+            line: ctx.line(c),
+        });
+        Ok(())
+    }
+}
+
+/// A PhysicalOffsetFrame element owned by the component at `owner`.
+fn read_offset_frame(ctx: &mut Ctx, f: XNode, owner: &str) -> Result<OffsetFrameDef, Error> {
+    let name = ctx.name(f)?;
+    let parent = ctx
+        .text(f, "socket_parent")
+        .filter(|s| !s.is_empty())
+        .ok_or_else(|| ctx.err(f, "missing <socket_parent>"))?
+        .to_string();
+    let translation = ctx.vec3_or(f, "translation", Vec3::zeros())?;
+    let orientation = ctx.vec3_or(f, "orientation", Vec3::zeros())?;
+    for c in elements(f) {
+        match c.tag_name().name() {
+            "socket_parent" | "translation" | "orientation" => {}
+            _ => ctx.unknown(c),
+        }
+    }
+    Ok(OffsetFrameDef {
+        path: resolve_path(owner, &name),
+        parent,
+        offset: Transform::from_translation_xyz_body(translation, orientation),
+    })
+}
+
+/// Inertia checks: symmetric positive semi-definite with principal moments satisfying the
+/// triangle inequality I₁ + I₂ ≥ I₃ (with a relative tolerance of 1e-9).
+fn check_inertia(ctx: &mut Ctx, b: XNode, inertia: &Mat3, options: &LoadOptions) -> Result<(), Error> {
+    let eig = nalgebra::SymmetricEigen::new(*inertia).eigenvalues;
+    let mut p = [eig[0], eig[1], eig[2]];
+    p.sort_by(|a, b| a.total_cmp(b));
+    let scale = p[2].abs().max(1e-300);
+    let tol = 1e-9 * scale;
+    if p[0] < -tol {
+        return Err(ctx.err(b, format!(
+            "inertia is not positive semi-definite (principal moments {:.6e}, {:.6e}, {:.6e})",
+            p[0], p[1], p[2]
+        )));
+    }
+    if p[0] + p[1] < p[2] - tol {
+        let msg = format!(
+            "inertia violates the triangle inequality: principal moments {:.6e} + {:.6e} < {:.6e}",
+            p[0], p[1], p[2]
+        );
+        if options.allow_nonphysical_inertia {
+            ctx.warn(b, format!("{msg} (accepted: LoadOptions::allow_nonphysical_inertia)"));
+        } else {
+            return Err(ctx.err(b, format!(
+                "{msg}; no rigid body has such an inertia (load with allow_nonphysical_inertia to accept it as OpenSim does)"
+            )));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! Small helpers over roxmltree for reading OpenSim XML with error context: every error
+//! names the file, the line and the element (as a path of named ancestors).
+
+use crate::error::Error;
+use crate::model::{RawElement, Warning};
+use crate::spatial::Vec3;
+use roxmltree::{Document, Node};
+
+pub type XNode<'a, 'i> = Node<'a, 'i>;
+
+/// Parsing context: the document, its file name, and the warnings collected so far.
+pub struct Ctx<'a, 'i> {
+    pub doc: &'a Document<'i>,
+    pub file: &'a str,
+    pub warnings: Vec<Warning>,
+    pub visual: usize,
+}
+
+/// Display-only elements: skipped and counted, never needed for dynamics.
+pub const VISUAL_TAGS: &[&str] = &[
+    "FrameGeometry",
+    "attached_geometry",
+    "Appearance",
+    "SurfaceProperties",
+    "Mesh",
+    "Brick",
+    "Sphere",
+    "Cylinder",
+    "Ellipsoid",
+    "Cone",
+    "Arrow",
+    "Line",
+    "Torus",
+    "visible",
+    "geometry",
+    "GeometrySet",
+    "DisplayGeometry",
+    "VisibleObject",
+];
+
+impl<'a, 'i> Ctx<'a, 'i> {
+    pub fn line(&self, node: XNode) -> u32 {
+        self.doc.text_pos_at(node.range().start).row
+    }
+
+    /// `JointSet > CustomJoint "knee_r" > SpatialTransform > TransformAxis "translation1"`.
+    pub fn describe(&self, node: XNode) -> String {
+        let mut parts: Vec<String> = node
+            .ancestors()
+            .filter(|n| n.is_element())
+            .take_while(|n| n.tag_name().name() != "Model" && n.tag_name().name() != "OpenSimDocument")
+            .filter(|n| n.tag_name().name() != "objects")
+            .map(|n| match n.attribute("name") {
+                Some(name) => format!("{} \"{}\"", n.tag_name().name(), name),
+                None => format!("<{}>", n.tag_name().name()),
+            })
+            .collect();
+        parts.reverse();
+        if parts.is_empty() {
+            format!("<{}>", node.tag_name().name())
+        } else {
+            parts.join(" > ")
+        }
+    }
+
+    pub fn err(&self, node: XNode, message: impl Into<String>) -> Error {
+        Error::Model {
+            file: self.file.to_string(),
+            line: self.line(node),
+            element: self.describe(node),
+            message: message.into(),
+        }
+    }
+
+    pub fn warn(&mut self, node: XNode, message: impl Into<String>) {
+        let w = Warning {
+            line: self.line(node),
+            element: self.describe(node),
+            message: message.into(),
+        };
+        self.warnings.push(w);
+    }
+
+    /// Warns about an element the parser does not know at this place.
+    pub fn unknown(&mut self, node: XNode) {
+        if VISUAL_TAGS.contains(&node.tag_name().name()) {
+            self.visual += 1;
+        } else {
+            self.warn(node, "element not recognised by musculo; ignored");
+        }
+    }
+
+    /// The text of the child element `tag`, trimmed.
+    pub fn text(&self, node: XNode<'a, 'i>, tag: &str) -> Option<&'a str> {
+        child(node, tag).map(|c| c.text().unwrap_or("").trim())
+    }
+
+    /// A required child's text.
+    pub fn req_text(&self, node: XNode<'a, 'i>, tag: &str) -> Result<&'a str, Error> {
+        self.text(node, tag)
+            .ok_or_else(|| self.err(node, format!("missing <{tag}>")))
+    }
+
+    pub fn numbers(&self, node: XNode, tag: &str, text: &str) -> Result<Vec<f64>, Error> {
+        text.split_whitespace()
+            .map(|t| {
+                let v: f64 = t.parse().map_err(|_| {
+                    self.err(node, format!("<{tag}>: `{t}` is not a number"))
+                })?;
+                if v.is_finite() {
+                    Ok(v)
+                } else {
+                    Err(self.err(node, format!("<{tag}>: `{t}` is not a finite number")))
+                }
+            })
+            .collect()
+    }
+
+    /// Optional list of numbers in child `tag` (empty if absent).
+    pub fn vec_opt(&self, node: XNode<'a, 'i>, tag: &str) -> Result<Option<Vec<f64>>, Error> {
+        match child(node, tag) {
+            None => Ok(None),
+            Some(c) => self
+                .numbers(c, tag, c.text().unwrap_or(""))
+                .map(Some),
+        }
+    }
+
+    /// A number in child `tag`, or `default` when the child is absent.
+    pub fn f64_or(&self, node: XNode<'a, 'i>, tag: &str, default: f64) -> Result<f64, Error> {
+        match child(node, tag) {
+            None => Ok(default),
+            Some(c) => {
+                let v = self.numbers(c, tag, c.text().unwrap_or(""))?;
+                if v.len() != 1 {
+                    return Err(self.err(c, format!("<{tag}> must hold one number, found {}", v.len())));
+                }
+                Ok(v[0])
+            }
+        }
+    }
+
+    pub fn req_f64(&self, node: XNode<'a, 'i>, tag: &str) -> Result<f64, Error> {
+        if child(node, tag).is_none() {
+            return Err(self.err(node, format!("missing <{tag}>")));
+        }
+        self.f64_or(node, tag, 0.0)
+    }
+
+    /// A 3-vector in child `tag`, or `default`.
+    pub fn vec3_or(&self, node: XNode<'a, 'i>, tag: &str, default: Vec3) -> Result<Vec3, Error> {
+        match child(node, tag) {
+            None => Ok(default),
+            Some(c) => {
+                let v = self.numbers(c, tag, c.text().unwrap_or(""))?;
+                if v.len() != 3 {
+                    return Err(self.err(c, format!("<{tag}> must hold 3 numbers, found {}", v.len())));
+                }
+                Ok(Vec3::new(v[0], v[1], v[2]))
+            }
+        }
+    }
+
+    pub fn bool_or(&self, node: XNode<'a, 'i>, tag: &str, default: bool) -> Result<bool, Error> {
+        match child(node, tag) {
+            None => Ok(default),
+            Some(c) => match c.text().unwrap_or("").trim() {
+                "true" | "1" => Ok(true),
+                "false" | "0" => Ok(false),
+                other => Err(self.err(c, format!("<{tag}>: `{other}` is not true or false"))),
+            },
+        }
+    }
+
+    /// The `name` attribute (required for named components).
+    pub fn name(&self, node: XNode<'a, 'i>) -> Result<String, Error> {
+        match node.attribute("name") {
+            Some(n) if !n.trim().is_empty() => Ok(n.trim().to_string()),
+            _ => Err(self.err(node, "missing or empty `name` attribute")),
+        }
+    }
+
+    /// A verbatim copy of an element tree.
+    pub fn raw(&self, node: XNode) -> RawElement {
+        RawElement {
+            tag: node.tag_name().name().to_string(),
+            name: node.attribute("name").map(str::to_string),
+            text: node
+                .children()
+                .filter(|c| c.is_text())
+                .filter_map(|c| c.text())
+                .collect::<String>()
+                .trim()
+                .to_string(),
+            line: self.line(node),
+            children: elements(node).map(|c| self.raw(c)).collect(),
+        }
+    }
+}
+
+/// Element children of `node`.
+pub fn elements<'a, 'i>(node: XNode<'a, 'i>) -> impl Iterator<Item = XNode<'a, 'i>> {
+    node.children().filter(|c| c.is_element())
+}
+
+/// The first element child with this tag.
+pub fn child<'a, 'i>(node: XNode<'a, 'i>, tag: &str) -> Option<XNode<'a, 'i>> {
+    node.children()
+        .find(|c| c.is_element() && c.tag_name().name() == tag)
+}
+
+/// The members of a set: the children of its `<objects>` element (or of the set itself when
+/// it has no `<objects>`), skipping `<groups>`.
+pub fn set_members<'a, 'i>(set: XNode<'a, 'i>) -> Vec<XNode<'a, 'i>> {
+    match child(set, "objects") {
+        Some(objs) => elements(objs).collect(),
+        None => elements(set).filter(|c| c.tag_name().name() != "groups").collect(),
+    }
+}
