@@ -124,9 +124,30 @@ pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
 }
 
 /// Rotation vector (axis·angle) of a rotation matrix; the inverse of `rotation_about_axis`.
+///
+/// With v = vee((R − Rᵀ)/2) = sin θ · axis and cos θ = (tr R − 1)/2, θ = atan2(|v|, cos θ),
+/// which stays accurate for small angles (where an arccos of the trace would not); near
+/// θ = π the axis comes from the symmetric part, (R + 1)/2 = a aᵀ + cos-terms.
 pub fn rotation_vector(r: &Mat3) -> Vec3 {
-    let rot = nalgebra::Rotation3::from_matrix_unchecked(*r);
-    rot.scaled_axis()
+    let v = Vec3::new(r[(2, 1)] - r[(1, 2)], r[(0, 2)] - r[(2, 0)], r[(1, 0)] - r[(0, 1)]) * 0.5;
+    let s = v.norm();
+    let c = ((r[(0, 0)] + r[(1, 1)] + r[(2, 2)]) - 1.0) * 0.5;
+    let theta = s.atan2(c);
+    if s < 1e-300 && c > 0.0 {
+        return Vec3::zeros();
+    }
+    if c > -0.9 {
+        return v * (theta / s);
+    }
+    // Near π: a aᵀ = (R + Rᵀ)/2 − cos θ · 1) / (1 − cos θ); take the largest column.
+    let sym = (r + r.transpose()) * 0.5 - Mat3::identity() * c;
+    let k = (0..3).max_by(|&i, &j| sym[(i, i)].total_cmp(&sym[(j, j)])).unwrap_or(0);
+    let mut axis: Vec3 = sym.column(k).into();
+    axis /= axis.norm();
+    if axis.dot(&v) < 0.0 {
+        axis = -axis;
+    }
+    axis * theta
 }
 
 /// The cross-product matrix [v]× with [v]× w = v × w.
@@ -323,8 +344,11 @@ mod tests {
     #[test]
     fn rotation_vector_inverts_axis_angle() {
         let axis = Vec3::new(1.0, -2.0, 0.5).normalize();
-        let r = rotation_about_axis(&axis, 0.7);
-        assert!((rotation_vector(&r) - axis * 0.7).norm() < 1e-14);
+        for angle in [1e-9, 2e-6, 0.7, 2.5, 3.1, 3.14159] {
+            let r = rotation_about_axis(&axis, angle);
+            let e = (rotation_vector(&r) - axis * angle).norm();
+            assert!(e < 1e-14 * angle.max(1e-3) * 1e3, "angle {angle}: error {e}");
+        }
     }
 
     #[test]

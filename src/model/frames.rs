@@ -88,7 +88,8 @@ impl FrameRegistry {
     pub fn resolve(&mut self, owner: &str, path: &str) -> Result<(usize, Transform), FrameError> {
         let abs = resolve_path(owner, path);
         match self.resolve_abs(&abs, 0) {
-            Err(FrameError::NotFound(_)) if !path.contains('/') => {
+            // Only when the path itself is missing, not a frame further up its chain.
+            Err(FrameError::NotFound(missing)) if missing == abs && !path.contains('/') => {
                 let name = path.trim();
                 let mut hits: Vec<String> = self
                     .bodies
@@ -126,7 +127,7 @@ impl FrameRegistry {
             .ok_or_else(|| FrameError::NotFound(abs.to_string()))?;
         let parent_abs = resolve_path(&def.path, &def.parent);
         let (body, x_parent) = match self.resolve_abs(&parent_abs, depth + 1) {
-            Err(FrameError::NotFound(_)) if !def.parent.contains('/') => {
+            Err(FrameError::NotFound(missing)) if missing == parent_abs && !def.parent.contains('/') => {
                 // Legacy bare name.
                 self.resolve(&def.path, &def.parent)?
             }

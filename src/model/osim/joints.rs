@@ -285,8 +285,9 @@ pub(super) fn build_tree(
     ctx: &mut Ctx,
     defs: Vec<JointDef>,
     frames: &mut FrameRegistry,
-    n_bodies: usize,
+    body_lines: &[u32],
 ) -> Result<Tree, Error> {
+    let n_bodies = body_lines.len();
     // Resolve each joint's frames to bodies.
     struct Resolved {
         parent: usize,
@@ -367,10 +368,11 @@ pub(super) fn build_tree(
         }
     }
     if let Some(b) = (1..n_bodies).find(|&b| child_of[b].is_none()) {
+        let path = body_name_hint(frames, b);
         return Err(Error::Model {
             file: ctx.file.to_string(),
-            line: 0,
-            element: format!("Body \"{}\"", body_name_hint(frames, b)),
+            line: body_lines[b],
+            element: format!("Body \"{}\"", path.rsplit('/').next().unwrap_or(&path)),
             message: "no joint connects this body to the tree".into(),
         });
     }

@@ -42,11 +42,20 @@ pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<M
     )
     .map_err(|e| {
         let pos = e.pos();
+        let (line, column, message) = match e {
+            // roxmltree gives these no position: the problem is where the text ends.
+            roxmltree::Error::UnexpectedEndOfStream | roxmltree::Error::UnclosedRootNode => {
+                let line = text.matches('\n').count() as u32 + 1;
+                let column = text.rsplit('\n').next().unwrap_or("").chars().count() as u32 + 1;
+                (line, column, format!("{e} (the file ends inside an element: is it truncated?)"))
+            }
+            _ => (pos.row, pos.col, e.to_string()),
+        };
         Error::Xml {
             file: source.to_string(),
-            line: pos.row,
-            column: pos.col,
-            message: e.to_string(),
+            line,
+            column,
+            message,
         }
     })?;
     let mut ctx = Ctx {
@@ -216,7 +225,8 @@ impl<'a, 'i> ModelReader<'a, 'i> {
 
         // Joints: register their frames first (a joint may refer to another joint's frame).
         let joint_defs = joints::read_joints(ctx, &self.joint_nodes, &mut self.frames)?;
-        let tree = joints::build_tree(ctx, joint_defs, &mut self.frames, self.bodies.len())?;
+        let body_lines: Vec<u32> = self.bodies.iter().map(|b| b.line).collect();
+        let tree = joints::build_tree(ctx, joint_defs, &mut self.frames, &body_lines)?;
 
         // Bodies in topological order.
         let bodies: Vec<Body> = tree

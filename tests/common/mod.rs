@@ -1,0 +1,177 @@
+//! Shared helpers for the integration tests: reference data lookup, a deterministic random
+//! number generator, random states, and small OpenSim XML builders.
+#![allow(dead_code)]
+
+use musculo::Model;
+use std::path::PathBuf;
+
+/// The path of a reference file, or `None` after printing "skipped: reference data not
+/// found". With `MUSCULO_REQUIRE_REFERENCE=1` a missing file fails the test instead.
+pub fn reference_file(relative: &str) -> Option<PathBuf> {
+    match musculo::reference::file(relative) {
+        Some(p) => Some(p),
+        None if musculo::reference::required() => panic!(
+            "reference data not found: {} (MUSCULO_REQUIRE_REFERENCE=1)",
+            musculo::reference::directory().join(relative).display()
+        ),
+        None => {
+            eprintln!(
+                "skipped: reference data not found ({})",
+                musculo::reference::directory().join(relative).display()
+            );
+            None
+        }
+    }
+}
+
+/// Every .osim file under the reference `opensim-models` directory, sorted.
+pub fn reference_models() -> Vec<PathBuf> {
+    let Some(root) = reference_file("opensim-models") else {
+        return Vec::new();
+    };
+    fn walk(d: &std::path::Path, out: &mut Vec<PathBuf>) {
+        let Ok(rd) = std::fs::read_dir(d) else { return };
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "osim") {
+                out.push(p);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&root, &mut out);
+    out.sort();
+    out
+}
+
+/// SplitMix64: a small deterministic generator for reproducible random states.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n.max(1) as u64) as usize
+    }
+}
+
+/// Independent coordinates drawn uniformly within their ranges.
+pub fn random_q(model: &Model, rng: &mut Rng) -> Vec<f64> {
+    model
+        .reduction
+        .independent
+        .iter()
+        .map(|&c| {
+            let [lo, hi] = model.coordinates[c].range;
+            rng.uniform(lo, hi)
+        })
+        .collect()
+}
+
+/// A vector of n values uniform in [−a, a].
+pub fn random_vec(n: usize, a: f64, rng: &mut Rng) -> Vec<f64> {
+    (0..n).map(|_| rng.uniform(-a, a)).collect()
+}
+
+/// |a − b| ≤ tol · max(1, |b|), with a message naming what differs.
+pub fn assert_close(a: f64, b: f64, tol: f64, what: &str) {
+    assert!(
+        (a - b).abs() <= tol * b.abs().max(1.0),
+        "{what}: {a:.17e} vs {b:.17e} (difference {:.3e})",
+        (a - b).abs()
+    );
+}
+
+/// A minimal OpenSim 4 document around the given sets.
+pub fn osim(bodies: &str, joints: &str, constraints: &str, gravity: [f64; 3]) -> String {
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000">
+  <Model name="test">
+    <Ground name="ground" />
+    <gravity>{} {} {}</gravity>
+    <BodySet name="bodyset"><objects>
+{bodies}
+    </objects></BodySet>
+    <JointSet name="jointset"><objects>
+{joints}
+    </objects></JointSet>
+    <ConstraintSet name="constraintset"><objects>
+{constraints}
+    </objects></ConstraintSet>
+  </Model>
+</OpenSimDocument>
+"#,
+        gravity[0], gravity[1], gravity[2]
+    )
+}
+
+pub fn body(name: &str, mass: f64, com: [f64; 3], inertia: [f64; 6]) -> String {
+    format!(
+        "<Body name=\"{name}\"><mass>{mass:e}</mass><mass_center>{:e} {:e} {:e}</mass_center>\
+         <inertia>{:e} {:e} {:e} {:e} {:e} {:e}</inertia></Body>",
+        com[0], com[1], com[2], inertia[0], inertia[1], inertia[2], inertia[3], inertia[4], inertia[5]
+    )
+}
+
+pub fn coordinate(name: &str, range: [f64; 2]) -> String {
+    format!("<Coordinate name=\"{name}\"><default_value>0</default_value><range>{:e} {:e}</range></Coordinate>", range[0], range[1])
+}
+
+/// A joint of type `kind` from `parent` (body path) at `offset` to `child` (body path)
+/// with its child frame at the child body's origin.
+pub fn joint(kind: &str, name: &str, parent: &str, offset: [f64; 3], child: &str, coords: &[String], extra: &str) -> String {
+    format!(
+        r#"<{kind} name="{name}">
+  <socket_parent_frame>p</socket_parent_frame><socket_child_frame>c</socket_child_frame>
+  <coordinates>{}</coordinates>
+  <frames>
+    <PhysicalOffsetFrame name="p"><socket_parent>{parent}</socket_parent><translation>{:e} {:e} {:e}</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+    <PhysicalOffsetFrame name="c"><socket_parent>{child}</socket_parent><translation>0 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+  </frames>
+  {extra}
+</{kind}>"#,
+        coords.join(""),
+        offset[0],
+        offset[1],
+        offset[2]
+    )
+}
+
+/// A CustomJoint SpatialTransform from six (coordinates, axis, function XML) triples in the
+/// order rotation1–3, translation1–3.
+pub fn spatial_transform(axes: [(&str, [f64; 3], &str); 6]) -> String {
+    let names = ["rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"];
+    let mut s = String::from("<SpatialTransform>");
+    for (n, (c, a, f)) in names.iter().zip(axes) {
+        s += &format!(
+            "<TransformAxis name=\"{n}\"><coordinates>{c}</coordinates><axis>{} {} {}</axis>{f}</TransformAxis>",
+            a[0], a[1], a[2]
+        );
+    }
+    s + "</SpatialTransform>"
+}
+
+pub const ZERO: &str = "<Constant><value>0</value></Constant>";
+pub const IDENTITY: &str = "<LinearFunction><coefficients>1 0</coefficients></LinearFunction>";
