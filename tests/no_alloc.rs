@@ -1,0 +1,102 @@
+//! No algorithm allocates once its `Data` exists: every per-frame call is counted by a
+//! global allocator that records allocations made on the calling thread.
+
+mod common;
+use common::*;
+use musculo::spatial::Vec3;
+use musculo::{Data, Model, dynamics};
+use nalgebra::DMatrix;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations_during(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.with(|c| c.get());
+    f();
+    ALLOCATIONS.with(|c| c.get()) - before
+}
+
+fn check(model: &Model) {
+    let n = model.nq();
+    let mut rng = Rng::new(5);
+    let q = random_q(model, &mut rng);
+    let qd = random_vec(n, 1.0, &mut rng);
+    let qdd = random_vec(n, 1.0, &mut rng);
+    let theta_dd = vec![0.1; model.n_full()];
+    let mut data = Data::new(model);
+    let mut j3 = DMatrix::zeros(3, n);
+    let mut j6 = DMatrix::zeros(6, n);
+    let points = [(1usize, Vec3::new(0.1, 0.0, 0.0)), (model.bodies.len() - 1, Vec3::zeros())];
+    let mut jc = DMatrix::zeros(6, n);
+    let mut jdot = [0.0; 6];
+    let mut markers = vec![Vec3::zeros(); model.markers.len()];
+    let (theta, theta_d) = {
+        dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
+        (data.theta(model).to_vec(), data.theta_dot(model).to_vec())
+    };
+    let count = allocations_during(|| {
+        for _ in 0..3 {
+            dynamics::forward_kinematics(model, &mut data, &q).unwrap();
+            dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
+            dynamics::forward_kinematics_acceleration(model, &mut data, &q, &qd, &qdd).unwrap();
+            dynamics::crba(model, &mut data, &q).unwrap();
+            dynamics::rnea(model, &mut data, &q, &qd, &qdd).unwrap();
+            dynamics::nonlinear_effects(model, &mut data, &q, &qd).unwrap();
+            dynamics::coriolis(model, &mut data, &q, &qd).unwrap();
+            dynamics::gravity(model, &mut data, &q).unwrap();
+            dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
+            for b in 1..model.bodies.len() {
+                dynamics::body_jacobian(model, &data, b, &mut j6).unwrap();
+                dynamics::point_jacobian(model, &data, b, &Vec3::new(0.01, 0.02, 0.03), &mut j3).unwrap();
+                dynamics::point_jacobian_dot_qd(model, &mut data, b, &Vec3::zeros()).unwrap();
+                dynamics::body_jacobian_dot_qd(model, &mut data, b).unwrap();
+            }
+            dynamics::contact_jacobian(model, &data, &points, &mut jc).unwrap();
+            dynamics::contact_jacobian_dot_qd(model, &mut data, &points, &mut jdot).unwrap();
+            dynamics::center_of_mass(model, &data).unwrap();
+            dynamics::center_of_mass_jacobian(model, &mut data, &mut j3).unwrap();
+            dynamics::kinetic_energy(model, &data).unwrap();
+            dynamics::potential_energy(model, &data).unwrap();
+            dynamics::momentum(model, &data).unwrap();
+            data.marker_positions(model, &mut markers).unwrap();
+            dynamics::rnea_full(model, &mut data, &theta, &theta_d, &theta_dd).unwrap();
+            dynamics::crba_full(model, &mut data).unwrap();
+        }
+    });
+    assert_eq!(count, 0, "{}: {count} allocations in per-frame calls", model.name);
+}
+
+#[test]
+fn per_frame_algorithms_do_not_allocate() {
+    check(&Model::demo());
+    for rel in [
+        "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+    ] {
+        if let Some(p) = reference_file(rel) {
+            check(&Model::from_osim_file(p).unwrap());
+        }
+    }
+}
