@@ -127,8 +127,8 @@ fn bench_model(label: &str, model: &Model) {
     let theta_zero = vec![0.0; model.n_full()];
     let bias = time_batches(|i| { black_box(dynamics::nonlinear_effects(model, &mut data, &s.q[i], &s.qd[i]).unwrap()); });
     let brute = time_batches(|i| {
-        dynamics::crba(model, &mut peer, &s.q[i]).unwrap();
-        let m_full = peer.mass_matrix_full().clone_owned();
+        dynamics::forward_kinematics(model, &mut peer, &s.q[i]).unwrap();
+        let m_full = dynamics::crba_full(model, &mut peer).unwrap().clone_owned();
         dynamics::forward_kinematics_velocity(model, &mut peer, &s.q[i], &s.qd[i]).unwrap();
         let phi = peer.phi_matrix(model);
         let pdq = nalgebra::DVector::from_column_slice(peer.phi_dot_qd(model));

@@ -123,6 +123,26 @@ pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
     )
 }
 
+/// R ← R · R(axis, angle): post-multiplication by a rotation about a unit axis of the frame R
+/// describes (a body-fixed rotation). For an elementary axis σ e_k only the two columns
+/// a = k+1, b = k+2 (cyclic) change: col_a ← c col_a + s col_b, col_b ← −s col_a + c col_b
+/// with (s, c) = sincos(σ θ).
+#[inline]
+pub fn post_rotate(r: &mut Mat3, axis: &Vec3, elementary: Option<(usize, f64)>, angle: f64) {
+    match elementary {
+        Some((k, sign)) => {
+            let (s, c) = (sign * angle).sin_cos();
+            let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+            for i in 0..3 {
+                let (ra, rb) = (r[(i, a)], r[(i, b)]);
+                r[(i, a)] = c * ra + s * rb;
+                r[(i, b)] = c * rb - s * ra;
+            }
+        }
+        None => *r *= rotation_about_axis(axis, angle),
+    }
+}
+
 /// Rotation vector (axis·angle) of a rotation matrix; the inverse of `rotation_about_axis`.
 ///
 /// With v = vee((R − Rᵀ)/2) = sin θ · axis and cos θ = (tr R − 1)/2, θ = atan2(|v|, cos θ),
@@ -348,6 +368,20 @@ mod tests {
             let r = rotation_about_axis(&axis, angle);
             let e = (rotation_vector(&r) - axis * angle).norm();
             assert!(e < 1e-14 * angle.max(1e-3) * 1e3, "angle {angle}: error {e}");
+        }
+    }
+
+    #[test]
+    fn post_rotate_about_elementary_axes_matches_rodrigues() {
+        let r0 = rotation_body_fixed_xyz(Vec3::new(0.3, -0.4, 1.2));
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                let mut axis = Vec3::zeros();
+                axis[k] = sign;
+                let mut r = r0;
+                post_rotate(&mut r, &axis, Some((k, sign)), 0.77);
+                assert!((r - r0 * rotation_about_axis(&axis, 0.77)).norm() < 1e-15);
+            }
         }
     }
 

@@ -61,7 +61,7 @@ fn check_model(path: &Path, seed: u64) {
 
         // M symmetric positive definite.
         let m = dynamics::crba(&model, &mut data, &q).unwrap().clone();
-        let m_full = data.mass_matrix_full().clone();
+        let m_full = dynamics::crba_full(&model, &mut data).unwrap().clone();
         assert_eq!(m, m.transpose(), "{}", ctx("M symmetric"));
         assert!(m.clone().cholesky().is_some(), "{}", ctx("M positive definite"));
 

@@ -20,8 +20,8 @@ pub fn center_of_mass(model: &Model, data: &Data) -> crate::Result<Vec3> {
     Ok(h / m + data.reference_point)
 }
 
-/// J_com (3 × n), with ċ = J_com q̇ (position stage). Column d of the full Jacobian is
-/// (m_sub s_lin + s_ang × h_sub) / m_total over the subtree that dof d moves.
+/// J_com (3 × n), with ċ = J_com q̇ (position stage): column j sums, over the reduced
+/// columns c of q_j, (m_sub S̃_lin + S̃_ang × h_sub) / m_total for the subtree c moves.
 pub fn center_of_mass_jacobian(model: &Model, data: &mut Data, out: &mut DMatrix<f64>) -> crate::Result<()> {
     data.require(Stage::Position, "center_of_mass_jacobian")?;
     let n = model.nq();
@@ -33,18 +33,14 @@ pub fn center_of_mass_jacobian(model: &Model, data: &mut Data, out: &mut DMatrix
         return Err(crate::Error::invalid("model", "the model has no mass"));
     }
     super::crba::composite_inertias(model, data);
-    let r = &model.reduction;
+    let cols = &model.reduction.columns;
     out.fill(0.0);
-    for (d, dof) in model.dofs.iter().enumerate() {
-        let sub = &data.composite[dof.body];
-        let s = &data.dof_motion[d];
+    for c in 0..cols.len() {
+        let sub = &data.composite[cols.body[c]];
+        let s = &data.col_motion[c];
         let col = (s.lin * sub.mass + s.ang.cross(&sub.h)) / total;
-        for e in r.phi_row(d) {
-            let j = r.dep_index[e];
-            let a = data.node_grad[e];
-            for i in 0..3 {
-                out[(i, j)] += a * col[i];
-            }
+        for i in 0..3 {
+            out[(i, cols.q[c])] += col[i];
         }
     }
     Ok(())

@@ -5,45 +5,42 @@ use super::forward_kinematics::poses;
 use super::reduction::evaluate_position;
 use super::{Data, Stage, check_len};
 use crate::model::Model;
+use crate::model::reduction::NONE;
 use nalgebra::DMatrix;
 
-/// The joint-space inertia matrix M(q) (symmetric positive definite), n × n. The
-/// full-coordinate matrix M_full is left in `Data::mass_matrix_full`.
+/// The joint-space inertia matrix M(q) (symmetric positive definite), n × n.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&'d DMatrix<f64>> {
     check_len("q", q, model.nq())?;
     evaluate_position(model, data, q);
     poses(model, data);
     data.stage = Stage::Position;
     composite_inertias(model, data);
-    let r = &model.reduction;
-    let Data { composite, dof_motion, mass_matrix_full, mass_matrix, node_grad, .. } = data;
+    let cols = &model.reduction.columns;
+    let n = model.nq();
+    let Data { composite, col_motion, mass_matrix, .. } = data;
     mass_matrix.fill(0.0);
-    for (d, dof) in model.dofs.iter().enumerate() {
-        // F = I^c_body(d) s_d ;  M_de = s_eᵀ F for e = d and every ancestor e of d.
-        let f = composite[dof.body].mul_motion(&dof_motion[d]);
-        let mut e = Some(d);
-        while let Some(ei) = e {
-            let m = dof_motion[ei].dot(&f);
-            mass_matrix_full[(d, ei)] = m;
-            mass_matrix_full[(ei, d)] = m;
-            // M += Φ_dᵀ m Φ_e (+ the transposed term for d ≠ e)
-            for pd in r.phi_row(d) {
-                let (j, a) = (r.dep_index[pd], node_grad[pd] * m);
-                for pe in r.phi_row(ei) {
-                    let (k, ab) = (r.dep_index[pe], a * node_grad[pe]);
-                    mass_matrix[(j, k)] += ab;
-                    if ei != d {
-                        mass_matrix[(k, j)] += ab;
-                    }
-                }
-            }
-            e = model.dofs[ei].parent_dof;
+    let mm = mass_matrix.as_mut_slice(); // column-major: (i, j) at i + j n
+    for c in 0..cols.len() {
+        // F = I^c_body(c) S̃_c ;  M[q_c][q_e] += S̃_eᵀ F for e = c and every column e towards
+        // ground (and the transposed entry for e ≠ c).
+        let f = composite[cols.body[c]].mul_motion(&col_motion[c]);
+        let j = cols.q[c];
+        let v = col_motion[c].dot(&f);
+        mm[j + j * n] += v;
+        let mut e = cols.parent[c];
+        while e != NONE {
+            let k = cols.q[e];
+            let v = col_motion[e].dot(&f);
+            mm[j + k * n] += v;
+            mm[k + j * n] += v;
+            e = cols.parent[e];
         }
     }
     Ok(&data.mass_matrix)
 }
 
-/// M_full(θ) at the full coordinates of the last forward kinematics (position stage or
+/// M_full(θ), the inertia matrix of the full coordinates, at the state of the last forward
+/// kinematics (position stage or
 /// [`super::forward_kinematics_full`]).
 pub fn crba_full<'d>(model: &Model, data: &'d mut Data) -> crate::Result<&'d DMatrix<f64>> {
     data.require(Stage::Position, "crba_full")?;

@@ -4,7 +4,7 @@
 use super::reduction::{evaluate_position, evaluate_velocity, theta_acceleration};
 use super::{Data, Stage, check_len};
 use crate::model::{DofKind, JointStep, Model};
-use crate::spatial::{Mat3, Motion, SpatialInertia, Vec3, rotation_about_axis};
+use crate::spatial::{Mat3, Motion, SpatialInertia, Vec3, post_rotate};
 
 /// Position stage at the independent coordinates `q`: coordinate values, θ, Φ, body poses,
 /// motion subspaces and spatial inertias.
@@ -84,14 +84,18 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
                 JointStep::Dof(d) => {
                     let dof = &model.dofs[*d];
                     let th = data.node_value[nc + d];
-                    let axis_w = rot * dof.axis;
+                    let elementary = dof.elementary_axis();
+                    let axis_w = match elementary {
+                        Some((k, sign)) => rot.column(k) * sign,
+                        None => rot * dof.axis,
+                    };
                     data.dof_axis[*d] = axis_w;
                     data.dof_point[*d] = pos;
                     match dof.kind {
                         // translation along the axis of the preceding frame
                         DofKind::Slide => pos += axis_w * th,
                         // body-fixed rotation: R ← R · R(axis, θ)
-                        DofKind::Hinge => rot *= rotation_about_axis(&dof.axis, th),
+                        DofKind::Hinge => post_rotate(&mut rot, &dof.axis, elementary, th),
                     }
                 }
             }
@@ -111,6 +115,15 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
             DofKind::Hinge => Motion::new(w, (data.dof_point[d] - o).cross(&w)),
             DofKind::Slide => Motion::new(Vec3::zeros(), w),
         };
+    }
+    // S̃_c = Σ_d Φ_dj s_d
+    let cols = &model.reduction.columns;
+    for c in 0..cols.len() {
+        let mut m = Motion::ZERO;
+        for &(d, e) in &cols.terms[cols.start[c]..cols.start[c + 1]] {
+            m.add_scaled(&data.dof_motion[d], data.node_grad[e]);
+        }
+        data.col_motion[c] = m;
     }
     for (b, body) in model.bodies.iter().enumerate().skip(1) {
         let r = &data.body_rot[b];

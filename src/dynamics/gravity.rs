@@ -16,18 +16,14 @@ pub fn gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Resul
     poses(model, data);
     data.stage = Stage::Position;
     composite_inertias(model, data);
-    let r = &model.reduction;
-    let Data { composite, dof_motion, gravity, node_grad, .. } = data;
+    let cols = &model.reduction.columns;
+    let Data { composite, col_motion, gravity, .. } = data;
     gravity.fill(0.0);
-    for (d, dof) in model.dofs.iter().enumerate() {
-        // Σ_{b ⊂ subtree(d)} m_b ∂c_b/∂θ_d = m_sub s_lin + s_ang × h_sub  (h about O)
-        let sub = &composite[dof.body];
-        let s = &dof_motion[d];
-        let dmc = s.lin * sub.mass + s.ang.cross(&sub.h);
-        let g_full = -model.gravity.dot(&dmc);
-        for e in r.phi_row(d) {
-            gravity[r.dep_index[e]] += node_grad[e] * g_full;
-        }
+    for c in 0..cols.len() {
+        // Σ_{b ⊂ subtree} m_b ∂c_b/∂q_j = m_sub S̃_lin + S̃_ang × h_sub  (h about O)
+        let sub = &composite[cols.body[c]];
+        let s = &col_motion[c];
+        gravity[cols.q[c]] -= model.gravity.dot(&(s.lin * sub.mass + s.ang.cross(&sub.h)));
     }
     Ok(&data.gravity)
 }

@@ -1,26 +1,15 @@
 //! Point, body and contact Jacobians and their J̇q̇ products.
 //!
-//! Column d of a full-coordinate Jacobian is the motion subspace s_d of every dof d on the
-//! path from ground to the body; the reduced Jacobian is J = J_full Φ, accumulated sparsely.
+//! Column j of a Jacobian sums the reduced motion subspace columns S̃_c = Σ_d Φ_dj s_d of q_j
+//! on the path from ground to the body (J = J_full Φ).
 //! J̇q̇ is the acceleration the body or point has when q̈ = 0 and gravity is off.
 
 use super::forward_kinematics::propagate_accelerations;
 use super::{Data, Stage, point_acceleration_from};
 use crate::model::Model;
+use crate::model::reduction::NONE;
 use crate::spatial::{Motion, Vec3};
 use nalgebra::DMatrix;
-
-/// The last full coordinate on the path from ground to `body`.
-fn last_dof(model: &Model, mut body: usize) -> Option<usize> {
-    while let Some(j) = model.bodies[body].joint {
-        let r = &model.joints[j].dof_range;
-        if !r.is_empty() {
-            return Some(r.end - 1);
-        }
-        body = model.joints[j].parent_body;
-    }
-    None
-}
 
 fn check_body(model: &Model, body: usize) -> crate::Result<()> {
     if body >= model.bodies.len() {
@@ -36,8 +25,8 @@ fn check_shape(out: &DMatrix<f64>, rows: usize, n: usize) -> crate::Result<()> {
     Ok(())
 }
 
-/// Adds the rows of `f(s_d)` for every dof on the path to `body` into `out` starting at
-/// `row0`, weighted by Φ: out[row0.., j] += Φ_dj f(s_d).
+/// Adds `f(S̃_c)` into rows `row0..` of column q_c of `out`, for every reduced column c on
+/// the path from ground to `body`.
 fn accumulate<const R: usize>(
     model: &Model,
     data: &Data,
@@ -46,18 +35,15 @@ fn accumulate<const R: usize>(
     row0: usize,
     f: impl Fn(&Motion) -> [f64; R],
 ) {
-    let r = &model.reduction;
-    let mut d = last_dof(model, body);
-    while let Some(di) = d {
-        let col = f(&data.dof_motion[di]);
-        for e in r.phi_row(di) {
-            let j = r.dep_index[e];
-            let a = data.node_grad[e];
-            for (i, c) in col.iter().enumerate() {
-                out[(row0 + i, j)] += a * c;
-            }
+    let cols = &model.reduction.columns;
+    let mut c = cols.body_last[body];
+    while c != NONE {
+        let col = f(&data.col_motion[c]);
+        let j = cols.q[c];
+        for (i, v) in col.iter().enumerate() {
+            out[(row0 + i, j)] += v;
         }
-        d = model.dofs[di].parent_dof;
+        c = cols.parent[c];
     }
 }
 

@@ -83,6 +83,8 @@ pub struct Data {
     pub(crate) dof_point: Vec<Vec3>,
     /// Motion subspace s_d of each full coordinate (ground axes, about O).
     pub(crate) dof_motion: Vec<Motion>,
+    /// Reduced motion subspace columns S̃_c = Σ Φ_dj s_d (see `Reduction::columns`).
+    pub(crate) col_motion: Vec<Motion>,
     /// Spatial inertia of each body (ground axes, about O).
     pub(crate) body_inertia: Vec<SpatialInertia>,
     pub(crate) body_vel: Vec<Motion>,
@@ -127,6 +129,7 @@ impl Data {
             dof_axis: vec![Vec3::zeros(); nf],
             dof_point: vec![Vec3::zeros(); nf],
             dof_motion: vec![Motion::ZERO; nf],
+            col_motion: vec![Motion::ZERO; r.columns.len()],
             body_inertia: vec![SpatialInertia::ZERO; nb],
             body_vel: vec![Motion::ZERO; nb],
             body_acc: vec![Motion::ZERO; nb],
@@ -157,6 +160,7 @@ impl Data {
             + v(self.body_pos.capacity() + self.dof_axis.capacity() + self.dof_point.capacity(), size_of::<Vec3>())
             + v(
                 self.dof_motion.capacity()
+                    + self.col_motion.capacity()
                     + self.body_vel.capacity()
                     + self.body_acc.capacity()
                     + self.body_acc_bias.capacity()
@@ -261,7 +265,7 @@ impl Data {
         &self.mass_matrix
     }
 
-    /// The full-coordinate inertia matrix from the last [`crba`] / [`crba_full`] call.
+    /// The full-coordinate inertia matrix from the last [`crba_full`] call.
     pub fn mass_matrix_full(&self) -> &DMatrix<f64> {
         &self.mass_matrix_full
     }

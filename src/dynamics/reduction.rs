@@ -31,6 +31,16 @@ pub(crate) fn evaluate_position(model: &Model, data: &mut Data, q: &[f64]) {
                 node_grad[g.start] = 1.0;
             }
             NodeKind::Constant(v) => node_value[i] = *v,
+            NodeKind::Affine { arg, slope, intercept } => {
+                node_value[i] = slope * node_value[*arg] + intercept;
+                let a0 = r.arg_start[i];
+                node_g1[a0] = *slope;
+                // ∂n/∂q = slope · ∂c/∂q (node_g2 stays 0)
+                node_grad[g].fill(0.0);
+                for s in &r.scatter[r.scatter_start[i]..r.scatter_start[i + 1]] {
+                    node_grad[s.dst] += slope * node_grad[s.src];
+                }
+            }
             NodeKind::Function { function, args, scale } => {
                 let k = args.len();
                 let a0 = r.arg_start[i];
@@ -83,6 +93,7 @@ pub(crate) fn evaluate_velocity(model: &Model, data: &mut Data, qd: &[f64]) {
         }
         node_vel[i] = v;
         node_acc_bias[i] = match &r.nodes[i] {
+            NodeKind::Affine { arg, slope, .. } => slope * node_acc_bias[*arg],
             NodeKind::Function { args, .. } => {
                 // (Φ̇q̇)_n = Σ_a g_a (Φ̇q̇)_a + Σ_ab g_ab ċ_a ċ_b
                 let k = args.len();
@@ -114,17 +125,5 @@ pub(crate) fn theta_acceleration(model: &Model, data: &mut Data, qdd: Option<&[f
             }
         }
         data.theta_acc[d] = a;
-    }
-}
-
-/// y = Φᵀ x for a full-coordinate vector x (y zeroed first).
-#[inline]
-pub(crate) fn reduce_vector(model: &Model, node_grad: &[f64], x: &[f64], y: &mut [f64]) {
-    let r = &model.reduction;
-    y.fill(0.0);
-    for (d, &xd) in x.iter().enumerate() {
-        for e in r.phi_row(d) {
-            y[r.dep_index[e]] += node_grad[e] * xd;
-        }
     }
 }

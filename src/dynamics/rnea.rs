@@ -1,7 +1,7 @@
 //! Recursive Newton–Euler inverse dynamics (Featherstone 2008, §5.3), in ground axes.
 
 use super::forward_kinematics::{poses, propagate_accelerations};
-use super::reduction::{evaluate_position, evaluate_velocity, reduce_vector, theta_acceleration};
+use super::reduction::{evaluate_position, evaluate_velocity, theta_acceleration};
 use super::{Data, Stage, check_len};
 use crate::model::Model;
 use crate::spatial::{Force, Motion};
@@ -46,7 +46,12 @@ pub fn rnea_full<'d>(
     check_len("theta_ddot", theta_ddot, model.n_full())?;
     super::forward_kinematics_full(model, data, theta, theta_dot)?;
     data.theta_acc.copy_from_slice(theta_ddot);
-    pass(model, data, true);
+    body_forces(model, data, true);
+    // τ_full,d = s_dᵀ f_body(d)
+    let Data { tau_full, dof_motion, body_force, .. } = data;
+    for (d, dof) in model.dofs.iter().enumerate() {
+        tau_full[d] = dof_motion[d].dot(&body_force[dof.body]);
+    }
     data.stage = Stage::Velocity;
     Ok(&data.tau_full)
 }
@@ -66,21 +71,28 @@ fn reduced_pass(
     poses(model, data);
     evaluate_velocity(model, data, qd);
     theta_acceleration(model, data, qdd);
-    pass(model, data, with_gravity);
-    // τ = Φᵀ τ_full
+    body_forces(model, data, with_gravity);
+    // τ = Φᵀ τ_full = Σ_c S̃_cᵀ f_body(c), accumulated over the reduced columns.
+    let Data { tau, bias, coriolis, col_motion, body_force, .. } = data;
     let out = match target {
-        Target::Tau => &mut data.tau,
-        Target::Bias => &mut data.bias,
-        Target::Coriolis => &mut data.coriolis,
+        Target::Tau => tau,
+        Target::Bias => bias,
+        Target::Coriolis => coriolis,
     };
-    reduce_vector(model, &data.node_grad, &data.tau_full, out.as_mut_slice());
+    out.fill(0.0);
+    let cols = &model.reduction.columns;
+    for c in 0..cols.len() {
+        out[cols.q[c]] += col_motion[c].dot(&body_force[cols.body[c]]);
+    }
     // The pass leaves valid velocities; its accelerations include gravity.
     data.stage = Stage::Velocity;
     Ok(())
 }
 
-/// One RNEA pass over the full coordinates with θ, θ̇ in the nodes and θ̈ in `theta_acc`.
-fn pass(model: &Model, data: &mut Data, with_gravity: bool) {
+/// The forward and backward passes of RNEA over the full coordinates, with θ, θ̇ in the
+/// nodes and θ̈ in `theta_acc`: leaves in `body_force[b]` the total force transmitted to body
+/// b's subtree through its joint.
+fn body_forces(model: &Model, data: &mut Data, with_gravity: bool) {
     let nc = model.reduction.n_coordinates;
     let Data {
         dof_motion,
@@ -90,7 +102,6 @@ fn pass(model: &Model, data: &mut Data, with_gravity: bool) {
         body_force,
         node_vel,
         theta_acc,
-        tau_full,
         ..
     } = data;
     let theta_dot = &node_vel[nc..];
@@ -110,13 +121,10 @@ fn pass(model: &Model, data: &mut Data, with_gravity: bool) {
         let v = &body_vel[b];
         body_force[b] = i.mul_motion(&body_acc[b]).add(&v.cross_force(&i.mul_motion(v)));
     }
-    // Backward pass: τ_d = s_dᵀ f_child, f_parent += f_child.
+    // Backward pass: f_parent += f_child.
     for joint in model.joints.iter().rev() {
-        let f = body_force[joint.child_body];
-        for d in joint.dof_range.clone() {
-            tau_full[d] = dof_motion[d].dot(&f);
-        }
         if joint.parent_body != 0 {
+            let f = body_force[joint.child_body];
             body_force[joint.parent_body].add_assign(&f);
         }
     }

@@ -132,6 +132,22 @@ pub struct Dof {
     pub body: usize,
 }
 
+impl Dof {
+    /// For an axis along ±x, ±y or ±z: its index (0, 1, 2) and sign. Rotations and
+    /// translations about such axes need no general Rodrigues formula.
+    #[inline]
+    pub fn elementary_axis(&self) -> Option<(usize, f64)> {
+        let a = &self.axis;
+        for k in 0..3 {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            if a[i] == 0.0 && a[j] == 0.0 && a[k].abs() == 1.0 {
+                return Some((k, a[k]));
+            }
+        }
+        None
+    }
+}
+
 /// What an OpenSim coordinate is to the reduced model.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum CoordinateRole {

@@ -24,6 +24,9 @@ pub(crate) enum NodeKind {
     Independent(usize),
     /// A constant (locked coordinate).
     Constant(f64),
+    /// slope · (value of node `arg`) + intercept: a one-argument LinearFunction (the common
+    /// case of an axis driven directly by its coordinate), evaluated without dispatch.
+    Affine { arg: usize, slope: f64, intercept: f64 },
     /// scale · f(node values of `args`).
     Function {
         function: Function,
@@ -65,6 +68,72 @@ pub struct Reduction {
     pub(crate) scatter: Vec<Scatter>,
     /// Largest number of arguments of any node.
     pub(crate) max_args: usize,
+    /// The reduced motion subspace: one column per (joint, independent coordinate the
+    /// joint's axes depend on), S̃_c = Σ_{d ∈ joint} Φ_dj s_d. Columns are in tree order.
+    pub(crate) columns: Columns,
+}
+
+/// Columns of the reduced motion subspace, in tree order (joint by joint).
+///
+/// Because the full coordinates of one joint move the same child body, the joint's block of
+/// M_full is S_Jᵀ I^c S_J, and Φᵀ M_full Φ can be accumulated over these columns instead of
+/// over full coordinates: M_jk += S̃_eᵀ I^c S̃_c for each column c and each column e on the
+/// path from c to ground. A knee whose rotation and two spline-driven translations all depend
+/// on the knee angle contributes one column instead of three.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Columns {
+    /// Independent coordinate of column c.
+    pub q: Vec<usize>,
+    /// Body moved by column c (its joint's child).
+    pub body: Vec<usize>,
+    /// The preceding column towards ground, or `NONE`.
+    pub parent: Vec<usize>,
+    /// Terms of column c: `terms[start[c]..start[c + 1]]` = (full coordinate d, index of
+    /// Φ_dj in the node-gradient array).
+    pub start: Vec<usize>,
+    pub terms: Vec<(usize, usize)>,
+    /// The last column on the path from ground to each body, or `NONE`.
+    pub body_last: Vec<usize>,
+}
+
+/// Marks an absent index in `Columns`.
+pub(crate) const NONE: usize = usize::MAX;
+
+impl Columns {
+    fn build(model: &Model, dep_start: &[usize], dep_index: &[usize], nc: usize) -> Columns {
+        let mut c = Columns { body_last: vec![NONE; model.bodies.len()], ..Default::default() };
+        for joint in &model.joints {
+            let mut last = c.body_last[joint.parent_body];
+            let mut qs: Vec<usize> = joint
+                .dof_range
+                .clone()
+                .flat_map(|d| dep_index[dep_start[nc + d]..dep_start[nc + d + 1]].iter().copied())
+                .collect();
+            qs.sort_unstable();
+            qs.dedup();
+            for j in qs {
+                c.q.push(j);
+                c.body.push(joint.child_body);
+                c.parent.push(last);
+                c.start.push(c.terms.len());
+                for d in joint.dof_range.clone() {
+                    for e in dep_start[nc + d]..dep_start[nc + d + 1] {
+                        if dep_index[e] == j {
+                            c.terms.push((d, e));
+                        }
+                    }
+                }
+                last = c.q.len() - 1;
+            }
+            c.body_last[joint.child_body] = last;
+        }
+        c.start.push(c.terms.len());
+        c
+    }
+
+    pub fn len(&self) -> usize {
+        self.q.len()
+    }
 }
 
 impl Reduction {
@@ -102,6 +171,13 @@ impl Reduction {
                 scale: 1.0,
             });
         }
+        for n in nodes.iter_mut() {
+            if let NodeKind::Function { function: Function::Linear(c), args, scale } = n {
+                if args.len() == 1 && c.len() == 2 {
+                    *n = NodeKind::Affine { arg: args[0], slope: *scale * c[0], intercept: *scale * c[1] };
+                }
+            }
+        }
 
         // Topological order of coordinate nodes (Kahn), to evaluate couplers of couplers.
         let mut order = Vec::with_capacity(nc);
@@ -123,10 +199,8 @@ impl Reduction {
             }
             state[i] = 1;
             stack.push(i);
-            if let NodeKind::Function { args, .. } = &nodes[i] {
-                for &a in args {
-                    visit(a, nodes, state, order, stack)?;
-                }
+            for a in node_args(&nodes[i]) {
+                visit(a, nodes, state, order, stack)?;
             }
             stack.pop();
             state[i] = 2;
@@ -153,6 +227,9 @@ impl Reduction {
             deps[i] = match &nodes[i] {
                 NodeKind::Independent(j) => vec![*j],
                 NodeKind::Constant(_) => vec![],
+                NodeKind::Affine { arg, slope, .. } => {
+                    if *slope == 0.0 { vec![] } else { deps[*arg].clone() }
+                }
                 NodeKind::Function { args, function, .. } => {
                     if function.is_constant() {
                         vec![]
@@ -179,11 +256,10 @@ impl Reduction {
         for n in &nodes {
             arg_start.push(na);
             hess_start.push(nh);
-            if let NodeKind::Function { args, .. } = n {
-                na += args.len();
-                nh += args.len() * args.len();
-                max_args = max_args.max(args.len());
-            }
+            let k = node_args(n).len();
+            na += k;
+            nh += k * k;
+            max_args = max_args.max(k);
         }
         arg_start.push(na);
         hess_start.push(nh);
@@ -192,8 +268,8 @@ impl Reduction {
         let mut scatter = Vec::new();
         for i in 0..n_nodes {
             scatter_start.push(scatter.len());
-            if let NodeKind::Function { args, .. } = &nodes[i] {
-                for (ai, &a) in args.iter().enumerate() {
+            {
+                for (ai, a) in node_args(&nodes[i]).into_iter().enumerate() {
                     for src in dep_start[a]..dep_start[a + 1] {
                         let j = dep_index[src];
                         if let Some(p) = deps[i].iter().position(|&x| x == j) {
@@ -205,6 +281,7 @@ impl Reduction {
         }
         scatter_start.push(scatter.len());
 
+        let columns = Columns::build(model, &dep_start, &dep_index, nc);
         Ok(Reduction {
             independent,
             n_coordinates: nc,
@@ -215,6 +292,7 @@ impl Reduction {
             arg_start,
             hess_start,
             scatter_start,
+            columns,
             scatter,
             max_args,
         })
@@ -225,5 +303,14 @@ impl Reduction {
     pub fn phi_row(&self, dof: usize) -> std::ops::Range<usize> {
         let n = self.n_coordinates + dof;
         self.dep_start[n]..self.dep_start[n + 1]
+    }
+}
+
+/// The arguments of a node.
+fn node_args(n: &NodeKind) -> Vec<usize> {
+    match n {
+        NodeKind::Affine { arg, .. } => vec![*arg],
+        NodeKind::Function { args, .. } => args.clone(),
+        _ => vec![],
     }
 }
