@@ -73,8 +73,9 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
     for joint in &model.joints {
         let p = joint.parent_body;
         // X_GF = X_GP · X_PF
-        let mut rot = data.body_rot[p] * joint.parent_offset.rot;
-        let mut pos = data.body_rot[p] * joint.parent_offset.pos + data.body_pos[p];
+        let x = &joint.parent_offset;
+        let mut rot = if x.rot == Mat3::identity() { data.body_rot[p] } else { data.body_rot[p] * x.rot };
+        let mut pos = data.body_rot[p] * x.pos + data.body_pos[p];
         for step in &joint.steps {
             match step {
                 JointStep::Fixed(x) => {
@@ -102,8 +103,9 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
         }
         // X_GB = X_GM · X_MB
         let c = joint.child_body;
-        data.body_pos[c] = rot * joint.child_offset_inv.pos + pos;
-        data.body_rot[c] = rot * joint.child_offset_inv.rot;
+        let x = &joint.child_offset_inv;
+        data.body_pos[c] = rot * x.pos + pos;
+        data.body_rot[c] = if x.rot == Mat3::identity() { rot } else { rot * x.rot };
     }
     // O: the origin of the first moving body keeps spatial quantities well conditioned.
     let o = if model.bodies.len() > 1 { data.body_pos[1] } else { Vec3::zeros() };

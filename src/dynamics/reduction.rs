@@ -35,10 +35,11 @@ pub(crate) fn evaluate_position(model: &Model, data: &mut Data, q: &[f64]) {
                 node_value[i] = slope * node_value[*arg] + intercept;
                 let a0 = r.arg_start[i];
                 node_g1[a0] = *slope;
-                // ∂n/∂q = slope · ∂c/∂q (node_g2 stays 0)
-                node_grad[g].fill(0.0);
-                for s in &r.scatter[r.scatter_start[i]..r.scatter_start[i + 1]] {
-                    node_grad[s.dst] += slope * node_grad[s.src];
+                // ∂n/∂q = slope · ∂c/∂q (node_g2 stays 0); an affine node depends on exactly
+                // the q's its argument depends on, in the same order.
+                let src = r.dep_start[*arg];
+                for (t, e) in g.enumerate() {
+                    node_grad[e] = slope * node_grad[src + t];
                 }
             }
             NodeKind::Function { function, args, scale } => {
@@ -65,7 +66,9 @@ pub(crate) fn evaluate_position(model: &Model, data: &mut Data, q: &[f64]) {
                 };
                 node_value[i] = v;
                 // ∂n/∂q = Σ_a g_a ∂c_a/∂q
-                node_grad[g].fill(0.0);
+                for e in g {
+                    node_grad[e] = 0.0;
+                }
                 for s in &r.scatter[r.scatter_start[i]..r.scatter_start[i + 1]] {
                     node_grad[s.dst] += node_g1[a0 + s.arg] * node_grad[s.src];
                 }
