@@ -63,7 +63,10 @@ fn assert_model_error(result: musculo::Result<Model>, element: &str, line: u32, 
             message: m,
         }) => {
             assert_eq!(file, SOURCE);
-            assert!(e.contains(element), "element `{e}` should name `{element}` (message: {m})");
+            assert!(
+                e.contains(element),
+                "element `{e}` should name `{element}` (message: {m})"
+            );
             assert_eq!(l, line, "line of `{e}`: {m}");
             for part in message {
                 assert!(m.contains(part), "message `{m}` should mention `{part}`");
@@ -191,7 +194,12 @@ fn non_opensim_root_is_a_model_error() {
 #[test]
 fn opensim_3_file_is_refused_with_a_hint() {
     let (xml, line) = replace_after(DEMO, "<OpenSimDocument", r#"Version="40000""#, r#"Version="30000""#);
-    assert_model_error(load(&xml), "OpenSimDocument", line, &["30000", "OpenSim 3", "OpenSim 4"]);
+    assert_model_error(
+        load(&xml),
+        "OpenSimDocument",
+        line,
+        &["30000", "OpenSim 3", "OpenSim 4"],
+    );
     let (xml, line) = replace_after(DEMO, "<OpenSimDocument", r#"Version="40000""#, r#"Version="four""#);
     assert_model_error(load(&xml), "OpenSimDocument", line, &["Version"]);
 }
@@ -215,7 +223,12 @@ fn inertia_violating_the_triangle_inequality_needs_the_option() {
         "<inertia>1 1 3 0 0 0</inertia>",
     );
     let line = line_of(&xml, r#"<Body name="shank">"#);
-    assert_model_error(load(&xml), r#"Body "shank""#, line, &["triangle inequality", "allow_nonphysical_inertia"]);
+    assert_model_error(
+        load(&xml),
+        r#"Body "shank""#,
+        line,
+        &["triangle inequality", "allow_nonphysical_inertia"],
+    );
 
     let options = LoadOptions {
         allow_nonphysical_inertia: true,
@@ -275,7 +288,12 @@ fn wrong_number_of_inertia_values_is_an_error() {
         );
         let line = line_of(&xml, r#"<Body name="pelvis">"#);
         let found = values.split_whitespace().count().to_string();
-        assert_model_error(load(&xml), r#"Body "pelvis""#, line, &["<inertia>", "6 numbers", &found]);
+        assert_model_error(
+            load(&xml),
+            r#"Body "pelvis""#,
+            line,
+            &["<inertia>", "6 numbers", &found],
+        );
     }
 }
 
@@ -301,7 +319,12 @@ fn body_that_no_joint_connects_is_an_error_at_its_line() {
 
 #[test]
 fn unknown_element_in_a_body_is_a_warning_with_its_line() {
-    let (xml, line) = replace_after(DEMO, r#"<Body name="pelvis">"#, "<mass>10</mass>", "<mass>10</mass><FancyThing/>");
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<Body name="pelvis">"#,
+        "<mass>10</mass>",
+        "<mass>10</mass><FancyThing/>",
+    );
     let model = load(&xml).expect("an unknown element is not an error");
     let w = model
         .warnings
@@ -327,7 +350,12 @@ fn joint_whose_parent_frame_names_a_missing_body_is_an_error() {
         "<socket_parent_frame>/bodyset/pelvix</socket_parent_frame>",
     );
     let line = line_of(&xml, r#"<PinJoint name="hip">"#);
-    assert_model_error(load(&xml), r#"PinJoint "hip""#, line, &["parent frame", "/bodyset/pelvix"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "hip""#,
+        line,
+        &["parent frame", "/bodyset/pelvix"],
+    );
 
     // The joint's offset frame names a missing body.
     let (xml, _) = replace_after(
@@ -336,7 +364,12 @@ fn joint_whose_parent_frame_names_a_missing_body_is_an_error() {
         "<socket_parent>/bodyset/pelvis</socket_parent>",
         "<socket_parent>/bodyset/pelvix</socket_parent>",
     );
-    assert_model_error(load(&xml), r#"PinJoint "hip""#, line, &["parent frame", "/bodyset/pelvix"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "hip""#,
+        line,
+        &["parent frame", "/bodyset/pelvix"],
+    );
 
     // A bare name that is no frame.
     let xml = minimal(&body("a"), &pin("j", "nowhere", "/bodyset/a", "q"));
@@ -362,7 +395,12 @@ fn joint_hanging_from_an_unconnected_body_is_an_error() {
     let bodies = format!("{}\n{}", body("a"), body("b"));
     let xml = minimal(&bodies, &pin("a_to_b", "/bodyset/a", "/bodyset/b", "q"));
     let line = line_of(&xml, r#"<PinJoint name="a_to_b">"#);
-    assert_model_error(load(&xml), r#"PinJoint "a_to_b""#, line, &["not connected to ground", "/bodyset/a"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "a_to_b""#,
+        line,
+        &["not connected to ground", "/bodyset/a"],
+    );
 }
 
 #[test]
@@ -370,19 +408,42 @@ fn unsupported_joint_type_is_an_error() {
     let (xml, _) = replace_after(DEMO, r#"<PinJoint name="ankle">"#, "</PinJoint>", "</EllipsoidJoint>");
     let xml = replace_unique(&xml, r#"<PinJoint name="ankle">"#, r#"<EllipsoidJoint name="ankle">"#);
     let line = line_of(&xml, r#"<EllipsoidJoint name="ankle">"#);
-    assert_model_error(load(&xml), r#"EllipsoidJoint "ankle""#, line, &["unsupported joint type", "EllipsoidJoint"]);
+    assert_model_error(
+        load(&xml),
+        r#"EllipsoidJoint "ankle""#,
+        line,
+        &["unsupported joint type", "EllipsoidJoint"],
+    );
 }
 
 #[test]
 fn pin_joint_with_the_wrong_number_of_coordinates_is_an_error() {
     let extra = r#"<Coordinate name="hip_extra"><default_value>0</default_value></Coordinate>"#;
-    let (two, _) = replace_after(DEMO, r#"<PinJoint name="hip">"#, "</coordinates>", &format!("{extra}</coordinates>"));
+    let (two, _) = replace_after(
+        DEMO,
+        r#"<PinJoint name="hip">"#,
+        "</coordinates>",
+        &format!("{extra}</coordinates>"),
+    );
     let line = line_of(&two, r#"<PinJoint name="hip">"#);
-    assert_model_error(load(&two), r#"PinJoint "hip""#, line, &["PinJoint needs 1 coordinate", "found 2"]);
+    assert_model_error(
+        load(&two),
+        r#"PinJoint "hip""#,
+        line,
+        &["PinJoint needs 1 coordinate", "found 2"],
+    );
 
-    let none = minimal(&body("a"), &pin("j", "/ground", "/bodyset/a", "q").replace(r#"<Coordinate name="q" />"#, ""));
+    let none = minimal(
+        &body("a"),
+        &pin("j", "/ground", "/bodyset/a", "q").replace(r#"<Coordinate name="q" />"#, ""),
+    );
     let line = line_of(&none, r#"<PinJoint name="j">"#);
-    assert_model_error(load(&none), r#"PinJoint "j""#, line, &["PinJoint needs 1 coordinate", "found 0"]);
+    assert_model_error(
+        load(&none),
+        r#"PinJoint "j""#,
+        line,
+        &["PinJoint needs 1 coordinate", "found 0"],
+    );
 }
 
 #[test]
@@ -412,7 +473,12 @@ fn transform_axis_naming_a_missing_coordinate_is_an_error() {
         "<coordinates>patela_angle</coordinates>",
     );
     let line = line_of(&xml, "<coordinates>patela_angle</coordinates>") - 1;
-    assert_model_error(load(&xml), r#"TransformAxis "rotation1""#, line, &["unknown coordinate", "patela_angle"]);
+    assert_model_error(
+        load(&xml),
+        r#"TransformAxis "rotation1""#,
+        line,
+        &["unknown coordinate", "patela_angle"],
+    );
 }
 
 #[test]
@@ -477,7 +543,12 @@ fn non_finite_numbers_are_errors_at_their_element() {
             "<mass_center>0 -0.17 0</mass_center>",
             &format!("<mass_center>0 {junk} 0</mass_center>"),
         );
-        assert_model_error(load(&xml), r#"Body "thigh" > <mass_center>"#, line, &["not a finite number", junk]);
+        assert_model_error(
+            load(&xml),
+            r#"Body "thigh" > <mass_center>"#,
+            line,
+            &["not a finite number", junk],
+        );
 
         // In a coordinate's default value.
         let (xml, line) = replace_after(
@@ -486,23 +557,33 @@ fn non_finite_numbers_are_errors_at_their_element() {
             "<default_value>0</default_value>",
             &format!("<default_value>{junk}</default_value>"),
         );
-        assert_model_error(load(&xml), r#"Coordinate "hip_flexion" > <default_value>"#, line, &["not a finite number"]);
+        assert_model_error(
+            load(&xml),
+            r#"Coordinate "hip_flexion" > <default_value>"#,
+            line,
+            &["not a finite number"],
+        );
 
         // In a spline's knots.
-        let (xml, line) = replace_after(
-            DEMO,
-            "<x>-2.0 -1.2 -0.5 0 0.15</x>",
-            "<x>-2.0",
-            &format!("<x>{junk}"),
+        let (xml, line) = replace_after(DEMO, "<x>-2.0 -1.2 -0.5 0 0.15</x>", "<x>-2.0", &format!("<x>{junk}"));
+        assert_model_error(
+            load(&xml),
+            r#"SimmSpline "function" > <x>"#,
+            line,
+            &["not a finite number"],
         );
-        assert_model_error(load(&xml), r#"SimmSpline "function" > <x>"#, line, &["not a finite number"]);
     }
 }
 
 #[test]
 fn text_that_is_not_a_number_is_an_error() {
     let (xml, line) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>eight</mass>");
-    assert_model_error(load(&xml), r#"Body "thigh" > <mass>"#, line, &["`eight` is not a number"]);
+    assert_model_error(
+        load(&xml),
+        r#"Body "thigh" > <mass>"#,
+        line,
+        &["`eight` is not a number"],
+    );
     let (xml, line) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>8 9</mass>");
     assert_model_error(load(&xml), r#"Body "thigh" > <mass>"#, line, &["one number", "found 2"]);
 }
@@ -523,7 +604,12 @@ fn spline_with_non_increasing_x_is_an_error() {
     assert_model_error(load(&xml), r#"SimmSpline "function""#, line, &["strictly increasing"]);
     // x and y of different lengths.
     let (xml, _) = replace_after(DEMO, anchor, "<x>-2.0 -1.5 -1.0", "<x>-2.0 -1.0");
-    assert_model_error(load(&xml), r#"SimmSpline "function""#, line, &["x has 5 values but y has 6"]);
+    assert_model_error(
+        load(&xml),
+        r#"SimmSpline "function""#,
+        line,
+        &["x has 5 values but y has 6"],
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -546,7 +632,12 @@ fn path_point_on_an_unknown_body_is_an_error() {
 fn conditional_path_point_with_an_unknown_coordinate_is_an_error() {
     let anchor = r#"<PathPoint name="vasti-P2">"#;
     let conditional = r#"<ConditionalPathPoint name="vasti-P2">"#;
-    let (xml, _) = replace_after(DEMO, anchor, "</PathPoint>", "<socket_coordinate>/jointset/knee/knee_anglx</socket_coordinate><range>-2 0</range></ConditionalPathPoint>");
+    let (xml, _) = replace_after(
+        DEMO,
+        anchor,
+        "</PathPoint>",
+        "<socket_coordinate>/jointset/knee/knee_anglx</socket_coordinate><range>-2 0</range></ConditionalPathPoint>",
+    );
     let xml = replace_unique(&xml, anchor, conditional);
     let line = line_of(&xml, conditional);
     assert_model_error(
@@ -558,13 +649,23 @@ fn conditional_path_point_with_an_unknown_coordinate_is_an_error() {
     // The same point with a known coordinate loads.
     let good = xml.replace("knee_anglx", "knee_angle");
     let model = load(&good).expect("a valid ConditionalPathPoint loads");
-    assert!(model.forces[0].path.as_ref().unwrap().points.iter().any(|p| matches!(
-        p.kind,
-        musculo::model::PathPointKind::Conditional { .. }
-    )));
+    assert!(
+        model.forces[0]
+            .path
+            .as_ref()
+            .unwrap()
+            .points
+            .iter()
+            .any(|p| matches!(p.kind, musculo::model::PathPointKind::Conditional { .. }))
+    );
     // A coordinate of another joint than the one named in the path.
     let wrong_joint = xml.replace("/jointset/knee/knee_anglx", "/jointset/knee/hip_flexion");
-    assert_model_error(load(&wrong_joint), r#"ConditionalPathPoint "vasti-P2""#, line, &["does not belong to joint `knee`"]);
+    assert_model_error(
+        load(&wrong_joint),
+        r#"ConditionalPathPoint "vasti-P2""#,
+        line,
+        &["does not belong to joint `knee`"],
+    );
 }
 
 #[test]
@@ -590,7 +691,84 @@ fn muscle_with_non_positive_optimal_fiber_length_is_an_error() {
 #[test]
 fn path_wrap_naming_an_unknown_wrap_object_is_an_error() {
     let anchor = r#"<PathWrap name="pathwrap">"#;
-    let (xml, _) = replace_after(DEMO, anchor, "<wrap_object>knee_wrap</wrap_object>", "<wrap_object>hip_wrap</wrap_object>");
+    let (xml, _) = replace_after(
+        DEMO,
+        anchor,
+        "<wrap_object>knee_wrap</wrap_object>",
+        "<wrap_object>hip_wrap</wrap_object>",
+    );
     let line = line_of(&xml, anchor);
-    assert_model_error(load(&xml), r#"PathWrap "pathwrap""#, line, &["unknown wrap object", "hip_wrap"]);
+    assert_model_error(
+        load(&xml),
+        r#"PathWrap "pathwrap""#,
+        line,
+        &["unknown wrap object", "hip_wrap"],
+    );
+}
+
+#[test]
+fn offset_frames_that_are_each_others_parent_are_an_error() {
+    let frames = r#"<frames>
+<PhysicalOffsetFrame name="f1">
+<socket_parent>f2</socket_parent>
+</PhysicalOffsetFrame>
+<PhysicalOffsetFrame name="f2">
+<socket_parent>f1</socket_parent>
+</PhysicalOffsetFrame>
+</frames>
+</PinJoint>"#;
+    let joint = pin("j", "f1", "/bodyset/a", "q").replace("</PinJoint>", frames);
+    let xml = minimal(&body("a"), &joint);
+    let line = line_of(&xml, r#"<PinJoint name="j">"#);
+    assert_model_error(load(&xml), r#"PinJoint "j""#, line, &["parent frame", "cycle"]);
+
+    // A frame that is its own parent.
+    let joint = pin("j", "f1", "/bodyset/a", "q").replace(
+        "</PinJoint>",
+        &frames.replace("<socket_parent>f2</socket_parent>", "<socket_parent>f1</socket_parent>"),
+    );
+    let xml = minimal(&body("a"), &joint);
+    assert_model_error(load(&xml), r#"PinJoint "j""#, line, &["parent frame", "cycle"]);
+}
+
+#[test]
+fn deeply_nested_elements_are_an_error_not_a_stack_overflow() {
+    let depth = 100_000;
+    // Inside a force element, which is kept verbatim.
+    let nested = format!("{}{}", "<a>".repeat(depth), "</a>".repeat(depth));
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<Thelen2003Muscle name="vasti">"#,
+        "<max_isometric_force>",
+        &format!("{nested}<max_isometric_force>"),
+    );
+    assert_model_error(load(&xml), "<a>", line, &["nested more than"]);
+    // Nested multiplier functions in a TransformAxis.
+    let nested = format!(
+        "{}<Constant><value>1</value></Constant>{}",
+        "<MultiplierFunction><function>".repeat(depth),
+        "</function></MultiplierFunction>".repeat(depth)
+    );
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<CustomJoint name="knee">"#,
+        "<LinearFunction name=\"function\">",
+        &format!("{nested}<LinearFunction name=\"function\">"),
+    );
+    assert_model_error(load(&xml), "<MultiplierFunction>", line, &["nested more than"]);
+    // Twenty levels of multipliers are fine (the first function element of the axis is used).
+    let nested = format!(
+        "{}<LinearFunction><coefficients>1 0</coefficients></LinearFunction>{}",
+        "<MultiplierFunction><scale>2</scale><function>".repeat(20),
+        "</function></MultiplierFunction>".repeat(20)
+    );
+    let (xml, _) = replace_after(
+        DEMO,
+        r#"<CustomJoint name="knee">"#,
+        "<LinearFunction name=\"function\">",
+        &format!("{nested}<LinearFunction name=\"function\">"),
+    );
+    let model = load(&xml).expect("20 nested multipliers load");
+    let dof = model.dofs.iter().find(|d| d.name == "knee/rotation1").unwrap();
+    assert_eq!(dof.function.eval1(0.5).0, 2f64.powi(20) * 0.5);
 }

@@ -86,8 +86,13 @@ impl FrameRegistry {
     /// relative to the owner, to the unique frame or body with that name (how files written
     /// by older OpenSim versions name frames).
     pub fn resolve(&mut self, owner: &str, path: &str) -> Result<(usize, Transform), FrameError> {
+        self.resolve_at_depth(owner, path, 0)
+    }
+
+    /// `resolve`, `depth` frames down a chain of offset frames (bounded, to report cycles).
+    fn resolve_at_depth(&mut self, owner: &str, path: &str, depth: usize) -> Result<(usize, Transform), FrameError> {
         let abs = resolve_path(owner, path);
-        match self.resolve_abs(&abs, 0) {
+        match self.resolve_abs(&abs, depth) {
             // Only when the path itself is missing, not a frame further up its chain.
             Err(FrameError::NotFound(missing)) if missing == abs && !path.contains('/') => {
                 let name = path.trim();
@@ -101,7 +106,7 @@ impl FrameRegistry {
                 hits.sort();
                 hits.dedup();
                 match hits.len() {
-                    1 => self.resolve_abs(&hits[0], 0),
+                    1 => self.resolve_abs(&hits[0], depth),
                     0 => Err(FrameError::NotFound(abs)),
                     _ => Err(FrameError::Ambiguous(name.to_string(), hits)),
                 }
@@ -129,7 +134,7 @@ impl FrameRegistry {
         let (body, x_parent) = match self.resolve_abs(&parent_abs, depth + 1) {
             Err(FrameError::NotFound(missing)) if missing == parent_abs && !def.parent.contains('/') => {
                 // Legacy bare name.
-                self.resolve(&def.path, &def.parent)?
+                self.resolve_at_depth(&def.path, &def.parent, depth + 1)?
             }
             r => r?,
         };

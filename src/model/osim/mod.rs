@@ -32,6 +32,9 @@ pub struct LoadOptions {
 /// The oldest file version read: OpenSim 4.0 writes `Version="40000"`.
 const MIN_VERSION: u32 = 40000;
 
+/// The deepest element nesting read; OpenSim files nest about 15 levels.
+const MAX_NESTING: usize = 256;
+
 pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<Model, Error> {
     let doc = Document::parse_with_options(
         text,
@@ -58,12 +61,20 @@ pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<M
             message,
         }
     })?;
-    let mut ctx = Ctx {
-        doc: &doc,
-        file: source,
-        warnings: Vec::new(),
-        visual: 0,
-    };
+    let mut ctx = Ctx::new(&doc, source);
+    // The reader recurses into elements (functions, verbatim copies of forces): refuse
+    // nesting far deeper than any model needs instead of overflowing the stack.
+    if let Some(deep) = doc
+        .descendants()
+        .find(|n| n.is_element() && n.ancestors().nth(MAX_NESTING).is_some())
+    {
+        return Err(Error::Model {
+            file: source.to_string(),
+            line: ctx.line(deep),
+            element: format!("<{}>", deep.tag_name().name()),
+            message: format!("elements are nested more than {MAX_NESTING} levels deep"),
+        });
+    }
     let root = doc.root_element();
     if root.tag_name().name() != "OpenSimDocument" {
         return Err(ctx.err(root, "the root element must be <OpenSimDocument>"));

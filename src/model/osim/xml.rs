@@ -10,10 +10,12 @@ pub type XNode<'a, 'i> = Node<'a, 'i>;
 
 /// Parsing context: the document, its file name, and the warnings collected so far.
 pub struct Ctx<'a, 'i> {
-    pub doc: &'a Document<'i>,
+    pub doc: std::marker::PhantomData<&'a Document<'i>>,
     pub file: &'a str,
     pub warnings: Vec<Warning>,
     pub visual: usize,
+    /// Byte offset of the start of every line, for line numbers by binary search.
+    line_starts: Vec<usize>,
 }
 
 /// Display-only elements: skipped and counted, never needed for dynamics.
@@ -39,8 +41,23 @@ pub const VISUAL_TAGS: &[&str] = &[
 ];
 
 impl<'a, 'i> Ctx<'a, 'i> {
+    pub fn new(doc: &'a Document<'i>, file: &'a str) -> Self {
+        let text = doc.input_text();
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
+        Ctx {
+            doc: std::marker::PhantomData,
+            file,
+            warnings: Vec::new(),
+            visual: 0,
+            line_starts,
+        }
+    }
+
+    /// 1-based line of the element's start.
     pub fn line(&self, node: XNode) -> u32 {
-        self.doc.text_pos_at(node.range().start).row
+        self.line_starts.partition_point(|&s| s <= node.range().start) as u32
     }
 
     /// `JointSet > CustomJoint "knee_r" > SpatialTransform > TransformAxis "translation1"`.
