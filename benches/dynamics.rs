@@ -38,14 +38,26 @@ struct States {
 fn states(model: &Model) -> States {
     let mut rng = Rng(42);
     let n = model.nq();
-    let mut s = States { q: vec![], qd: vec![], qdd: vec![] };
+    let mut s = States {
+        q: vec![],
+        qd: vec![],
+        qdd: vec![],
+    };
     for _ in 0..STATES {
-        s.q.push(model.reduction.independent.iter().map(|&c| {
-            let [lo, hi] = model.coordinates[c].range;
-            lo + (hi - lo) * rng.unit()
-        }).collect());
+        s.q.push(
+            model
+                .reduction
+                .independent
+                .iter()
+                .map(|&c| {
+                    let [lo, hi] = model.coordinates[c].range;
+                    lo + (hi - lo) * rng.unit()
+                })
+                .collect(),
+        );
         s.qd.push((0..n).map(|_| 2.0 * rng.unit() - 1.0).collect());
-        s.qdd.push((0..n).map(|_| 10.0 * rng.unit() - 5.0).collect());
+        s.qdd
+            .push((0..n).map(|_| 10.0 * rng.unit() - 5.0).collect());
     }
     s
 }
@@ -72,17 +84,29 @@ fn summary(mut v: Vec<f64>) -> (f64, f64, f64) {
 }
 
 fn fmt(ns: f64) -> String {
-    if ns >= 1e4 { format!("{:.1} µs", ns / 1e3) } else { format!("{:.2} µs", ns / 1e3) }
+    if ns >= 1e4 {
+        format!("{:.1} µs", ns / 1e3)
+    } else {
+        format!("{:.2} µs", ns / 1e3)
+    }
 }
 
 fn row(label: &str, ours: Vec<f64>, peer: Option<(&str, Vec<f64>)>) {
     let (lo, med, hi) = summary(ours.clone());
-    let mut line = format!("  {label:<34} {:>10}  ({} – {})", fmt(med), fmt(lo), fmt(hi));
+    let mut line = format!(
+        "  {label:<34} {:>10}  ({} – {})",
+        fmt(med),
+        fmt(lo),
+        fmt(hi)
+    );
     if let Some((name, p)) = peer {
         let ratios: Vec<f64> = ours.iter().zip(&p).map(|(a, b)| a / b).collect();
         let (rlo, rmed, rhi) = summary(ratios);
         let (_, pmed, _) = summary(p);
-        line += &format!("   peer {name}: {:>10}  ratio {rmed:.3} ({rlo:.3} – {rhi:.3})", fmt(pmed));
+        line += &format!(
+            "   peer {name}: {:>10}  ratio {rmed:.3} ({rlo:.3} – {rhi:.3})",
+            fmt(pmed)
+        );
     }
     println!("{line}");
 }
@@ -105,11 +129,15 @@ fn bench_model(label: &str, model: &Model) {
     let mut crba = Vec::new();
     let mut naive = Vec::new();
     for _ in 0..3 {
-        crba.extend(time_batches(|i| { black_box(dynamics::crba(model, &mut data, &s.q[i]).unwrap()); }));
+        crba.extend(time_batches(|i| {
+            black_box(dynamics::crba(model, &mut data, &s.q[i]).unwrap());
+        }));
         naive.extend(time_batches(|i| {
             let zero = &s.qdd[i][..0];
             let _ = zero;
-            let b = dynamics::nonlinear_effects(model, &mut peer, &s.q[i], &s.qd[i]).unwrap().clone_owned();
+            let b = dynamics::nonlinear_effects(model, &mut peer, &s.q[i], &s.qd[i])
+                .unwrap()
+                .clone_owned();
             for j in 0..n {
                 unit.fill(0.0);
                 unit[j] = 1.0;
@@ -125,7 +153,9 @@ fn bench_model(label: &str, model: &Model) {
 
     // bias: RNEA with q̈ = 0 vs brute force Φᵀ(bias_full + M_full Φ̇q̇).
     let theta_zero = vec![0.0; model.n_full()];
-    let bias = time_batches(|i| { black_box(dynamics::nonlinear_effects(model, &mut data, &s.q[i], &s.qd[i]).unwrap()); });
+    let bias = time_batches(|i| {
+        black_box(dynamics::nonlinear_effects(model, &mut data, &s.q[i], &s.qd[i]).unwrap());
+    });
     let brute = time_batches(|i| {
         dynamics::forward_kinematics(model, &mut peer, &s.q[i]).unwrap();
         let m_full = dynamics::crba_full(model, &mut peer).unwrap().clone_owned();
@@ -134,14 +164,38 @@ fn bench_model(label: &str, model: &Model) {
         let pdq = nalgebra::DVector::from_column_slice(peer.phi_dot_qd(model));
         let th = peer.theta(model).to_vec();
         let thd = peer.theta_dot(model).to_vec();
-        let bf = nalgebra::DVector::from_column_slice(dynamics::rnea_full(model, &mut peer, &th, &thd, &theta_zero).unwrap());
+        let bf = nalgebra::DVector::from_column_slice(
+            dynamics::rnea_full(model, &mut peer, &th, &thd, &theta_zero).unwrap(),
+        );
         black_box(phi.transpose() * (bf + m_full * pdq));
     });
-    row("bias C q̇ + G (rnea, q̈ = 0)", bias, Some(("Φᵀ(b_full + M_full Φ̇q̇)", brute)));
+    row(
+        "bias C q̇ + G (rnea, q̈ = 0)",
+        bias,
+        Some(("Φᵀ(b_full + M_full Φ̇q̇)", brute)),
+    );
 
-    row("ID τ(q, q̇, q̈) (rnea)", time_batches(|i| { black_box(dynamics::rnea(model, &mut data, &s.q[i], &s.qd[i], &s.qdd[i]).unwrap()); }), None);
-    row("G (com Jacobian)", time_batches(|i| { black_box(dynamics::gravity(model, &mut data, &s.q[i]).unwrap()); }), None);
-    row("forward kinematics (position)", time_batches(|i| { dynamics::forward_kinematics(model, &mut data, &s.q[i]).unwrap(); }), None);
+    row(
+        "ID τ(q, q̇, q̈) (rnea)",
+        time_batches(|i| {
+            black_box(dynamics::rnea(model, &mut data, &s.q[i], &s.qd[i], &s.qdd[i]).unwrap());
+        }),
+        None,
+    );
+    row(
+        "G (com Jacobian)",
+        time_batches(|i| {
+            black_box(dynamics::gravity(model, &mut data, &s.q[i]).unwrap());
+        }),
+        None,
+    );
+    row(
+        "forward kinematics (position)",
+        time_batches(|i| {
+            dynamics::forward_kinematics(model, &mut data, &s.q[i]).unwrap();
+        }),
+        None,
+    );
 
     let mut j6 = DMatrix::zeros(6, n);
     let nb = model.bodies.len();
@@ -162,7 +216,9 @@ fn main() {
     // `cargo test --benches` runs this binary with --bench absent: keep that quick.
     let quick = !std::env::args().any(|a| a == "--bench");
     let dir = musculo::reference::directory();
-    println!("musculo dynamics benchmark: per-call time, median (min – max) over {BATCHES} batches of {STATES} random states");
+    println!(
+        "musculo dynamics benchmark: per-call time, median (min – max) over {BATCHES} batches of {STATES} random states"
+    );
     let demo = Model::demo();
     if quick {
         let mut d = Data::new(&demo);
@@ -172,8 +228,14 @@ fn main() {
     }
     bench_model("demo", &demo);
     for (label, rel) in [
-        ("gait2392", "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim"),
-        ("Rajagopal2016", "opensim-models/Models/Rajagopal/Rajagopal2016.osim"),
+        (
+            "gait2392",
+            "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        ),
+        (
+            "Rajagopal2016",
+            "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+        ),
     ] {
         match Model::from_osim_file(dir.join(rel)) {
             Ok(m) => bench_model(label, &m),

@@ -15,7 +15,8 @@ pub fn directory() -> PathBuf {
 /// True when `MUSCULO_REQUIRE_REFERENCE=1`: a missing reference file is then a failure
 /// instead of a skip.
 pub fn required() -> bool {
-    std::env::var("MUSCULO_REQUIRE_REFERENCE").is_ok_and(|v| v == "1" || v.eq_ignore_ascii_case("true"))
+    std::env::var("MUSCULO_REQUIRE_REFERENCE")
+        .is_ok_and(|v| v == "1" || v.eq_ignore_ascii_case("true"))
 }
 
 /// The path of a reference file (relative to the reference directory), if it exists.

@@ -21,10 +21,22 @@ fn compute(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Computed {
     let mut d = Data::new(model);
     Computed {
         m: dynamics::crba(model, &mut d, q).unwrap().clone(),
-        bias: dynamics::nonlinear_effects(model, &mut d, q, qd).unwrap().as_slice().to_vec(),
-        coriolis: dynamics::coriolis(model, &mut d, q, qd).unwrap().as_slice().to_vec(),
-        gravity: dynamics::gravity(model, &mut d, q).unwrap().as_slice().to_vec(),
-        tau: dynamics::rnea(model, &mut d, q, qd, qdd).unwrap().as_slice().to_vec(),
+        bias: dynamics::nonlinear_effects(model, &mut d, q, qd)
+            .unwrap()
+            .as_slice()
+            .to_vec(),
+        coriolis: dynamics::coriolis(model, &mut d, q, qd)
+            .unwrap()
+            .as_slice()
+            .to_vec(),
+        gravity: dynamics::gravity(model, &mut d, q)
+            .unwrap()
+            .as_slice()
+            .to_vec(),
+        tau: dynamics::rnea(model, &mut d, q, qd, qdd)
+            .unwrap()
+            .as_slice()
+            .to_vec(),
     }
 }
 
@@ -37,7 +49,12 @@ fn check(name: &str, got: &Computed, m: &[&[f64]], cqd: &[f64], g: &[f64], qdd: 
         }
         assert_close(got.coriolis[i], cqd[i], TOL, &format!("{name}: (C q̇)[{i}]"));
         assert_close(got.gravity[i], g[i], TOL, &format!("{name}: G[{i}]"));
-        assert_close(got.bias[i], cqd[i] + g[i], TOL, &format!("{name}: bias[{i}]"));
+        assert_close(
+            got.bias[i],
+            cqd[i] + g[i],
+            TOL,
+            &format!("{name}: bias[{i}]"),
+        );
         let tau: f64 = (0..n).map(|j| m[i][j] * qdd[j]).sum::<f64>() + cqd[i] + g[i];
         assert_close(got.tau[i], tau, TOL, &format!("{name}: τ[{i}]"));
     }
@@ -49,17 +66,41 @@ fn single_pendulum_matches_closed_form() {
     //   M = I_zz + m l²,  C q̇ = 0,  G = m g l sin θ.
     let (m, l, izz) = (1.7, 0.45, 0.031);
     let xml = osim(
-        &body("link", m, [0.0, -l, 0.0], [0.025, 0.012, izz, 0.001, -0.002, 0.003]),
-        &joint("PinJoint", "pin", "/ground", [0.0; 3], "/bodyset/link", &[coordinate("theta", [-3.0, 3.0])], ""),
+        &body(
+            "link",
+            m,
+            [0.0, -l, 0.0],
+            [0.025, 0.012, izz, 0.001, -0.002, 0.003],
+        ),
+        &joint(
+            "PinJoint",
+            "pin",
+            "/ground",
+            [0.0; 3],
+            "/bodyset/link",
+            &[coordinate("theta", [-3.0, 3.0])],
+            "",
+        ),
         "",
         [0.0, -G, 0.0],
     );
     let model = Model::from_osim_str(&xml, "pendulum").unwrap();
     let mut rng = Rng::new(1);
     for _ in 0..20 {
-        let (th, thd, thdd) = (rng.uniform(-3.0, 3.0), rng.uniform(-5.0, 5.0), rng.uniform(-20.0, 20.0));
+        let (th, thd, thdd) = (
+            rng.uniform(-3.0, 3.0),
+            rng.uniform(-5.0, 5.0),
+            rng.uniform(-20.0, 20.0),
+        );
         let got = compute(&model, &[th], &[thd], &[thdd]);
-        check("pendulum", &got, &[&[izz + m * l * l]], &[0.0], &[m * G * l * th.sin()], &[thdd]);
+        check(
+            "pendulum",
+            &got,
+            &[&[izz + m * l * l]],
+            &[0.0],
+            &[m * G * l * th.sin()],
+            &[thdd],
+        );
     }
 }
 
@@ -72,11 +113,36 @@ fn double_pendulum_matches_closed_form() {
     //   C q̇ = [h (2 θ̇1 θ̇2 + θ̇2²), −h θ̇1²],  h = −m2 L1 lc2 sin θ2
     //   G = [(m1 lc1 + m2 L1) g sin θ1 + m2 g lc2 sin(θ1+θ2), m2 g lc2 sin(θ1+θ2)]
     let (m1, m2, l1, lc1, lc2, i1, i2) = (2.0, 1.3, 0.6, 0.27, 0.33, 0.05, 0.021);
-    let bodies = body("a", m1, [0.0, -lc1, 0.0], [0.045, 0.012, i1, 0.0, 0.004, 0.0])
-        + &body("b", m2, [0.0, -lc2, 0.0], [0.02, 0.008, i2, 0.0, 0.0, -0.001]);
-    let joints = joint("PinJoint", "j1", "/ground", [0.0; 3], "/bodyset/a", &[coordinate("t1", [-3.0, 3.0])], "")
-        + &joint("PinJoint", "j2", "/bodyset/a", [0.0, -l1, 0.0], "/bodyset/b", &[coordinate("t2", [-3.0, 3.0])], "");
-    let model = Model::from_osim_str(&osim(&bodies, &joints, "", [0.0, -G, 0.0]), "double").unwrap();
+    let bodies = body(
+        "a",
+        m1,
+        [0.0, -lc1, 0.0],
+        [0.045, 0.012, i1, 0.0, 0.004, 0.0],
+    ) + &body(
+        "b",
+        m2,
+        [0.0, -lc2, 0.0],
+        [0.02, 0.008, i2, 0.0, 0.0, -0.001],
+    );
+    let joints = joint(
+        "PinJoint",
+        "j1",
+        "/ground",
+        [0.0; 3],
+        "/bodyset/a",
+        &[coordinate("t1", [-3.0, 3.0])],
+        "",
+    ) + &joint(
+        "PinJoint",
+        "j2",
+        "/bodyset/a",
+        [0.0, -l1, 0.0],
+        "/bodyset/b",
+        &[coordinate("t2", [-3.0, 3.0])],
+        "",
+    );
+    let model =
+        Model::from_osim_str(&osim(&bodies, &joints, "", [0.0, -G, 0.0]), "double").unwrap();
     let mut rng = Rng::new(2);
     for _ in 0..20 {
         let q = [rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0)];
@@ -87,10 +153,23 @@ fn double_pendulum_matches_closed_form() {
         let m12 = i2 + m2 * (lc2 * lc2 + l1 * lc2 * c2);
         let m22 = i2 + m2 * lc2 * lc2;
         let h = -m2 * l1 * lc2 * q[1].sin();
-        let cqd = [h * (2.0 * qd[0] * qd[1] + qd[1] * qd[1]), -h * qd[0] * qd[0]];
+        let cqd = [
+            h * (2.0 * qd[0] * qd[1] + qd[1] * qd[1]),
+            -h * qd[0] * qd[0],
+        ];
         let s12 = (q[0] + q[1]).sin();
-        let g = [(m1 * lc1 + m2 * l1) * G * q[0].sin() + m2 * G * lc2 * s12, m2 * G * lc2 * s12];
-        check("double pendulum", &compute(&model, &q, &qd, &qdd), &[&[m11, m12], &[m12, m22]], &cqd, &g, &qdd);
+        let g = [
+            (m1 * lc1 + m2 * l1) * G * q[0].sin() + m2 * G * lc2 * s12,
+            m2 * G * lc2 * s12,
+        ];
+        check(
+            "double pendulum",
+            &compute(&model, &q, &qd, &qdd),
+            &[&[m11, m12], &[m12, m22]],
+            &cqd,
+            &g,
+            &qdd,
+        );
     }
 }
 
@@ -108,8 +187,28 @@ fn free_floating_body_matches_newton_euler_closed_form() {
         .map(|n| coordinate(n, [-1.4, 1.4]))
         .collect();
     let xml = osim(
-        &body("b", mass, [0.0; 3], [ib[(0, 0)], ib[(1, 1)], ib[(2, 2)], ib[(0, 1)], ib[(0, 2)], ib[(1, 2)]]),
-        &joint("FreeJoint", "free", "/ground", [0.0; 3], "/bodyset/b", &coords, ""),
+        &body(
+            "b",
+            mass,
+            [0.0; 3],
+            [
+                ib[(0, 0)],
+                ib[(1, 1)],
+                ib[(2, 2)],
+                ib[(0, 1)],
+                ib[(0, 2)],
+                ib[(1, 2)],
+            ],
+        ),
+        &joint(
+            "FreeJoint",
+            "free",
+            "/ground",
+            [0.0; 3],
+            "/bodyset/b",
+            &coords,
+            "",
+        ),
         "",
         [0.0, -G, 0.0],
     );
@@ -122,7 +221,17 @@ fn free_floating_body_matches_newton_euler_closed_form() {
         let qdd = random_vec(6, 5.0, &mut rng);
         let (b, c) = (q[1], q[2]);
         let (bd, cd) = (qd[1], qd[2]);
-        let e = nalgebra::Matrix3::new(b.cos() * c.cos(), c.sin(), 0.0, -b.cos() * c.sin(), c.cos(), 0.0, b.sin(), 0.0, 1.0);
+        let e = nalgebra::Matrix3::new(
+            b.cos() * c.cos(),
+            c.sin(),
+            0.0,
+            -b.cos() * c.sin(),
+            c.cos(),
+            0.0,
+            b.sin(),
+            0.0,
+            1.0,
+        );
         let ed = nalgebra::Matrix3::new(
             -b.sin() * bd * c.cos() - b.cos() * c.sin() * cd,
             c.cos() * cd,
@@ -148,7 +257,14 @@ fn free_floating_body_matches_newton_euler_closed_form() {
         let cqd = [c_rot[0], c_rot[1], c_rot[2], 0.0, 0.0, 0.0];
         let g = [0.0, 0.0, 0.0, 0.0, mass * G, 0.0];
         let rows: Vec<&[f64]> = m.iter().map(|r| r.as_slice()).collect();
-        check("free body", &compute(&model, &q, &qd, &qdd), &rows, &cqd, &g, &qdd);
+        check(
+            "free body",
+            &compute(&model, &q, &qd, &qdd),
+            &rows,
+            &cqd,
+            &g,
+            &qdd,
+        );
     }
 }
 
@@ -167,10 +283,28 @@ fn coupled_slider_crank_and_function_driven_axis_match_closed_form() {
     let p = [0.02, -0.05, 0.3, 0.1]; // P(θ) = 0.02θ³ − 0.05θ² + 0.3θ + 0.1 (highest power first)
     let (m3, cx, cy, izz) = (1.1, 0.07, -0.2, 0.013);
     let qp = [-0.01, 0.03, 0.02, -0.004]; // Q(φ)
-    let bodies = body("crank", m1, [lc, 0.0, 0.0], [0.012, 0.015, ic, 0.0, 0.0, 0.0])
-        + &body("slider", m2, [0.01, 0.02, 0.0], [0.01, 0.01, 0.01, 0.0, 0.0, 0.0])
-        + &body("shank", m3, [cx, cy, 0.0], [0.014, 0.004, izz, 0.0, 0.0, 0.0]);
-    let poly = |c: &[f64; 4]| format!("<PolynomialFunction><coefficients>{} {} {} {}</coefficients></PolynomialFunction>", c[0], c[1], c[2], c[3]);
+    let bodies = body(
+        "crank",
+        m1,
+        [lc, 0.0, 0.0],
+        [0.012, 0.015, ic, 0.0, 0.0, 0.0],
+    ) + &body(
+        "slider",
+        m2,
+        [0.01, 0.02, 0.0],
+        [0.01, 0.01, 0.01, 0.0, 0.0, 0.0],
+    ) + &body(
+        "shank",
+        m3,
+        [cx, cy, 0.0],
+        [0.014, 0.004, izz, 0.0, 0.0, 0.0],
+    );
+    let poly = |c: &[f64; 4]| {
+        format!(
+            "<PolynomialFunction><coefficients>{} {} {} {}</coefficients></PolynomialFunction>",
+            c[0], c[1], c[2], c[3]
+        )
+    };
     let u = [alpha.cos(), alpha.sin(), 0.0];
     let slider_st = spatial_transform([
         ("", [0.0, 0.0, 1.0], ZERO),
@@ -188,9 +322,31 @@ fn coupled_slider_crank_and_function_driven_axis_match_closed_form() {
         ("", [0.0, 1.0, 0.0], ZERO),
         ("", [0.0, 0.0, 1.0], ZERO),
     ]);
-    let joints = joint("PinJoint", "crank_pin", "/ground", [0.0; 3], "/bodyset/crank", &[coordinate("theta", [-2.0, 2.0])], "")
-        + &joint("CustomJoint", "slide", "/ground", [0.3, 0.0, 0.0], "/bodyset/slider", &[coordinate("s", [-1.0, 1.0])], &slider_st)
-        + &joint("CustomJoint", "knee", "/ground", [0.0, 1.0, 0.0], "/bodyset/shank", &[coordinate("phi", [-2.0, 2.0])], &knee_st);
+    let joints = joint(
+        "PinJoint",
+        "crank_pin",
+        "/ground",
+        [0.0; 3],
+        "/bodyset/crank",
+        &[coordinate("theta", [-2.0, 2.0])],
+        "",
+    ) + &joint(
+        "CustomJoint",
+        "slide",
+        "/ground",
+        [0.3, 0.0, 0.0],
+        "/bodyset/slider",
+        &[coordinate("s", [-1.0, 1.0])],
+        &slider_st,
+    ) + &joint(
+        "CustomJoint",
+        "knee",
+        "/ground",
+        [0.0, 1.0, 0.0],
+        "/bodyset/shank",
+        &[coordinate("phi", [-2.0, 2.0])],
+        &knee_st,
+    );
     let coupler = format!(
         "<CoordinateCouplerConstraint name=\"crank_drives_slider\"><isEnforced>true</isEnforced>\
          <coupled_coordinates_function>{}</coupled_coordinates_function>\
@@ -199,7 +355,11 @@ fn coupled_slider_crank_and_function_driven_axis_match_closed_form() {
          </CoordinateCouplerConstraint>",
         poly(&p)
     );
-    let model = Model::from_osim_str(&osim(&bodies, &joints, &coupler, [0.0, -G, 0.0]), "slider-crank").unwrap();
+    let model = Model::from_osim_str(
+        &osim(&bodies, &joints, &coupler, [0.0, -G, 0.0]),
+        "slider-crank",
+    )
+    .unwrap();
     assert_eq!(model.q_names(), vec!["theta", "phi"]);
     let cubic = |c: &[f64; 4], x: f64| {
         (

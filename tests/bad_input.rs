@@ -14,7 +14,11 @@ const SOURCE: &str = "bad.osim";
 #[track_caller]
 fn line_of(xml: &str, needle: &str) -> u32 {
     let hits: Vec<usize> = xml.match_indices(needle).map(|(i, _)| i).collect();
-    assert_eq!(hits.len(), 1, "`{needle}` must occur exactly once in the test XML");
+    assert_eq!(
+        hits.len(),
+        1,
+        "`{needle}` must occur exactly once in the test XML"
+    );
     line_at(xml, hits[0])
 }
 
@@ -176,12 +180,26 @@ fn truncated_file_is_an_xml_error() {
 fn garbage_text_is_an_xml_error() {
     assert_xml_error(load("this is not XML at all"), 1, &[]);
     assert_xml_error(load(""), 1, &[]);
-    assert_xml_error(load("\n\n<OpenSimDocument Version=\"40000\"><Model></Mod"), 3, &[]);
+    assert_xml_error(
+        load("\n\n<OpenSimDocument Version=\"40000\"><Model></Mod"),
+        3,
+        &[],
+    );
     // Garbage inside an element: a stray `<` in text.
-    let (xml, line) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>8 < 9</mass>");
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<Body name="thigh">"#,
+        "<mass>8</mass>",
+        "<mass>8 < 9</mass>",
+    );
     assert_xml_error(load(&xml), line, &[]);
     // A bare `&` (not an entity) in text.
-    let (xml, line) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>8 & 9</mass>");
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<Body name="thigh">"#,
+        "<mass>8</mass>",
+        "<mass>8 & 9</mass>",
+    );
     assert_xml_error(load(&xml), line, &[]);
 }
 
@@ -193,14 +211,24 @@ fn non_opensim_root_is_a_model_error() {
 
 #[test]
 fn opensim_3_file_is_refused_with_a_hint() {
-    let (xml, line) = replace_after(DEMO, "<OpenSimDocument", r#"Version="40000""#, r#"Version="30000""#);
+    let (xml, line) = replace_after(
+        DEMO,
+        "<OpenSimDocument",
+        r#"Version="40000""#,
+        r#"Version="30000""#,
+    );
     assert_model_error(
         load(&xml),
         "OpenSimDocument",
         line,
         &["30000", "OpenSim 3", "OpenSim 4"],
     );
-    let (xml, line) = replace_after(DEMO, "<OpenSimDocument", r#"Version="40000""#, r#"Version="four""#);
+    let (xml, line) = replace_after(
+        DEMO,
+        "<OpenSimDocument",
+        r#"Version="40000""#,
+        r#"Version="four""#,
+    );
     assert_model_error(load(&xml), "OpenSimDocument", line, &["Version"]);
 }
 
@@ -209,9 +237,19 @@ fn opensim_3_file_is_refused_with_a_hint() {
 
 #[test]
 fn negative_mass_is_an_error_naming_the_body() {
-    let (xml, _) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>-8</mass>");
+    let (xml, _) = replace_after(
+        DEMO,
+        r#"<Body name="thigh">"#,
+        "<mass>8</mass>",
+        "<mass>-8</mass>",
+    );
     let line = line_of(&xml, r#"<Body name="thigh">"#);
-    assert_model_error(load(&xml), r#"Body "thigh""#, line, &["negative mass", "-8"]);
+    assert_model_error(
+        load(&xml),
+        r#"Body "thigh""#,
+        line,
+        &["negative mass", "-8"],
+    );
 }
 
 #[test]
@@ -240,7 +278,11 @@ fn inertia_violating_the_triangle_inequality_needs_the_option() {
         .find(|w| w.element.contains(r#"Body "shank""#))
         .unwrap_or_else(|| panic!("no warning names the shank: {:?}", model.warnings));
     assert_eq!(warning.line, line);
-    assert!(warning.message.contains("triangle inequality"), "{}", warning.message);
+    assert!(
+        warning.message.contains("triangle inequality"),
+        "{}",
+        warning.message
+    );
     assert_eq!(model.warnings.len(), 1, "{:?}", model.warnings);
     let shank = model.body_index("shank").unwrap();
     assert_eq!(model.bodies[shank].inertia_about_com[(2, 2)], 3.0);
@@ -256,7 +298,12 @@ fn inertia_that_is_not_positive_semi_definite_is_an_error() {
         "<inertia>1 1 1 2 0 0</inertia>",
     );
     let line = line_of(&xml, r#"<Body name="shank">"#);
-    assert_model_error(load(&xml), r#"Body "shank""#, line, &["not positive semi-definite"]);
+    assert_model_error(
+        load(&xml),
+        r#"Body "shank""#,
+        line,
+        &["not positive semi-definite"],
+    );
     // The option concerns the triangle inequality only.
     let options = LoadOptions {
         allow_nonphysical_inertia: true,
@@ -274,7 +321,12 @@ fn inertia_that_is_not_positive_semi_definite_is_an_error() {
         "<inertia>0.05 0.005 0.05 0 0 0</inertia>",
         "<inertia>-0.05 0.005 0.05 0 0 0</inertia>",
     );
-    assert_model_error(load(&xml), r#"Body "shank""#, line, &["not positive semi-definite"]);
+    assert_model_error(
+        load(&xml),
+        r#"Body "shank""#,
+        line,
+        &["not positive semi-definite"],
+    );
 }
 
 #[test]
@@ -374,7 +426,12 @@ fn joint_whose_parent_frame_names_a_missing_body_is_an_error() {
     // A bare name that is no frame.
     let xml = minimal(&body("a"), &pin("j", "nowhere", "/bodyset/a", "q"));
     let line = line_of(&xml, r#"<PinJoint name="j">"#);
-    assert_model_error(load(&xml), r#"PinJoint "j""#, line, &["parent frame", "nowhere"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "j""#,
+        line,
+        &["parent frame", "nowhere"],
+    );
 }
 
 #[test]
@@ -387,7 +444,12 @@ fn cycle_of_joints_disconnected_from_ground_is_an_error() {
     );
     let xml = minimal(&bodies, &joints);
     let line = line_of(&xml, r#"<PinJoint name="a_to_b">"#);
-    assert_model_error(load(&xml), r#"PinJoint "a_to_b""#, line, &["cycle", "a_to_b", "b_to_a"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "a_to_b""#,
+        line,
+        &["cycle", "a_to_b", "b_to_a"],
+    );
 }
 
 #[test]
@@ -405,8 +467,17 @@ fn joint_hanging_from_an_unconnected_body_is_an_error() {
 
 #[test]
 fn unsupported_joint_type_is_an_error() {
-    let (xml, _) = replace_after(DEMO, r#"<PinJoint name="ankle">"#, "</PinJoint>", "</EllipsoidJoint>");
-    let xml = replace_unique(&xml, r#"<PinJoint name="ankle">"#, r#"<EllipsoidJoint name="ankle">"#);
+    let (xml, _) = replace_after(
+        DEMO,
+        r#"<PinJoint name="ankle">"#,
+        "</PinJoint>",
+        "</EllipsoidJoint>",
+    );
+    let xml = replace_unique(
+        &xml,
+        r#"<PinJoint name="ankle">"#,
+        r#"<EllipsoidJoint name="ankle">"#,
+    );
     let line = line_of(&xml, r#"<EllipsoidJoint name="ankle">"#);
     assert_model_error(
         load(&xml),
@@ -565,7 +636,12 @@ fn non_finite_numbers_are_errors_at_their_element() {
         );
 
         // In a spline's knots.
-        let (xml, line) = replace_after(DEMO, "<x>-2.0 -1.2 -0.5 0 0.15</x>", "<x>-2.0", &format!("<x>{junk}"));
+        let (xml, line) = replace_after(
+            DEMO,
+            "<x>-2.0 -1.2 -0.5 0 0.15</x>",
+            "<x>-2.0",
+            &format!("<x>{junk}"),
+        );
         assert_model_error(
             load(&xml),
             r#"SimmSpline "function" > <x>"#,
@@ -577,15 +653,30 @@ fn non_finite_numbers_are_errors_at_their_element() {
 
 #[test]
 fn text_that_is_not_a_number_is_an_error() {
-    let (xml, line) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>eight</mass>");
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<Body name="thigh">"#,
+        "<mass>8</mass>",
+        "<mass>eight</mass>",
+    );
     assert_model_error(
         load(&xml),
         r#"Body "thigh" > <mass>"#,
         line,
         &["`eight` is not a number"],
     );
-    let (xml, line) = replace_after(DEMO, r#"<Body name="thigh">"#, "<mass>8</mass>", "<mass>8 9</mass>");
-    assert_model_error(load(&xml), r#"Body "thigh" > <mass>"#, line, &["one number", "found 2"]);
+    let (xml, line) = replace_after(
+        DEMO,
+        r#"<Body name="thigh">"#,
+        "<mass>8</mass>",
+        "<mass>8 9</mass>",
+    );
+    assert_model_error(
+        load(&xml),
+        r#"Body "thigh" > <mass>"#,
+        line,
+        &["one number", "found 2"],
+    );
 }
 
 #[test]
@@ -601,7 +692,12 @@ fn spline_with_non_increasing_x_is_an_error() {
     );
     // Decreasing.
     let (xml, _) = replace_after(DEMO, anchor, "<x>-2.0 -1.5 -1.0", "<x>-2.0 -1.0 -1.5");
-    assert_model_error(load(&xml), r#"SimmSpline "function""#, line, &["strictly increasing"]);
+    assert_model_error(
+        load(&xml),
+        r#"SimmSpline "function""#,
+        line,
+        &["strictly increasing"],
+    );
     // x and y of different lengths.
     let (xml, _) = replace_after(DEMO, anchor, "<x>-2.0 -1.5 -1.0", "<x>-2.0 -1.0");
     assert_model_error(
@@ -720,15 +816,28 @@ fn offset_frames_that_are_each_others_parent_are_an_error() {
     let joint = pin("j", "f1", "/bodyset/a", "q").replace("</PinJoint>", frames);
     let xml = minimal(&body("a"), &joint);
     let line = line_of(&xml, r#"<PinJoint name="j">"#);
-    assert_model_error(load(&xml), r#"PinJoint "j""#, line, &["parent frame", "cycle"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "j""#,
+        line,
+        &["parent frame", "cycle"],
+    );
 
     // A frame that is its own parent.
     let joint = pin("j", "f1", "/bodyset/a", "q").replace(
         "</PinJoint>",
-        &frames.replace("<socket_parent>f2</socket_parent>", "<socket_parent>f1</socket_parent>"),
+        &frames.replace(
+            "<socket_parent>f2</socket_parent>",
+            "<socket_parent>f1</socket_parent>",
+        ),
     );
     let xml = minimal(&body("a"), &joint);
-    assert_model_error(load(&xml), r#"PinJoint "j""#, line, &["parent frame", "cycle"]);
+    assert_model_error(
+        load(&xml),
+        r#"PinJoint "j""#,
+        line,
+        &["parent frame", "cycle"],
+    );
 }
 
 #[test]
@@ -755,7 +864,12 @@ fn deeply_nested_elements_are_an_error_not_a_stack_overflow() {
         "<LinearFunction name=\"function\">",
         &format!("{nested}<LinearFunction name=\"function\">"),
     );
-    assert_model_error(load(&xml), "<MultiplierFunction>", line, &["nested more than"]);
+    assert_model_error(
+        load(&xml),
+        "<MultiplierFunction>",
+        line,
+        &["nested more than"],
+    );
     // Twenty levels of multipliers are fine (the first function element of the axis is used).
     let nested = format!(
         "{}<LinearFunction><coefficients>1 0</coefficients></LinearFunction>{}",
@@ -769,6 +883,10 @@ fn deeply_nested_elements_are_an_error_not_a_stack_overflow() {
         &format!("{nested}<LinearFunction name=\"function\">"),
     );
     let model = load(&xml).expect("20 nested multipliers load");
-    let dof = model.dofs.iter().find(|d| d.name == "knee/rotation1").unwrap();
+    let dof = model
+        .dofs
+        .iter()
+        .find(|d| d.name == "knee/rotation1")
+        .unwrap();
     assert_eq!(dof.function.eval1(0.5).0, 2f64.powi(20) * 0.5);
 }

@@ -6,7 +6,10 @@ use common::*;
 use std::process::Command;
 
 fn musculo(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_musculo")).args(args).output().expect("run musculo");
+    let out = Command::new(env!("CARGO_BIN_EXE_musculo"))
+        .args(args)
+        .output()
+        .expect("run musculo");
     (
         out.status.success(),
         String::from_utf8_lossy(&out.stdout).into_owned(),
@@ -26,22 +29,36 @@ fn inspect_demo_prints_the_model_summary() {
     ] {
         assert!(out.contains(line), "missing `{line}` in:\n{out}");
     }
-    assert!(out.contains("patella_angle") && out.contains("= f(knee_angle) [patella_follows_knee]"));
+    assert!(
+        out.contains("patella_angle") && out.contains("= f(knee_angle) [patella_follows_knee]")
+    );
 }
 
 #[test]
 fn inspect_rajagopal_reports_couplers_locked_coordinates_and_muscles() {
-    let Some(p) = reference_file("opensim-models/Models/Rajagopal/Rajagopal2016.osim") else { return };
+    let Some(p) = reference_file("opensim-models/Models/Rajagopal/Rajagopal2016.osim") else {
+        return;
+    };
     let (ok, out, err) = musculo(&["inspect", p.to_str().unwrap()]);
     assert!(ok, "{err}");
-    assert!(out.contains("coordinates 39 : 29 independent, 2 dependent (coupled), 8 locked"), "{out}");
-    assert!(out.contains("muscles     80 (80 Millard2012EquilibriumMuscle)"), "{out}");
+    assert!(
+        out.contains("coordinates 39 : 29 independent, 2 dependent (coupled), 8 locked"),
+        "{out}"
+    );
+    assert!(
+        out.contains("muscles     80 (80 Millard2012EquilibriumMuscle)"),
+        "{out}"
+    );
     assert!(out.contains("other forces 17 CoordinateActuator"), "{out}");
 }
 
 #[test]
 fn inspect_json_is_machine_readable() {
-    let Some(p) = reference_file("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim") else { return };
+    let Some(p) =
+        reference_file("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim")
+    else {
+        return;
+    };
     let (ok, out, _) = musculo(&["inspect", "--json", p.to_str().unwrap()]);
     assert!(ok);
     let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
@@ -53,23 +70,47 @@ fn inspect_json_is_machine_readable() {
 
 #[test]
 fn inspect_lists_unsupported_elements_and_needs_the_option_for_bad_inertia() {
-    let Some(p) = reference_file("opensim-models/Tutorials/Estimating_Joint_Reaction_Loads/subject01_simbody_adjusted_StaticOp.osim") else { return };
+    let Some(p) = reference_file(
+        "opensim-models/Tutorials/Estimating_Joint_Reaction_Loads/subject01_simbody_adjusted_StaticOp.osim",
+    ) else {
+        return;
+    };
     let (ok, _, err) = musculo(&["inspect", p.to_str().unwrap()]);
-    assert!(!ok && err.contains("toes_r") && err.contains("triangle inequality"), "{err}");
-    let (ok, out, _) = musculo(&["inspect", "--allow-nonphysical-inertia", p.to_str().unwrap()]);
-    assert!(ok && out.contains("NOT USED BY MUSCULO (2 warnings"), "{out}");
+    assert!(
+        !ok && err.contains("toes_r") && err.contains("triangle inequality"),
+        "{err}"
+    );
+    let (ok, out, _) = musculo(&[
+        "inspect",
+        "--allow-nonphysical-inertia",
+        p.to_str().unwrap(),
+    ]);
+    assert!(
+        ok && out.contains("NOT USED BY MUSCULO (2 warnings"),
+        "{out}"
+    );
 }
 
 #[test]
 fn inspect_reports_a_missing_file_and_a_bad_model_without_panicking() {
     let (ok, _, err) = musculo(&["inspect", "/no/such/model.osim"]);
-    assert!(!ok && err.starts_with("error: /no/such/model.osim"), "{err}");
+    assert!(
+        !ok && err.starts_with("error: /no/such/model.osim"),
+        "{err}"
+    );
     let dir = std::env::temp_dir().join(format!("musculo-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.osim");
-    std::fs::write(&bad, include_str!("../models/demo.osim").replace("<mass>3.5</mass>", "<mass>-3.5</mass>")).unwrap();
+    std::fs::write(
+        &bad,
+        include_str!("../models/demo.osim").replace("<mass>3.5</mass>", "<mass>-3.5</mass>"),
+    )
+    .unwrap();
     let (ok, _, err) = musculo(&["inspect", bad.to_str().unwrap()]);
-    assert!(!ok && err.contains("Body \"shank\"") && err.contains("negative mass"), "{err}");
+    assert!(
+        !ok && err.contains("Body \"shank\"") && err.contains("negative mass"),
+        "{err}"
+    );
     assert!(!err.contains("panicked"));
     let _ = std::fs::remove_dir_all(&dir);
 }

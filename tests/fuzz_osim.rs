@@ -38,8 +38,8 @@ impl SplitMix64 {
 /// Replacements for a number: junk that must be rejected, and extreme values that parse
 /// and reach the dynamics.
 const NUMBER_JUNK: &[&str] = &[
-    "abc", "nan", "NaN", "-1e400", "1e999", "inf", "-inf", "", "1 2", "1,5", "--1", "0x10", "1e", ".", "0", "-0", "-1",
-    "1e300", "-1e300", "1e-300", "5e-324", "1e20", "-3.5", "7",
+    "abc", "nan", "NaN", "-1e400", "1e999", "inf", "-inf", "", "1 2", "1,5", "--1", "0x10", "1e",
+    ".", "0", "-0", "-1", "1e300", "-1e300", "1e-300", "5e-324", "1e20", "-3.5", "7",
 ];
 
 /// Fragments inserted at random places.
@@ -168,7 +168,9 @@ impl<'t> Targets<'t> {
                 while j < bytes.len() && is_num(bytes[j]) {
                     j += 1;
                 }
-                if (j == bytes.len() || is_delim(bytes[j])) && bytes[i..j].iter().any(u8::is_ascii_digit) {
+                if (j == bytes.len() || is_delim(bytes[j]))
+                    && bytes[i..j].iter().any(u8::is_ascii_digit)
+                {
                     numbers.push((i, j));
                 }
                 i = j.max(i + 1);
@@ -178,7 +180,9 @@ impl<'t> Targets<'t> {
         }
         let mut attributes = Vec::new();
         for (eq, _) in text.match_indices("=\"") {
-            let name_start = text[..eq].rfind(|c: char| c.is_ascii_whitespace()).unwrap_or(eq);
+            let name_start = text[..eq]
+                .rfind(|c: char| c.is_ascii_whitespace())
+                .unwrap_or(eq);
             let Some(close) = text[eq + 2..].find('"') else {
                 continue;
             };
@@ -201,8 +205,10 @@ impl<'t> Targets<'t> {
             let Some(end) = after.find('<') else { continue };
             let word = &after[..end];
             let tag = &text[text[..i].rfind('<').unwrap_or(0)..i];
-            let opening =
-                !tag.starts_with("</") && !tag.starts_with("<?") && !tag.starts_with("<!") && !tag.ends_with('/');
+            let opening = !tag.starts_with("</")
+                && !tag.starts_with("<?")
+                && !tag.starts_with("<!")
+                && !tag.ends_with('/');
             if opening && !word.trim().is_empty() && !word.trim().contains(char::is_whitespace) {
                 let t = word.trim();
                 if t.parse::<f64>().is_err() && !matches!(t, "true" | "false") {
@@ -321,14 +327,22 @@ fn mutate(t: &Targets, rng: &mut SplitMix64) -> Case {
             let r = *rng.pick(&t.numbers);
             let junk = *rng.pick(NUMBER_JUNK);
             Case {
-                what: format!("replace number `{}` at byte {} with `{junk}`", &t.text[r.0..r.1], r.0),
+                what: format!(
+                    "replace number `{}` at byte {} with `{junk}`",
+                    &t.text[r.0..r.1],
+                    r.0
+                ),
                 text: t.splice(r, junk),
             }
         }
         4 if !t.attributes.is_empty() => {
             let r = *rng.pick(&t.attributes);
             Case {
-                what: format!("delete attribute `{}` at byte {}", t.text[r.0..r.1].trim(), r.0),
+                what: format!(
+                    "delete attribute `{}` at byte {}",
+                    t.text[r.0..r.1].trim(),
+                    r.0
+                ),
                 text: t.splice(r, ""),
             }
         }
@@ -456,7 +470,12 @@ fn fuzz(label: &str, text: &str, seed: u64, truncations: usize, random_cases: us
         panics.is_empty(),
         "{} of {tried} corrupted copies panicked:\n{}",
         panics.len(),
-        panics.iter().take(20).cloned().collect::<Vec<_>>().join("\n")
+        panics
+            .iter()
+            .take(20)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join("\n")
     );
 }
 
@@ -464,7 +483,9 @@ fn fuzz(label: &str, text: &str, seed: u64, truncations: usize, random_cases: us
 /// required.
 fn reference_text(relative: &str) -> Option<String> {
     match musculo::reference::file(relative) {
-        Some(p) => Some(std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))),
+        Some(p) => {
+            Some(std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
+        }
         None => {
             assert!(
                 !musculo::reference::required(),
@@ -491,13 +512,23 @@ fn corrupted_arm26_never_panics() {
 
 #[test]
 fn corrupted_gait2392_never_panics() {
-    if let Some(text) = reference_text("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim") {
-        fuzz("gait2392_thelen2003muscle.osim", &text, 0x5EED_0003, 300, 3000);
+    if let Some(text) =
+        reference_text("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim")
+    {
+        fuzz(
+            "gait2392_thelen2003muscle.osim",
+            &text,
+            0x5EED_0003,
+            300,
+            3000,
+        );
     }
 }
 
 fn osim_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
     for e in entries.flatten() {
         let p = e.path();
         if p.is_dir() {
@@ -562,7 +593,9 @@ fn every_reference_opensim_model_loads() {
         "models that need allow_nonphysical_inertia"
     );
     match &need_option[0].1 {
-        Error::Model { element, message, .. } => {
+        Error::Model {
+            element, message, ..
+        } => {
             assert!(
                 element.contains("toes_r"),
                 "the error should name toes_r: {element}: {message}"

@@ -30,12 +30,18 @@ use musculo::{Data, Model, dynamics};
 
 #[test]
 fn gait2392_total_mass_and_default_pose_match_hand_computation() {
-    let Some(path) = reference_file("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim") else {
+    let Some(path) =
+        reference_file("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim")
+    else {
         return;
     };
     let model = Model::from_osim_file(&path).unwrap();
     let total = 11.777 + 2.0 * (9.3014 + 3.7075 + 0.1 + 1.25 + 0.2166) + 34.2366;
-    assert!((model.total_mass() - total).abs() < 1e-12, "{} vs {total}", model.total_mass());
+    assert!(
+        (model.total_mass() - total).abs() < 1e-12,
+        "{} vs {total}",
+        model.total_mass()
+    );
 
     let mut data = Data::new(&model);
     dynamics::forward_kinematics(&model, &mut data, &model.default_q()).unwrap();
@@ -49,15 +55,26 @@ fn gait2392_total_mass_and_default_pose_match_hand_computation() {
         let talus = tibia + Vec3::new(0.0, -0.43, 0.0);
         let calcn = talus + Vec3::new(-0.04877, -0.04195, 0.00792 * z);
         let toes = calcn + Vec3::new(0.1788, -0.002, 0.00108 * z);
-        for (name, p) in [("femur", femur), ("tibia", tibia), ("talus", talus), ("calcn", calcn), ("toes", toes)] {
+        for (name, p) in [
+            ("femur", femur),
+            ("tibia", tibia),
+            ("talus", talus),
+            ("calcn", calcn),
+            ("toes", toes),
+        ] {
             expected.push((format!("{name}_{side}"), p));
         }
     }
     assert_eq!(expected.len(), model.bodies.len() - 1);
     for (name, p) in expected {
-        let b = model.body_index(&name).unwrap_or_else(|| panic!("no body {name}"));
+        let b = model
+            .body_index(&name)
+            .unwrap_or_else(|| panic!("no body {name}"));
         let (r, o) = data.body_pose(b);
         assert!((o - p).amax() < 1e-12, "{name}: {o:?} vs {p:?}");
-        assert!((r - nalgebra::Matrix3::identity()).amax() < 1e-15, "{name} rotation");
+        assert!(
+            (r - nalgebra::Matrix3::identity()).amax() < 1e-15,
+            "{name} rotation"
+        );
     }
 }

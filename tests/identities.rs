@@ -22,8 +22,13 @@ const STATES: usize = 100;
 const H: f64 = 1e-6;
 
 fn load(path: &Path) -> Model {
-    Model::from_osim_file_with(path, &LoadOptions { allow_nonphysical_inertia: true })
-        .unwrap_or_else(|e| panic!("{e}"))
+    Model::from_osim_file_with(
+        path,
+        &LoadOptions {
+            allow_nonphysical_inertia: true,
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Largest relative error seen for each identity, for the summary line.
@@ -63,21 +68,33 @@ fn check_model(path: &Path, seed: u64) {
         let m = dynamics::crba(&model, &mut data, &q).unwrap().clone();
         let m_full = dynamics::crba_full(&model, &mut data).unwrap().clone();
         assert_eq!(m, m.transpose(), "{}", ctx("M symmetric"));
-        assert!(m.clone().cholesky().is_some(), "{}", ctx("M positive definite"));
+        assert!(
+            m.clone().cholesky().is_some(),
+            "{}",
+            ctx("M positive definite")
+        );
 
         // ID = M q̈ + bias; G = ID(q, 0, 0).
-        let bias = dynamics::nonlinear_effects(&model, &mut data, &q, &qd).unwrap().clone();
-        let tau = dynamics::rnea(&model, &mut data, &q, &qd, &qdd).unwrap().clone();
+        let bias = dynamics::nonlinear_effects(&model, &mut data, &q, &qd)
+            .unwrap()
+            .clone();
+        let tau = dynamics::rnea(&model, &mut data, &q, &qd, &qdd)
+            .unwrap()
+            .clone();
         let e = rel(&tau, &(&m * DVector::from_column_slice(&qdd) + &bias));
         assert!(e <= 1e-9, "{}", ctx(&format!("ID vs M q̈ + bias: {e:e}")));
         w.id = w.id.max(e);
         let zeros = vec![0.0; n];
-        let id0 = dynamics::rnea(&model, &mut data, &q, &zeros, &zeros).unwrap().clone();
+        let id0 = dynamics::rnea(&model, &mut data, &q, &zeros, &zeros)
+            .unwrap()
+            .clone();
         let g = dynamics::gravity(&model, &mut data, &q).unwrap().clone();
         let e = rel(&g, &id0);
         assert!(e <= 1e-9, "{}", ctx(&format!("G vs ID(q,0,0): {e:e}")));
         w.gravity = w.gravity.max(e);
-        let cor = dynamics::coriolis(&model, &mut data, &q, &qd).unwrap().clone();
+        let cor = dynamics::coriolis(&model, &mut data, &q, &qd)
+            .unwrap()
+            .clone();
         let e = rel(&(&cor + &g), &bias);
         assert!(e <= 1e-9, "{}", ctx(&format!("C q̇ + G vs bias: {e:e}")));
 
@@ -91,10 +108,16 @@ fn check_model(path: &Path, seed: u64) {
         let e = (&m - phi.transpose() * &m_full * &phi).norm() / m.norm();
         assert!(e <= 1e-12, "{}", ctx(&format!("M vs Φᵀ M_full Φ: {e:e}")));
         let nf = model.n_full();
-        let bias_full = DVector::from_column_slice(dynamics::rnea_full(&model, &mut d2, &theta, &theta_dot, &vec![0.0; nf]).unwrap());
+        let bias_full = DVector::from_column_slice(
+            dynamics::rnea_full(&model, &mut d2, &theta, &theta_dot, &vec![0.0; nf]).unwrap(),
+        );
         let brute = phi.transpose() * (bias_full + &m_full * &phidot_qd);
         let e = rel(&bias, &brute);
-        assert!(e <= 1e-9, "{}", ctx(&format!("bias vs Φᵀ(bias_full + M_full Φ̇q̇): {e:e}")));
+        assert!(
+            e <= 1e-9,
+            "{}",
+            ctx(&format!("bias vs Φᵀ(bias_full + M_full Φ̇q̇): {e:e}"))
+        );
         w.bias_full = w.bias_full.max(e);
 
         // Φ and Φ̇q̇ against finite differences of θ(q).
@@ -108,7 +131,11 @@ fn check_model(path: &Path, seed: u64) {
             qm[j] -= H;
             let fd = (theta_at(&mut d2, &qp) - theta_at(&mut d2, &qm)) / (2.0 * H);
             let e = (fd - phi.column(j)).amax();
-            assert!(e <= 1e-6, "{}", ctx(&format!("Φ column {j} vs finite differences: {e:e}")));
+            assert!(
+                e <= 1e-6,
+                "{}",
+                ctx(&format!("Φ column {j} vs finite differences: {e:e}"))
+            );
             w.phi = w.phi.max(e);
         }
         let phi_at = |d: &mut Data, q: &[f64]| {
@@ -119,7 +146,11 @@ fn check_model(path: &Path, seed: u64) {
         let shift = |s: f64| -> Vec<f64> { q.iter().zip(&qd).map(|(a, b)| a + s * b).collect() };
         let fd = (phi_at(&mut d2, &shift(H)) - phi_at(&mut d2, &shift(-H))) / (2.0 * H) * &qdv;
         let e = (fd - &phidot_qd).amax();
-        assert!(e <= 1e-6, "{}", ctx(&format!("Φ̇q̇ vs finite differences: {e:e}")));
+        assert!(
+            e <= 1e-6,
+            "{}",
+            ctx(&format!("Φ̇q̇ vs finite differences: {e:e}"))
+        );
         w.phi = w.phi.max(e);
 
         // Body, point and COM Jacobians against finite differences of poses.
@@ -149,10 +180,18 @@ fn check_model(path: &Path, seed: u64) {
                 let vel = (op - om) / (2.0 * H);
                 let vc = ((rp * com + op) - (rm * com + om)) / (2.0 * H);
                 for k in 0..3 {
-                    let e = (jb[(k, j)] - omega[k]).abs()
+                    let e = (jb[(k, j)] - omega[k])
+                        .abs()
                         .max((jb[(3 + k, j)] - vel[k]).abs())
                         .max((jp[(k, j)] - vc[k]).abs());
-                    assert!(e <= 1e-6, "{}", ctx(&format!("Jacobian of body {} column {j}: {e:e}", model.bodies[b].name)));
+                    assert!(
+                        e <= 1e-6,
+                        "{}",
+                        ctx(&format!(
+                            "Jacobian of body {} column {j}: {e:e}",
+                            model.bodies[b].name
+                        ))
+                    );
                     w.jac = w.jac.max(e);
                 }
             }
@@ -161,7 +200,11 @@ fn check_model(path: &Path, seed: u64) {
         dynamics::center_of_mass_jacobian(&model, &mut data, &mut jc).unwrap();
         for (j, ((_, cp), (_, cm))) in fd_cols.iter().enumerate() {
             let e = ((cp - cm) / (2.0 * H) - jc.column(j)).amax();
-            assert!(e <= 1e-6, "{}", ctx(&format!("COM Jacobian column {j}: {e:e}")));
+            assert!(
+                e <= 1e-6,
+                "{}",
+                ctx(&format!("COM Jacobian column {j}: {e:e}"))
+            );
         }
 
         // J̇q̇ of a body-fixed point: d/dt (J q̇) with q̈ = 0, by central differences along q̇.
@@ -176,7 +219,11 @@ fn check_model(path: &Path, seed: u64) {
         let fd = (jq(&mut d2, &shift(H)) - jq(&mut d2, &shift(-H))) / (2.0 * H);
         let jdot = dynamics::point_jacobian_dot_qd(&model, &mut data, b, &p).unwrap();
         let e = (Vec3::new(fd[0], fd[1], fd[2]) - jdot).amax();
-        assert!(e <= 1e-6, "{}", ctx(&format!("J̇q̇ vs finite differences: {e:e}")));
+        assert!(
+            e <= 1e-6,
+            "{}",
+            ctx(&format!("J̇q̇ vs finite differences: {e:e}"))
+        );
         w.jdot = w.jdot.max(e);
 
         // Kinetic energy: ½ q̇ᵀ M q̇ = Σ_b ½ m |v_c|² + ½ ωᵀ R I Rᵀ ω.
@@ -195,20 +242,41 @@ fn check_model(path: &Path, seed: u64) {
             h_about_origin += c.cross(&(vc * body.mass)) + i_world * omega;
         }
         let e = (ke_m - ke_b).abs() / ke_b.max(1.0);
-        assert!(e <= 1e-9, "{}", ctx(&format!("½ q̇ᵀ M q̇ = {ke_m} vs Σ body kinetic energy {ke_b}")));
+        assert!(
+            e <= 1e-9,
+            "{}",
+            ctx(&format!(
+                "½ q̇ᵀ M q̇ = {ke_m} vs Σ body kinetic energy {ke_b}"
+            ))
+        );
         w.ke = w.ke.max(e);
         let ke_lib = dynamics::kinetic_energy(&model, &data).unwrap();
-        assert!((ke_lib - ke_b).abs() <= 1e-9 * ke_b.max(1.0), "{}", ctx("kinetic_energy"));
+        assert!(
+            (ke_lib - ke_b).abs() <= 1e-9 * ke_b.max(1.0),
+            "{}",
+            ctx("kinetic_energy")
+        );
 
         // Momentum.
         let mo = dynamics::momentum(&model, &data).unwrap();
-        let e = (mo.linear - lin).amax().max((mo.angular_about_origin - h_about_origin).amax()) / lin.norm().max(1.0);
+        let e = (mo.linear - lin)
+            .amax()
+            .max((mo.angular_about_origin - h_about_origin).amax())
+            / lin.norm().max(1.0);
         assert!(e <= 1e-9, "{}", ctx(&format!("momentum: {e:e}")));
         let com = dynamics::center_of_mass(&model, &data).unwrap();
         let h_com = h_about_origin - com.cross(&lin);
-        assert!((mo.angular_about_com - h_com).amax() <= 1e-9 * h_com.norm().max(1.0), "{}", ctx("angular momentum about the COM"));
+        assert!(
+            (mo.angular_about_com - h_com).amax() <= 1e-9 * h_com.norm().max(1.0),
+            "{}",
+            ctx("angular momentum about the COM")
+        );
         let lin_j = &jc * &qdv * model.total_mass();
-        assert!((Vec3::new(lin_j[0], lin_j[1], lin_j[2]) - lin).amax() <= 1e-9 * lin.norm().max(1.0), "{}", ctx("p = m J_com q̇"));
+        assert!(
+            (Vec3::new(lin_j[0], lin_j[1], lin_j[2]) - lin).amax() <= 1e-9 * lin.norm().max(1.0),
+            "{}",
+            ctx("p = m J_com q̇")
+        );
         w.momentum = w.momentum.max(e);
 
         // G = ∂V/∂q, V = −Σ m g·c, by central differences.
@@ -222,7 +290,11 @@ fn check_model(path: &Path, seed: u64) {
             qm[j] -= H;
             let fd = (pe_at(&mut d2, &qp) - pe_at(&mut d2, &qm)) / (2.0 * H);
             let e = (fd - g[j]).abs() / g.amax().max(1.0);
-            assert!(e <= 1e-6, "{}", ctx(&format!("G[{j}] = {} vs ∂V/∂q = {fd}", g[j])));
+            assert!(
+                e <= 1e-6,
+                "{}",
+                ctx(&format!("G[{j}] = {} vs ∂V/∂q = {fd}", g[j]))
+            );
             w.pe = w.pe.max(e);
         }
     }
@@ -246,12 +318,18 @@ fn identities_hold_on_arm26() {
 
 #[test]
 fn identities_hold_on_gait10dof18musc() {
-    check_reference("opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim", 12);
+    check_reference(
+        "opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim",
+        12,
+    );
 }
 
 #[test]
 fn identities_hold_on_gait2392() {
-    check_reference("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim", 13);
+    check_reference(
+        "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        13,
+    );
 }
 
 #[test]
@@ -261,12 +339,21 @@ fn identities_hold_on_rajagopal2016() {
 
 #[test]
 fn identities_hold_on_rajagopal_lai_uhlrich2023() {
-    check_reference("opensim-models/Models/Rajagopal/RajagopalLaiUhlrich2023.osim", 15);
+    check_reference(
+        "opensim-models/Models/Rajagopal/RajagopalLaiUhlrich2023.osim",
+        15,
+    );
 }
 
 #[test]
 fn identities_hold_on_every_other_reference_model() {
-    let named = ["arm26.osim", "gait10dof18musc.osim", "gait2392_thelen2003muscle.osim", "Rajagopal2016.osim", "RajagopalLaiUhlrich2023.osim"];
+    let named = [
+        "arm26.osim",
+        "gait10dof18musc.osim",
+        "gait2392_thelen2003muscle.osim",
+        "Rajagopal2016.osim",
+        "RajagopalLaiUhlrich2023.osim",
+    ];
     let all = reference_models();
     for (i, p) in all.iter().enumerate() {
         let file = p.file_name().unwrap().to_string_lossy();

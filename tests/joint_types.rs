@@ -3,7 +3,9 @@
 
 mod common;
 use common::*;
-use musculo::spatial::{Mat3, Transform, Vec3, rotation_about_axis, rotation_body_fixed_xyz, rotation_vector};
+use musculo::spatial::{
+    Mat3, Transform, Vec3, rotation_about_axis, rotation_body_fixed_xyz, rotation_vector,
+};
 use musculo::{Data, Model, dynamics};
 use nalgebra::{DMatrix, DVector};
 
@@ -30,16 +32,28 @@ fn rz(a: f64) -> Mat3 {
 
 const JOINTS: [JointDef; 8] = [
     // Slider: translation along the x axis of F.
-    ("SliderJoint", 1, |q| Transform::new(Mat3::identity(), Vec3::new(q[0], 0.0, 0.0))),
+    ("SliderJoint", 1, |q| {
+        Transform::new(Mat3::identity(), Vec3::new(q[0], 0.0, 0.0))
+    }),
     // Ball and Gimbal: body-fixed X-Y-Z rotation (OpenSim uses Euler angles for the Ball).
-    ("BallJoint", 3, |q| Transform::new(rx(q[0]) * ry(q[1]) * rz(q[2]), Vec3::zeros())),
-    ("GimbalJoint", 3, |q| Transform::new(rx(q[0]) * ry(q[1]) * rz(q[2]), Vec3::zeros())),
+    ("BallJoint", 3, |q| {
+        Transform::new(rx(q[0]) * ry(q[1]) * rz(q[2]), Vec3::zeros())
+    }),
+    ("GimbalJoint", 3, |q| {
+        Transform::new(rx(q[0]) * ry(q[1]) * rz(q[2]), Vec3::zeros())
+    }),
     // Universal: about x, then about the new y.
-    ("UniversalJoint", 2, |q| Transform::new(rx(q[0]) * ry(q[1]), Vec3::zeros())),
+    ("UniversalJoint", 2, |q| {
+        Transform::new(rx(q[0]) * ry(q[1]), Vec3::zeros())
+    }),
     // Planar: coordinates (rz, tx, ty); translation in F, then rotation about z.
-    ("PlanarJoint", 3, |q| Transform::new(rz(q[0]), Vec3::new(q[1], q[2], 0.0))),
+    ("PlanarJoint", 3, |q| {
+        Transform::new(rz(q[0]), Vec3::new(q[1], q[2], 0.0))
+    }),
     // Free: coordinates (rx, ry, rz, tx, ty, tz); translation in F.
-    ("FreeJoint", 6, |q| Transform::new(rx(q[0]) * ry(q[1]) * rz(q[2]), Vec3::new(q[3], q[4], q[5]))),
+    ("FreeJoint", 6, |q| {
+        Transform::new(rx(q[0]) * ry(q[1]) * rz(q[2]), Vec3::new(q[3], q[4], q[5]))
+    }),
     ("WeldJoint", 0, |_| Transform::identity()),
     // Pin: rotation about the z axis of F.
     ("PinJoint", 1, |q| Transform::new(rz(q[0]), Vec3::zeros())),
@@ -55,14 +69,25 @@ fn chain_model() -> (Model, Vec<(Transform, Transform)>) {
     let mut r3 = |s: f64| [rng.uniform(-s, s), rng.uniform(-s, s), rng.uniform(-s, s)];
     for (i, (kind, nc, _)) in JOINTS.iter().enumerate() {
         let b = format!("b{i}");
-        let parent = if i == 0 { "/ground".to_string() } else { format!("/bodyset/b{}", i - 1) };
-        bodies += &body(&b, 1.0 + 0.3 * i as f64, r3(0.1), [0.03, 0.025, 0.02, 0.001, -0.002, 0.0015]);
+        let parent = if i == 0 {
+            "/ground".to_string()
+        } else {
+            format!("/bodyset/b{}", i - 1)
+        };
+        bodies += &body(
+            &b,
+            1.0 + 0.3 * i as f64,
+            r3(0.1),
+            [0.03, 0.025, 0.02, 0.001, -0.002, 0.0015],
+        );
         let (tp, op, tc, oc) = (r3(0.2), r3(1.0), r3(0.1), r3(1.0));
         offsets.push((
             Transform::from_translation_xyz_body(Vec3::from(tp), Vec3::from(op)),
             Transform::from_translation_xyz_body(Vec3::from(tc), Vec3::from(oc)),
         ));
-        let coords: String = (0..*nc).map(|k| coordinate(&format!("{b}_q{k}"), [-1.2, 1.2])).collect();
+        let coords: String = (0..*nc)
+            .map(|k| coordinate(&format!("{b}_q{k}"), [-1.2, 1.2]))
+            .collect();
         joints += &format!(
             "<{kind} name=\"j{i}\"><socket_parent_frame>p</socket_parent_frame><socket_child_frame>c</socket_child_frame>\
              <coordinates>{coords}</coordinates><frames>{}{}</frames></{kind}>",
@@ -70,7 +95,8 @@ fn chain_model() -> (Model, Vec<(Transform, Transform)>) {
             offset_frame("c", &format!("/bodyset/{b}"), tc, oc),
         );
     }
-    let model = Model::from_osim_str(&osim(&bodies, &joints, "", [0.0, -9.81, 0.0]), "chain").unwrap();
+    let model =
+        Model::from_osim_str(&osim(&bodies, &joints, "", [0.0, -9.81, 0.0]), "chain").unwrap();
     (model, offsets)
 }
 
@@ -88,11 +114,17 @@ fn every_joint_type_moves_its_child_as_simbody_defines_it() {
         let mut k = 0;
         for (i, (kind, nc, xfm)) in JOINTS.iter().enumerate() {
             let (xpf, xcm) = &offsets[i];
-            x = x.compose(xpf).compose(&xfm(&q[k..k + nc])).compose(&xcm.inverse());
+            x = x
+                .compose(xpf)
+                .compose(&xfm(&q[k..k + nc]))
+                .compose(&xcm.inverse());
             k += nc;
             let b = model.body_index(&format!("b{i}")).unwrap();
             let (r, p) = data.body_pose(b);
-            assert!((r - x.rot).amax() < 1e-13 && (p - x.pos).amax() < 1e-13, "{kind}: pose differs");
+            assert!(
+                (r - x.rot).amax() < 1e-13 && (p - x.pos).amax() < 1e-13,
+                "{kind}: pose differs"
+            );
         }
     }
 }
@@ -110,13 +142,20 @@ fn dynamics_identities_hold_on_a_chain_of_every_joint_type() {
         let qdd = random_vec(n, 10.0, &mut rng);
         let m = dynamics::crba(&model, &mut data, &q).unwrap().clone();
         assert!(m.clone().cholesky().is_some());
-        let bias = dynamics::nonlinear_effects(&model, &mut data, &q, &qd).unwrap().clone();
-        let tau = dynamics::rnea(&model, &mut data, &q, &qd, &qdd).unwrap().clone();
-        let e = (&tau - (&m * DVector::from_column_slice(&qdd) + &bias)).norm() / tau.norm().max(1.0);
+        let bias = dynamics::nonlinear_effects(&model, &mut data, &q, &qd)
+            .unwrap()
+            .clone();
+        let tau = dynamics::rnea(&model, &mut data, &q, &qd, &qdd)
+            .unwrap()
+            .clone();
+        let e =
+            (&tau - (&m * DVector::from_column_slice(&qdd) + &bias)).norm() / tau.norm().max(1.0);
         assert!(e < 1e-12, "ID vs M q̈ + bias: {e:e}");
         let g = dynamics::gravity(&model, &mut data, &q).unwrap().clone();
         let zeros = vec![0.0; n];
-        let id0 = dynamics::rnea(&model, &mut data, &q, &zeros, &zeros).unwrap().clone();
+        let id0 = dynamics::rnea(&model, &mut data, &q, &zeros, &zeros)
+            .unwrap()
+            .clone();
         assert!((&g - &id0).norm() < 1e-12 * g.norm().max(1.0));
         // Body Jacobians against finite differences of the poses.
         dynamics::forward_kinematics(&model, &mut data, &q).unwrap();
@@ -161,11 +200,28 @@ fn every_function_type_drives_a_transform_axis_as_written() {
     let cubic = |t: f64| 0.01 + 0.02 * t - 0.03 * t * t + 0.015 * t * t * t;
     let quad = |t: f64| -0.02 + 0.05 * t + 0.04 * t * t;
     let knots = [-1.0, -0.6, -0.1, 0.3, 0.8, 1.0];
-    let list = |f: &dyn Fn(f64) -> f64| knots.iter().map(|&t| format!("{:.17e}", f(t))).collect::<Vec<_>>().join(" ");
-    let xs = knots.iter().map(|t| t.to_string()).collect::<Vec<_>>().join(" ");
-    let ncs = format!("<NaturalCubicSpline><x>{xs}</x><y>{}</y></NaturalCubicSpline>", list(&cubic));
-    let gcv = format!("<GCVSpline><half_order>3</half_order><x>{xs}</x><y>{}</y></GCVSpline>", list(&quad));
-    let pwl = "<PiecewiseLinearFunction><x>-1 0 1</x><y>0.1 -0.05 0.2</y></PiecewiseLinearFunction>";
+    let list = |f: &dyn Fn(f64) -> f64| {
+        knots
+            .iter()
+            .map(|&t| format!("{:.17e}", f(t)))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let xs = knots
+        .iter()
+        .map(|t| t.to_string())
+        .collect::<Vec<_>>()
+        .join(" ");
+    let ncs = format!(
+        "<NaturalCubicSpline><x>{xs}</x><y>{}</y></NaturalCubicSpline>",
+        list(&cubic)
+    );
+    let gcv = format!(
+        "<GCVSpline><half_order>3</half_order><x>{xs}</x><y>{}</y></GCVSpline>",
+        list(&quad)
+    );
+    let pwl =
+        "<PiecewiseLinearFunction><x>-1 0 1</x><y>0.1 -0.05 0.2</y></PiecewiseLinearFunction>";
     let st1 = spatial_transform([
         ("", [0.0, 0.0, 1.0], ZERO),
         ("", [1.0, 0.0, 0.0], ZERO),
@@ -184,12 +240,35 @@ fn every_function_type_drives_a_transform_axis_as_written() {
         ("", [0.0, 1.0, 0.0], ZERO),
         ("", [0.0, 0.0, 1.0], ZERO),
     ]);
-    let bodies = body("a", 1.0, [0.0; 3], [0.01, 0.01, 0.01, 0.0, 0.0, 0.0]) + &body("b", 1.0, [0.0; 3], [0.01, 0.01, 0.01, 0.0, 0.0, 0.0]);
-    let joints = joint("CustomJoint", "ja", "/ground", [0.0; 3], "/bodyset/a", &[coordinate("t", [-1.5, 1.5])], &st1)
-        + &joint("CustomJoint", "jb", "/ground", [0.0; 3], "/bodyset/b", &[coordinate("u", [-1.0, 1.0])], &st2);
-    let model = Model::from_osim_str(&osim(&bodies, &joints, "", [0.0, -9.81, 0.0]), "functions").unwrap();
+    let bodies = body("a", 1.0, [0.0; 3], [0.01, 0.01, 0.01, 0.0, 0.0, 0.0])
+        + &body("b", 1.0, [0.0; 3], [0.01, 0.01, 0.01, 0.0, 0.0, 0.0]);
+    let joints = joint(
+        "CustomJoint",
+        "ja",
+        "/ground",
+        [0.0; 3],
+        "/bodyset/a",
+        &[coordinate("t", [-1.5, 1.5])],
+        &st1,
+    ) + &joint(
+        "CustomJoint",
+        "jb",
+        "/ground",
+        [0.0; 3],
+        "/bodyset/b",
+        &[coordinate("u", [-1.0, 1.0])],
+        &st2,
+    );
+    let model =
+        Model::from_osim_str(&osim(&bodies, &joints, "", [0.0, -9.81, 0.0]), "functions").unwrap();
     let mut data = Data::new(&model);
-    let pwl_at = |t: f64| if t < 0.0 { 0.1 + (t + 1.0) * -0.15 } else { -0.05 + t * 0.25 };
+    let pwl_at = |t: f64| {
+        if t < 0.0 {
+            0.1 + (t + 1.0) * -0.15
+        } else {
+            -0.05 + t * 0.25
+        }
+    };
     for t in [-1.4, -1.0, -0.77, -0.2, 0.0, 0.25, 0.61, 0.99, 1.3] {
         let u = t / 1.5;
         dynamics::forward_kinematics(&model, &mut data, &[t, u]).unwrap();
@@ -198,10 +277,26 @@ fn every_function_type_drives_a_transform_axis_as_written() {
             assert_close(p.x, cubic(t), 1e-14, &format!("NaturalCubicSpline at {t}"));
         }
         assert_close(p.y, quad(t), 1e-12, &format!("GCVSpline at {t}"));
-        let pwl_expected = if t < -1.0 { 0.1 + (t + 1.0) * -0.15 } else if t > 1.0 { 0.2 + (t - 1.0) * 0.25 } else { pwl_at(t) };
-        assert_close(p.z, pwl_expected, 1e-14, &format!("PiecewiseLinearFunction at {t}"));
+        let pwl_expected = if t < -1.0 {
+            0.1 + (t + 1.0) * -0.15
+        } else if t > 1.0 {
+            0.2 + (t - 1.0) * 0.25
+        } else {
+            pwl_at(t)
+        };
+        assert_close(
+            p.z,
+            pwl_expected,
+            1e-14,
+            &format!("PiecewiseLinearFunction at {t}"),
+        );
         let (r, p) = data.body_pose(model.body_index("b").unwrap());
-        assert_close(p.x, 0.3 * u * u - 0.2 * u + 0.1, 1e-14, "PolynomialFunction");
+        assert_close(
+            p.x,
+            0.3 * u * u - 0.2 * u + 0.1,
+            1e-14,
+            "PolynomialFunction",
+        );
         let angle = 0.5 * (2.0 * u + 0.1);
         assert!((r - rz(angle)).amax() < 1e-14, "MultiplierFunction");
     }

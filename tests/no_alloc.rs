@@ -48,7 +48,10 @@ fn check(model: &Model) {
     let mut data = Data::new(model);
     let mut j3 = DMatrix::zeros(3, n);
     let mut j6 = DMatrix::zeros(6, n);
-    let points = [(1usize, Vec3::new(0.1, 0.0, 0.0)), (model.bodies.len() - 1, Vec3::zeros())];
+    let points = [
+        (1usize, Vec3::new(0.1, 0.0, 0.0)),
+        (model.bodies.len() - 1, Vec3::zeros()),
+    ];
     let mut jc = DMatrix::zeros(6, n);
     let mut jdot = [0.0; 6];
     let mut markers = vec![Vec3::zeros(); model.markers.len()];
@@ -69,7 +72,8 @@ fn check(model: &Model) {
             dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
             for b in 1..model.bodies.len() {
                 dynamics::body_jacobian(model, &data, b, &mut j6).unwrap();
-                dynamics::point_jacobian(model, &data, b, &Vec3::new(0.01, 0.02, 0.03), &mut j3).unwrap();
+                dynamics::point_jacobian(model, &data, b, &Vec3::new(0.01, 0.02, 0.03), &mut j3)
+                    .unwrap();
                 dynamics::point_jacobian_dot_qd(model, &mut data, b, &Vec3::zeros()).unwrap();
                 dynamics::body_jacobian_dot_qd(model, &mut data, b).unwrap();
             }
@@ -85,7 +89,11 @@ fn check(model: &Model) {
             dynamics::crba_full(model, &mut data).unwrap();
         }
     });
-    assert_eq!(count, 0, "{}: {count} allocations in per-frame calls", model.name);
+    assert_eq!(
+        count, 0,
+        "{}: {count} allocations in per-frame calls",
+        model.name
+    );
 }
 
 #[test]

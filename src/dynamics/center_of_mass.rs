@@ -22,11 +22,18 @@ pub fn center_of_mass(model: &Model, data: &Data) -> crate::Result<Vec3> {
 
 /// J_com (3 × n), with ċ = J_com q̇ (position stage): column j sums, over the reduced
 /// columns c of q_j, (m_sub S̃_lin + S̃_ang × h_sub) / m_total for the subtree c moves.
-pub fn center_of_mass_jacobian(model: &Model, data: &mut Data, out: &mut DMatrix<f64>) -> crate::Result<()> {
+pub fn center_of_mass_jacobian(
+    model: &Model,
+    data: &mut Data,
+    out: &mut DMatrix<f64>,
+) -> crate::Result<()> {
     data.require(Stage::Position, "center_of_mass_jacobian")?;
     let n = model.nq();
     if out.shape() != (3, n) {
-        return Err(crate::Error::invalid("out", format!("must be 3 × {n}, is {:?}", out.shape())));
+        return Err(crate::Error::invalid(
+            "out",
+            format!("must be 3 × {n}, is {:?}", out.shape()),
+        ));
     }
     let total = model.total_mass();
     if total <= 0.0 {

@@ -17,7 +17,12 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&
     composite_inertias(model, data);
     let cols = &model.reduction.columns;
     let n = model.nq();
-    let Data { composite, col_motion, mass_matrix, .. } = data;
+    let Data {
+        composite,
+        col_motion,
+        mass_matrix,
+        ..
+    } = data;
     mass_matrix.fill(0.0);
     let mm = mass_matrix.as_mut_slice(); // column-major: (i, j) at i + j n
     for c in 0..cols.len() {
@@ -45,7 +50,12 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&
 pub fn crba_full<'d>(model: &Model, data: &'d mut Data) -> crate::Result<&'d DMatrix<f64>> {
     data.require(Stage::Position, "crba_full")?;
     composite_inertias(model, data);
-    let Data { composite, dof_motion, mass_matrix_full, .. } = data;
+    let Data {
+        composite,
+        dof_motion,
+        mass_matrix_full,
+        ..
+    } = data;
     mass_matrix_full.fill(0.0);
     for (d, dof) in model.dofs.iter().enumerate() {
         let f = composite[dof.body].mul_motion(&dof_motion[d]);

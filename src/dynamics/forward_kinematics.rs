@@ -17,7 +17,12 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) -> crate::R
 }
 
 /// Velocity stage: also θ̇, Φ̇q̇ and body spatial velocities.
-pub fn forward_kinematics_velocity(model: &Model, data: &mut Data, q: &[f64], qd: &[f64]) -> crate::Result<()> {
+pub fn forward_kinematics_velocity(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+) -> crate::Result<()> {
     check_len("qd", qd, model.nq())?;
     forward_kinematics(model, data, q)?;
     evaluate_velocity(model, data, qd);
@@ -37,9 +42,24 @@ pub fn forward_kinematics_acceleration(
     check_len("qdd", qdd, model.nq())?;
     forward_kinematics_velocity(model, data, q, qd)?;
     theta_acceleration(model, data, Some(qdd));
-    let Data { dof_motion, body_vel, node_vel, theta_acc, body_acc, .. } = data;
+    let Data {
+        dof_motion,
+        body_vel,
+        node_vel,
+        theta_acc,
+        body_acc,
+        ..
+    } = data;
     let nc = model.reduction.n_coordinates;
-    propagate_accelerations(model, dof_motion, body_vel, &node_vel[nc..], theta_acc, Motion::ZERO, body_acc);
+    propagate_accelerations(
+        model,
+        dof_motion,
+        body_vel,
+        &node_vel[nc..],
+        theta_acc,
+        Motion::ZERO,
+        body_acc,
+    );
     data.stage = Stage::Acceleration;
     Ok(())
 }
@@ -48,7 +68,12 @@ pub fn forward_kinematics_acceleration(
 /// movable axis, the coordinates MuJoCo sees in the expanded tree). Coordinates, Φ and the
 /// reduced algorithms are not available after this call; use [`super::crba_full`] and
 /// [`super::rnea_full`].
-pub fn forward_kinematics_full(model: &Model, data: &mut Data, theta: &[f64], theta_dot: &[f64]) -> crate::Result<()> {
+pub fn forward_kinematics_full(
+    model: &Model,
+    data: &mut Data,
+    theta: &[f64],
+    theta_dot: &[f64],
+) -> crate::Result<()> {
     let nf = model.n_full();
     check_len("theta", theta, nf)?;
     check_len("theta_dot", theta_dot, nf)?;
@@ -74,7 +99,11 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
         let p = joint.parent_body;
         // X_GF = X_GP · X_PF
         let x = &joint.parent_offset;
-        let mut rot = if x.rot == Mat3::identity() { data.body_rot[p] } else { data.body_rot[p] * x.rot };
+        let mut rot = if x.rot == Mat3::identity() {
+            data.body_rot[p]
+        } else {
+            data.body_rot[p] * x.rot
+        };
         let mut pos = data.body_rot[p] * x.pos + data.body_pos[p];
         for step in &joint.steps {
             match step {
@@ -105,10 +134,18 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
         let c = joint.child_body;
         let x = &joint.child_offset_inv;
         data.body_pos[c] = rot * x.pos + pos;
-        data.body_rot[c] = if x.rot == Mat3::identity() { rot } else { rot * x.rot };
+        data.body_rot[c] = if x.rot == Mat3::identity() {
+            rot
+        } else {
+            rot * x.rot
+        };
     }
     // O: the origin of the first moving body keeps spatial quantities well conditioned.
-    let o = if model.bodies.len() > 1 { data.body_pos[1] } else { Vec3::zeros() };
+    let o = if model.bodies.len() > 1 {
+        data.body_pos[1]
+    } else {
+        Vec3::zeros()
+    };
     data.reference_point = o;
     for (d, dof) in model.dofs.iter().enumerate() {
         let w = data.dof_axis[d];
@@ -138,12 +175,22 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
 /// Body velocities from θ̇ in the nodes.
 pub(crate) fn velocities(model: &Model, data: &mut Data) {
     let nc = model.reduction.n_coordinates;
-    let Data { dof_motion, node_vel, body_vel, .. } = data;
+    let Data {
+        dof_motion,
+        node_vel,
+        body_vel,
+        ..
+    } = data;
     velocities_into(model, dof_motion, &node_vel[nc..], body_vel);
 }
 
 /// v_child = v_parent + Σ_{d ∈ joint} s_d θ̇_d.
-pub(crate) fn velocities_into(model: &Model, dof_motion: &[Motion], theta_dot: &[f64], body_vel: &mut [Motion]) {
+pub(crate) fn velocities_into(
+    model: &Model,
+    dof_motion: &[Motion],
+    theta_dot: &[f64],
+    body_vel: &mut [Motion],
+) {
     body_vel[0] = Motion::ZERO;
     for joint in &model.joints {
         let mut v = body_vel[joint.parent_body];
@@ -172,7 +219,9 @@ pub(crate) fn propagate_accelerations(
         for d in joint.dof_range.clone() {
             let sd = dof_motion[d].scale(theta_dot[d]);
             v = v.add(&sd);
-            a = a.add(&dof_motion[d].scale(theta_acc[d])).add(&v.cross_motion(&sd));
+            a = a
+                .add(&dof_motion[d].scale(theta_acc[d]))
+                .add(&v.cross_motion(&sd));
         }
         out[joint.child_body] = a;
     }

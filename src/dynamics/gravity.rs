@@ -10,14 +10,23 @@ use crate::model::Model;
 use nalgebra::DVector;
 
 /// The gravity term G(q) of M q̈ + C q̇ + G = τ (the generalized force gravity exerts is −G).
-pub fn gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&'d DVector<f64>> {
+pub fn gravity<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+) -> crate::Result<&'d DVector<f64>> {
     check_len("q", q, model.nq())?;
     evaluate_position(model, data, q);
     poses(model, data);
     data.stage = Stage::Position;
     composite_inertias(model, data);
     let cols = &model.reduction.columns;
-    let Data { composite, col_motion, gravity, .. } = data;
+    let Data {
+        composite,
+        col_motion,
+        gravity,
+        ..
+    } = data;
     gravity.fill(0.0);
     for c in 0..cols.len() {
         // Σ_{b ⊂ subtree} m_b ∂c_b/∂q_j = m_sub S̃_lin + S̃_ang × h_sub  (h about O)

@@ -13,14 +13,20 @@ use nalgebra::DMatrix;
 
 fn check_body(model: &Model, body: usize) -> crate::Result<()> {
     if body >= model.bodies.len() {
-        return Err(crate::Error::invalid("body", format!("index {body} out of range ({} bodies)", model.bodies.len())));
+        return Err(crate::Error::invalid(
+            "body",
+            format!("index {body} out of range ({} bodies)", model.bodies.len()),
+        ));
     }
     Ok(())
 }
 
 fn check_shape(out: &DMatrix<f64>, rows: usize, n: usize) -> crate::Result<()> {
     if out.shape() != (rows, n) {
-        return Err(crate::Error::invalid("out", format!("must be {rows} × {n}, is {:?}", out.shape())));
+        return Err(crate::Error::invalid(
+            "out",
+            format!("must be {rows} × {n}, is {:?}", out.shape()),
+        ));
     }
     Ok(())
 }
@@ -50,13 +56,22 @@ fn accumulate<const R: usize>(
 fn require_reduced(data: &Data, algorithm: &'static str) -> crate::Result<()> {
     data.require(Stage::Position, algorithm)?;
     if data.node_grad.first().is_some_and(|g| g.is_nan()) {
-        return Err(crate::Error::StageNotComputed { algorithm, needs: "forward_kinematics (not forward_kinematics_full)" });
+        return Err(crate::Error::StageNotComputed {
+            algorithm,
+            needs: "forward_kinematics (not forward_kinematics_full)",
+        });
     }
     Ok(())
 }
 
 /// J (3 × n) of a point fixed in `body` (`point` in body coordinates): ṗ = J q̇.
-pub fn point_jacobian(model: &Model, data: &Data, body: usize, point: &Vec3, out: &mut DMatrix<f64>) -> crate::Result<()> {
+pub fn point_jacobian(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    point: &Vec3,
+    out: &mut DMatrix<f64>,
+) -> crate::Result<()> {
     require_reduced(data, "point_jacobian")?;
     check_body(model, body)?;
     check_shape(out, 3, model.nq())?;
@@ -71,7 +86,12 @@ pub fn point_jacobian(model: &Model, data: &Data, body: usize, point: &Vec3, out
 
 /// J (6 × n) of a body: rows 0–2 map q̇ to its angular velocity, rows 3–5 to the velocity
 /// of its origin, both in ground axes.
-pub fn body_jacobian(model: &Model, data: &Data, body: usize, out: &mut DMatrix<f64>) -> crate::Result<()> {
+pub fn body_jacobian(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    out: &mut DMatrix<f64>,
+) -> crate::Result<()> {
     require_reduced(data, "body_jacobian")?;
     check_body(model, body)?;
     check_shape(out, 6, model.nq())?;
@@ -86,7 +106,12 @@ pub fn body_jacobian(model: &Model, data: &Data, body: usize, out: &mut DMatrix<
 
 /// The contact Jacobian J_c (3k × n) of k body-fixed points: rows 3i..3i+3 map q̇ to the
 /// velocity of point i in ground.
-pub fn contact_jacobian(model: &Model, data: &Data, points: &[(usize, Vec3)], out: &mut DMatrix<f64>) -> crate::Result<()> {
+pub fn contact_jacobian(
+    model: &Model,
+    data: &Data,
+    points: &[(usize, Vec3)],
+    out: &mut DMatrix<f64>,
+) -> crate::Result<()> {
     require_reduced(data, "contact_jacobian")?;
     check_shape(out, 3 * points.len(), model.nq())?;
     out.fill(0.0);
@@ -102,20 +127,44 @@ pub fn contact_jacobian(model: &Model, data: &Data, points: &[(usize, Vec3)], ou
 }
 
 /// Spatial accelerations with q̈ = 0 and no gravity (needs the velocity stage).
-fn ensure_bias_accelerations(model: &Model, data: &mut Data, algorithm: &'static str) -> crate::Result<()> {
+fn ensure_bias_accelerations(
+    model: &Model,
+    data: &mut Data,
+    algorithm: &'static str,
+) -> crate::Result<()> {
     data.require(Stage::Velocity, algorithm)?;
     if !data.body_acc_bias_valid {
         let nc = model.reduction.n_coordinates;
-        let Data { dof_motion, body_vel, node_vel, node_acc_bias, body_acc_bias, .. } = data;
+        let Data {
+            dof_motion,
+            body_vel,
+            node_vel,
+            node_acc_bias,
+            body_acc_bias,
+            ..
+        } = data;
         // θ̈ = Φ̇q̇ when q̈ = 0
-        propagate_accelerations(model, dof_motion, body_vel, &node_vel[nc..], &node_acc_bias[nc..], Motion::ZERO, body_acc_bias);
+        propagate_accelerations(
+            model,
+            dof_motion,
+            body_vel,
+            &node_vel[nc..],
+            &node_acc_bias[nc..],
+            Motion::ZERO,
+            body_acc_bias,
+        );
         data.body_acc_bias_valid = true;
     }
     Ok(())
 }
 
 /// J̇q̇ of a body-fixed point: its acceleration when q̈ = 0 (velocity stage).
-pub fn point_jacobian_dot_qd(model: &Model, data: &mut Data, body: usize, point: &Vec3) -> crate::Result<Vec3> {
+pub fn point_jacobian_dot_qd(
+    model: &Model,
+    data: &mut Data,
+    body: usize,
+    point: &Vec3,
+) -> crate::Result<Vec3> {
     check_body(model, body)?;
     ensure_bias_accelerations(model, data, "point_jacobian_dot_qd")?;
     let off = data.point_position(body, point) - data.reference_point;
@@ -123,17 +172,33 @@ pub fn point_jacobian_dot_qd(model: &Model, data: &mut Data, body: usize, point:
 }
 
 /// J̇q̇ of a body: (angular acceleration, acceleration of the origin) when q̈ = 0.
-pub fn body_jacobian_dot_qd(model: &Model, data: &mut Data, body: usize) -> crate::Result<(Vec3, Vec3)> {
+pub fn body_jacobian_dot_qd(
+    model: &Model,
+    data: &mut Data,
+    body: usize,
+) -> crate::Result<(Vec3, Vec3)> {
     check_body(model, body)?;
     ensure_bias_accelerations(model, data, "body_jacobian_dot_qd")?;
     let off = data.body_pos[body] - data.reference_point;
-    Ok(point_acceleration_from(&data.body_vel[body], &data.body_acc_bias[body], off))
+    Ok(point_acceleration_from(
+        &data.body_vel[body],
+        &data.body_acc_bias[body],
+        off,
+    ))
 }
 
 /// J̇_c q̇ (3k) of k body-fixed points.
-pub fn contact_jacobian_dot_qd(model: &Model, data: &mut Data, points: &[(usize, Vec3)], out: &mut [f64]) -> crate::Result<()> {
+pub fn contact_jacobian_dot_qd(
+    model: &Model,
+    data: &mut Data,
+    points: &[(usize, Vec3)],
+    out: &mut [f64],
+) -> crate::Result<()> {
     if out.len() != 3 * points.len() {
-        return Err(crate::Error::invalid("out", format!("needs length {}, has {}", 3 * points.len(), out.len())));
+        return Err(crate::Error::invalid(
+            "out",
+            format!("needs length {}, has {}", 3 * points.len(), out.len()),
+        ));
     }
     for (i, (body, p)) in points.iter().enumerate() {
         let a = point_jacobian_dot_qd(model, data, *body, p)?;

@@ -38,8 +38,8 @@ pub use forward_kinematics::{
 };
 pub use gravity::gravity;
 pub use jacobian::{
-    body_jacobian, body_jacobian_dot_qd, contact_jacobian, contact_jacobian_dot_qd,
-    point_jacobian, point_jacobian_dot_qd,
+    body_jacobian, body_jacobian_dot_qd, contact_jacobian, contact_jacobian_dot_qd, point_jacobian,
+    point_jacobian_dot_qd,
 };
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};
 
@@ -153,11 +153,20 @@ impl Data {
         use std::mem::size_of;
         let f = size_of::<f64>();
         let v = |n: usize, s: usize| n * s;
-        v(self.node_value.capacity() + self.node_vel.capacity() + self.node_acc_bias.capacity(), f)
-            + v(self.node_grad.capacity() + self.node_g1.capacity() + self.node_g2.capacity(), f)
-            + v(self.arg_scratch.capacity() + self.theta_acc.capacity() + self.tau_full.capacity(), f)
-            + v(self.body_rot.capacity(), size_of::<Mat3>())
-            + v(self.body_pos.capacity() + self.dof_axis.capacity() + self.dof_point.capacity(), size_of::<Vec3>())
+        v(
+            self.node_value.capacity() + self.node_vel.capacity() + self.node_acc_bias.capacity(),
+            f,
+        ) + v(
+            self.node_grad.capacity() + self.node_g1.capacity() + self.node_g2.capacity(),
+            f,
+        ) + v(
+            self.arg_scratch.capacity() + self.theta_acc.capacity() + self.tau_full.capacity(),
+            f,
+        ) + v(self.body_rot.capacity(), size_of::<Mat3>())
+            + v(
+                self.body_pos.capacity() + self.dof_axis.capacity() + self.dof_point.capacity(),
+                size_of::<Vec3>(),
+            )
             + v(
                 self.dof_motion.capacity()
                     + self.col_motion.capacity()
@@ -167,10 +176,16 @@ impl Data {
                     + self.jac_scratch.capacity(),
                 size_of::<Motion>(),
             )
-            + v(self.body_inertia.capacity() + self.composite.capacity(), size_of::<SpatialInertia>())
+            + v(
+                self.body_inertia.capacity() + self.composite.capacity(),
+                size_of::<SpatialInertia>(),
+            )
             + v(self.body_force.capacity(), size_of::<Force>())
             + v(self.mass_matrix_full.len() + self.mass_matrix.len(), f)
-            + v(self.tau.len() + self.bias.len() + self.coriolis.len() + self.gravity.len(), f)
+            + v(
+                self.tau.len() + self.bias.len() + self.coriolis.len() + self.gravity.len(),
+                f,
+            )
     }
 
     /// The stage the kinematics have been computed to.
@@ -233,7 +248,10 @@ impl Data {
     /// Angular velocity and velocity of the body origin, in ground (velocity stage).
     pub fn body_velocity(&self, body: usize) -> (Vec3, Vec3) {
         let v = &self.body_vel[body];
-        (v.ang, v.linear_at(&(self.body_pos[body] - self.reference_point)))
+        (
+            v.ang,
+            v.linear_at(&(self.body_pos[body] - self.reference_point)),
+        )
     }
 
     /// Velocity in ground of a point fixed in `body` (velocity stage).
@@ -246,13 +264,20 @@ impl Data {
     /// stage). The classical acceleration of point p from the spatial acceleration â:
     /// a_p = â_lin + α × (p − O) + ω × v_p.
     pub fn point_acceleration(&self, body: usize, point: &Vec3) -> (Vec3, Vec3) {
-        point_acceleration_from(&self.body_vel[body], &self.body_acc[body], self.point_position(body, point) - self.reference_point)
+        point_acceleration_from(
+            &self.body_vel[body],
+            &self.body_acc[body],
+            self.point_position(body, point) - self.reference_point,
+        )
     }
 
     /// Marker positions in ground, in `Model::markers` order.
     pub fn marker_positions(&self, model: &Model, out: &mut [Vec3]) -> crate::Result<()> {
         if out.len() != model.markers.len() {
-            return Err(crate::Error::invalid("out", format!("needs {} entries, has {}", model.markers.len(), out.len())));
+            return Err(crate::Error::invalid(
+                "out",
+                format!("needs {} entries, has {}", model.markers.len(), out.len()),
+            ));
         }
         for (o, m) in out.iter_mut().zip(&model.markers) {
             *o = self.point_position(m.body, &m.location_in_body);
@@ -306,10 +331,16 @@ pub(crate) fn point_acceleration_from(v: &Motion, a: &Motion, offset: Vec3) -> (
 /// Checks a slice argument's length.
 pub(crate) fn check_len(argument: &'static str, x: &[f64], n: usize) -> crate::Result<()> {
     if x.len() != n {
-        return Err(crate::Error::invalid(argument, format!("expected length {n}, got {}", x.len())));
+        return Err(crate::Error::invalid(
+            argument,
+            format!("expected length {n}, got {}", x.len()),
+        ));
     }
     if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-        return Err(crate::Error::invalid(argument, format!("element {i} is not finite ({})", x[i])));
+        return Err(crate::Error::invalid(
+            argument,
+            format!("element {i} is not finite ({})", x[i]),
+        ));
     }
     Ok(())
 }

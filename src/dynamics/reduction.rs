@@ -9,7 +9,10 @@ use crate::model::reduction::NodeKind;
 #[inline]
 fn eval_order(model: &Model) -> impl Iterator<Item = usize> + '_ {
     let r = &model.reduction;
-    r.order.iter().copied().chain(r.n_coordinates..r.nodes.len())
+    r.order
+        .iter()
+        .copied()
+        .chain(r.n_coordinates..r.nodes.len())
 }
 
 /// Values and q-gradients of every node at q.
@@ -31,7 +34,11 @@ pub(crate) fn evaluate_position(model: &Model, data: &mut Data, q: &[f64]) {
                 node_grad[g.start] = 1.0;
             }
             NodeKind::Constant(v) => node_value[i] = *v,
-            NodeKind::Affine { arg, slope, intercept } => {
+            NodeKind::Affine {
+                arg,
+                slope,
+                intercept,
+            } => {
                 node_value[i] = slope * node_value[*arg] + intercept;
                 let a0 = r.arg_start[i];
                 node_g1[a0] = *slope;
@@ -42,7 +49,11 @@ pub(crate) fn evaluate_position(model: &Model, data: &mut Data, q: &[f64]) {
                     node_grad[e] = slope * node_grad[src + t];
                 }
             }
-            NodeKind::Function { function, args, scale } => {
+            NodeKind::Function {
+                function,
+                args,
+                scale,
+            } => {
                 let k = args.len();
                 let a0 = r.arg_start[i];
                 let h0 = r.hess_start[i];

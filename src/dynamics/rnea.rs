@@ -16,20 +16,36 @@ enum Target {
 }
 
 /// Inverse dynamics τ = M(q) q̈ + C(q, q̇) q̇ + G(q): the generalized forces that produce q̈.
-pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) -> crate::Result<&'d DVector<f64>> {
+pub fn rnea<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+) -> crate::Result<&'d DVector<f64>> {
     check_len("qdd", qdd, model.nq())?;
     reduced_pass(model, data, q, qd, Some(qdd), true, Target::Tau)?;
     Ok(&data.tau)
 }
 
 /// The bias forces C(q, q̇) q̇ + G(q) = τ(q, q̇, 0).
-pub fn nonlinear_effects<'d>(model: &Model, data: &'d mut Data, q: &[f64], qd: &[f64]) -> crate::Result<&'d DVector<f64>> {
+pub fn nonlinear_effects<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    qd: &[f64],
+) -> crate::Result<&'d DVector<f64>> {
     reduced_pass(model, data, q, qd, None, true, Target::Bias)?;
     Ok(&data.bias)
 }
 
 /// Coriolis and centrifugal forces C(q, q̇) q̇ (with the Φ̇q̇ terms of coupled coordinates).
-pub fn coriolis<'d>(model: &Model, data: &'d mut Data, q: &[f64], qd: &[f64]) -> crate::Result<&'d DVector<f64>> {
+pub fn coriolis<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    qd: &[f64],
+) -> crate::Result<&'d DVector<f64>> {
     reduced_pass(model, data, q, qd, None, false, Target::Coriolis)?;
     Ok(&data.coriolis)
 }
@@ -48,7 +64,12 @@ pub fn rnea_full<'d>(
     data.theta_acc.copy_from_slice(theta_ddot);
     body_forces(model, data, true);
     // τ_full,d = s_dᵀ f_body(d)
-    let Data { tau_full, dof_motion, body_force, .. } = data;
+    let Data {
+        tau_full,
+        dof_motion,
+        body_force,
+        ..
+    } = data;
     for (d, dof) in model.dofs.iter().enumerate() {
         tau_full[d] = dof_motion[d].dot(&body_force[dof.body]);
     }
@@ -73,7 +94,14 @@ fn reduced_pass(
     theta_acceleration(model, data, qdd);
     body_forces(model, data, with_gravity);
     // τ = Φᵀ τ_full = Σ_c S̃_cᵀ f_body(c), accumulated over the reduced columns.
-    let Data { tau, bias, coriolis, col_motion, body_force, .. } = data;
+    let Data {
+        tau,
+        bias,
+        coriolis,
+        col_motion,
+        body_force,
+        ..
+    } = data;
     let out = match target {
         Target::Tau => tau,
         Target::Bias => bias,
@@ -113,13 +141,17 @@ fn body_forces(model: &Model, data: &mut Data, with_gravity: bool) {
     } else {
         Motion::ZERO
     };
-    propagate_accelerations(model, dof_motion, body_vel, theta_dot, theta_acc, a0, body_acc);
+    propagate_accelerations(
+        model, dof_motion, body_vel, theta_dot, theta_acc, a0, body_acc,
+    );
     // f_i = I_i a_i + v_i ×* I_i v_i
     body_force[0] = Force::ZERO;
     for b in 1..model.bodies.len() {
         let i = &body_inertia[b];
         let v = &body_vel[b];
-        body_force[b] = i.mul_motion(&body_acc[b]).add(&v.cross_force(&i.mul_motion(v)));
+        body_force[b] = i
+            .mul_motion(&body_acc[b])
+            .add(&v.cross_force(&i.mul_motion(v)));
     }
     // Backward pass: f_parent += f_child.
     for joint in model.joints.iter().rev() {

@@ -90,7 +90,12 @@ impl FrameRegistry {
     }
 
     /// `resolve`, `depth` frames down a chain of offset frames (bounded, to report cycles).
-    fn resolve_at_depth(&mut self, owner: &str, path: &str, depth: usize) -> Result<(usize, Transform), FrameError> {
+    fn resolve_at_depth(
+        &mut self,
+        owner: &str,
+        path: &str,
+        depth: usize,
+    ) -> Result<(usize, Transform), FrameError> {
         let abs = resolve_path(owner, path);
         match self.resolve_abs(&abs, depth) {
             // Only when the path itself is missing, not a frame further up its chain.
@@ -132,7 +137,9 @@ impl FrameRegistry {
             .ok_or_else(|| FrameError::NotFound(abs.to_string()))?;
         let parent_abs = resolve_path(&def.path, &def.parent);
         let (body, x_parent) = match self.resolve_abs(&parent_abs, depth + 1) {
-            Err(FrameError::NotFound(missing)) if missing == parent_abs && !def.parent.contains('/') => {
+            Err(FrameError::NotFound(missing))
+                if missing == parent_abs && !def.parent.contains('/') =>
+            {
                 // Legacy bare name.
                 self.resolve_at_depth(&def.path, &def.parent, depth + 1)?
             }
@@ -145,7 +152,10 @@ impl FrameRegistry {
 
     /// The path of a body (by its current index), for messages.
     pub fn body_path(&self, body: usize) -> Option<String> {
-        self.bodies.iter().find(|(_, b)| **b == body).map(|(p, _)| p.clone())
+        self.bodies
+            .iter()
+            .find(|(_, b)| **b == body)
+            .map(|(p, _)| p.clone())
     }
 
     /// Renumbers bodies after topological ordering: `new_index[old] = new`.
@@ -157,7 +167,6 @@ impl FrameRegistry {
             r.0 = new_index[r.0];
         }
     }
-
 }
 
 #[cfg(test)]
@@ -167,9 +176,18 @@ mod tests {
 
     #[test]
     fn relative_paths_resolve_against_the_owner() {
-        assert_eq!(resolve_path("/jointset/hip_r", "pelvis_offset"), "/jointset/hip_r/pelvis_offset");
-        assert_eq!(resolve_path("/jointset/hip_r/pelvis_offset", "../../../bodyset/pelvis"), "/bodyset/pelvis");
-        assert_eq!(resolve_path("/jointset/hip_r", "/bodyset/femur_r"), "/bodyset/femur_r");
+        assert_eq!(
+            resolve_path("/jointset/hip_r", "pelvis_offset"),
+            "/jointset/hip_r/pelvis_offset"
+        );
+        assert_eq!(
+            resolve_path("/jointset/hip_r/pelvis_offset", "../../../bodyset/pelvis"),
+            "/bodyset/pelvis"
+        );
+        assert_eq!(
+            resolve_path("/jointset/hip_r", "/bodyset/femur_r"),
+            "/bodyset/femur_r"
+        );
         assert_eq!(resolve_path("/a/b", "./c/../d"), "/a/b/d");
     }
 
@@ -178,14 +196,33 @@ mod tests {
         let mut reg = FrameRegistry::default();
         reg.add_body("/bodyset/pelvis".into(), 1);
         let t = |x: f64| Transform::new(crate::spatial::Mat3::identity(), Vec3::new(x, 0.0, 0.0));
-        reg.add_offset(OffsetFrameDef { path: "/jointset/j/a".into(), parent: "/bodyset/pelvis".into(), offset: t(1.0) });
-        reg.add_offset(OffsetFrameDef { path: "/jointset/j/b".into(), parent: "a".into(), offset: t(2.0) });
+        reg.add_offset(OffsetFrameDef {
+            path: "/jointset/j/a".into(),
+            parent: "/bodyset/pelvis".into(),
+            offset: t(1.0),
+        });
+        reg.add_offset(OffsetFrameDef {
+            path: "/jointset/j/b".into(),
+            parent: "a".into(),
+            offset: t(2.0),
+        });
         let (b, x) = reg.resolve("/jointset/j", "b").unwrap();
         assert_eq!(b, 1);
         assert_eq!(x.pos.x, 3.0);
-        reg.add_offset(OffsetFrameDef { path: "/c1".into(), parent: "/c2".into(), offset: t(0.0) });
-        reg.add_offset(OffsetFrameDef { path: "/c2".into(), parent: "/c1".into(), offset: t(0.0) });
+        reg.add_offset(OffsetFrameDef {
+            path: "/c1".into(),
+            parent: "/c2".into(),
+            offset: t(0.0),
+        });
+        reg.add_offset(OffsetFrameDef {
+            path: "/c2".into(),
+            parent: "/c1".into(),
+            offset: t(0.0),
+        });
         assert!(matches!(reg.resolve("/", "/c1"), Err(FrameError::Cycle(_))));
-        assert!(matches!(reg.resolve("/", "/nothing"), Err(FrameError::NotFound(_))));
+        assert!(matches!(
+            reg.resolve("/", "/nothing"),
+            Err(FrameError::NotFound(_))
+        ));
     }
 }

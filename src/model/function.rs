@@ -147,11 +147,7 @@ fn polynomial(c: &[f64], x: f64) -> (f64, f64, f64) {
 
 fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), String> {
     if x.len() != y.len() {
-        return Err(format!(
-            "x has {} values but y has {}",
-            x.len(),
-            y.len()
-        ));
+        return Err(format!("x has {} values but y has {}", x.len(), y.len()));
     }
     if x.len() < min_points {
         return Err(format!(
@@ -160,7 +156,11 @@ fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), String> {
         ));
     }
     if let Some(i) = x.iter().chain(y.iter()).position(|v| !v.is_finite()) {
-        let (name, j) = if i < x.len() { ("x", i) } else { ("y", i - x.len()) };
+        let (name, j) = if i < x.len() {
+            ("x", i)
+        } else {
+            ("y", i - x.len())
+        };
         return Err(format!("{name}[{j}] is not a finite number"));
     }
     for i in 1..x.len() {
@@ -323,7 +323,11 @@ impl PiecewiseLinear {
         } else {
             interval(&self.x, t)
         };
-        (self.y[k] + (t - self.x[k]) * self.slope[k], self.slope[k], 0.0)
+        (
+            self.y[k] + (t - self.x[k]) * self.slope[k],
+            self.slope[k],
+            0.0,
+        )
     }
 }
 
@@ -383,9 +387,14 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::approx_constant)] // knots of gait2392's knee spline, as written in the file
     fn simm_spline_derivatives_match_finite_differences() {
-        let x = vec![-2.0944, -1.22173, -0.523599, -0.349066, -0.174533, 0.159149, 2.0944];
-        let y = vec![-0.4226, -0.4082, -0.399, -0.3976, -0.3966, -0.395264, -0.396];
+        let x = vec![
+            -2.0944, -1.22173, -0.523599, -0.349066, -0.174533, 0.159149, 2.0944,
+        ];
+        let y = vec![
+            -0.4226, -0.4082, -0.399, -0.3976, -0.3966, -0.395264, -0.396,
+        ];
         let s = SimmSpline::new(x, y).unwrap();
         let h = 1e-6;
         for i in 0..50 {

@@ -12,10 +12,10 @@
 //!   coordinates: for a CustomJoint the TransformAxis function, for the other joint types
 //!   the coordinate itself. θ = φ(q), Φ = ∂φ/∂q.
 
+mod frames;
 pub mod function;
 pub mod natural_spline;
 mod osim;
-mod frames;
 pub(crate) mod reduction;
 
 pub use function::{Arity, Function};
@@ -207,7 +207,9 @@ pub struct Marker {
 /// Contact geometry shapes.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ContactShape {
-    Sphere { radius: f64 },
+    Sphere {
+        radius: f64,
+    },
     /// The half-space x < 0 of its frame (OpenSim's convention: the outward normal is the
     /// frame's −x... see `ContactHalfSpace`); the plane passes through the frame origin.
     HalfSpace,
@@ -240,7 +242,10 @@ pub struct PathPoint {
 pub enum PathPointKind {
     Fixed,
     /// Active only while `coordinate` lies in `range`.
-    Conditional { coordinate: usize, range: [f64; 2] },
+    Conditional {
+        coordinate: usize,
+        range: [f64; 2],
+    },
     /// Each component of the location is a function of one coordinate.
     Moving {
         x: (Function, usize),
@@ -268,10 +273,20 @@ pub struct GeometryPath {
 /// Wrap surfaces.
 #[derive(Clone, Debug, PartialEq)]
 pub enum WrapShape {
-    Sphere { radius: f64 },
-    Cylinder { radius: f64, length: f64 },
-    Ellipsoid { dimensions: Vec3 },
-    Torus { inner_radius: f64, outer_radius: f64 },
+    Sphere {
+        radius: f64,
+    },
+    Cylinder {
+        radius: f64,
+        length: f64,
+    },
+    Ellipsoid {
+        dimensions: Vec3,
+    },
+    Torus {
+        inner_radius: f64,
+        outer_radius: f64,
+    },
 }
 
 /// A wrap object fixed in a body.
@@ -373,7 +388,10 @@ impl Model {
     }
 
     /// Reads an OpenSim 4.x `.osim` file with options.
-    pub fn from_osim_file_with(path: impl AsRef<Path>, options: &LoadOptions) -> crate::Result<Model> {
+    pub fn from_osim_file_with(
+        path: impl AsRef<Path>,
+        options: &LoadOptions,
+    ) -> crate::Result<Model> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|source| crate::Error::Io {
             path: path.to_path_buf(),
@@ -388,7 +406,11 @@ impl Model {
     }
 
     /// Parses OpenSim 4.x XML with options.
-    pub fn from_osim_str_with(xml: &str, source: &str, options: &LoadOptions) -> crate::Result<Model> {
+    pub fn from_osim_str_with(
+        xml: &str,
+        source: &str,
+        options: &LoadOptions,
+    ) -> crate::Result<Model> {
         osim::parse(xml, source, options)
     }
 

@@ -26,7 +26,11 @@ pub(crate) enum NodeKind {
     Constant(f64),
     /// slope · (value of node `arg`) + intercept: a one-argument LinearFunction (the common
     /// case of an axis driven directly by its coordinate), evaluated without dispatch.
-    Affine { arg: usize, slope: f64, intercept: f64 },
+    Affine {
+        arg: usize,
+        slope: f64,
+        intercept: f64,
+    },
     /// scale · f(node values of `args`).
     Function {
         function: Function,
@@ -101,13 +105,20 @@ pub(crate) const NONE: usize = usize::MAX;
 
 impl Columns {
     fn build(model: &Model, dep_start: &[usize], dep_index: &[usize], nc: usize) -> Columns {
-        let mut c = Columns { body_last: vec![NONE; model.bodies.len()], ..Default::default() };
+        let mut c = Columns {
+            body_last: vec![NONE; model.bodies.len()],
+            ..Default::default()
+        };
         for joint in &model.joints {
             let mut last = c.body_last[joint.parent_body];
             let mut qs: Vec<usize> = joint
                 .dof_range
                 .clone()
-                .flat_map(|d| dep_index[dep_start[nc + d]..dep_start[nc + d + 1]].iter().copied())
+                .flat_map(|d| {
+                    dep_index[dep_start[nc + d]..dep_start[nc + d + 1]]
+                        .iter()
+                        .copied()
+                })
                 .collect();
             qs.sort_unstable();
             qs.dedup();
@@ -172,9 +183,18 @@ impl Reduction {
             });
         }
         for n in nodes.iter_mut() {
-            if let NodeKind::Function { function: Function::Linear(c), args, scale } = n {
+            if let NodeKind::Function {
+                function: Function::Linear(c),
+                args,
+                scale,
+            } = n
+            {
                 if args.len() == 1 && c.len() == 2 {
-                    *n = NodeKind::Affine { arg: args[0], slope: *scale * c[0], intercept: *scale * c[1] };
+                    *n = NodeKind::Affine {
+                        arg: args[0],
+                        slope: *scale * c[0],
+                        intercept: *scale * c[1],
+                    };
                 }
             }
         }
@@ -210,12 +230,18 @@ impl Reduction {
         for i in 0..nc {
             let mut stack = Vec::new();
             if let Err(cycle) = visit(i, &nodes, &mut state, &mut order, &mut stack) {
-                let names: Vec<&str> = cycle.iter().map(|&c| model.coordinates[c].name.as_str()).collect();
+                let names: Vec<&str> = cycle
+                    .iter()
+                    .map(|&c| model.coordinates[c].name.as_str())
+                    .collect();
                 let coupler = match roles[cycle[0]] {
                     CoordinateRole::Dependent(k) => k,
                     _ => 0,
                 };
-                return Err((coupler, format!("coupler constraints form a cycle: {}", names.join(" → "))));
+                return Err((
+                    coupler,
+                    format!("coupler constraints form a cycle: {}", names.join(" → ")),
+                ));
             }
         }
 
@@ -228,13 +254,18 @@ impl Reduction {
                 NodeKind::Independent(j) => vec![*j],
                 NodeKind::Constant(_) => vec![],
                 NodeKind::Affine { arg, slope, .. } => {
-                    if *slope == 0.0 { vec![] } else { deps[*arg].clone() }
+                    if *slope == 0.0 {
+                        vec![]
+                    } else {
+                        deps[*arg].clone()
+                    }
                 }
                 NodeKind::Function { args, function, .. } => {
                     if function.is_constant() {
                         vec![]
                     } else {
-                        let mut d: Vec<usize> = args.iter().flat_map(|&a| deps[a].iter().copied()).collect();
+                        let mut d: Vec<usize> =
+                            args.iter().flat_map(|&a| deps[a].iter().copied()).collect();
                         d.sort_unstable();
                         d.dedup();
                         d
@@ -273,7 +304,11 @@ impl Reduction {
                     for src in dep_start[a]..dep_start[a + 1] {
                         let j = dep_index[src];
                         if let Some(p) = deps[i].iter().position(|&x| x == j) {
-                            scatter.push(Scatter { arg: ai, src, dst: dep_start[i] + p });
+                            scatter.push(Scatter {
+                                arg: ai,
+                                src,
+                                dst: dep_start[i] + p,
+                            });
                         }
                     }
                 }

@@ -131,17 +131,36 @@ pub fn body(name: &str, mass: f64, com: [f64; 3], inertia: [f64; 6]) -> String {
     format!(
         "<Body name=\"{name}\"><mass>{mass:e}</mass><mass_center>{:e} {:e} {:e}</mass_center>\
          <inertia>{:e} {:e} {:e} {:e} {:e} {:e}</inertia></Body>",
-        com[0], com[1], com[2], inertia[0], inertia[1], inertia[2], inertia[3], inertia[4], inertia[5]
+        com[0],
+        com[1],
+        com[2],
+        inertia[0],
+        inertia[1],
+        inertia[2],
+        inertia[3],
+        inertia[4],
+        inertia[5]
     )
 }
 
 pub fn coordinate(name: &str, range: [f64; 2]) -> String {
-    format!("<Coordinate name=\"{name}\"><default_value>0</default_value><range>{:e} {:e}</range></Coordinate>", range[0], range[1])
+    format!(
+        "<Coordinate name=\"{name}\"><default_value>0</default_value><range>{:e} {:e}</range></Coordinate>",
+        range[0], range[1]
+    )
 }
 
 /// A joint of type `kind` from `parent` (body path) at `offset` to `child` (body path)
 /// with its child frame at the child body's origin.
-pub fn joint(kind: &str, name: &str, parent: &str, offset: [f64; 3], child: &str, coords: &[String], extra: &str) -> String {
+pub fn joint(
+    kind: &str,
+    name: &str,
+    parent: &str,
+    offset: [f64; 3],
+    child: &str,
+    coords: &[String],
+    extra: &str,
+) -> String {
     format!(
         r#"<{kind} name="{name}">
   <socket_parent_frame>p</socket_parent_frame><socket_child_frame>c</socket_child_frame>
@@ -162,7 +181,14 @@ pub fn joint(kind: &str, name: &str, parent: &str, offset: [f64; 3], child: &str
 /// A CustomJoint SpatialTransform from six (coordinates, axis, function XML) triples in the
 /// order rotation1–3, translation1–3.
 pub fn spatial_transform(axes: [(&str, [f64; 3], &str); 6]) -> String {
-    let names = ["rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"];
+    let names = [
+        "rotation1",
+        "rotation2",
+        "rotation3",
+        "translation1",
+        "translation2",
+        "translation3",
+    ];
     let mut s = String::from("<SpatialTransform>");
     for (n, (c, a, f)) in names.iter().zip(axes) {
         s += &format!(

@@ -31,7 +31,10 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         None => Model::demo(),
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&model)).unwrap_or_default());
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&to_json(&model)).unwrap_or_default()
+        );
     } else {
         print!("{}", to_text(&model));
     }
@@ -44,7 +47,11 @@ fn role(model: &Model, r: CoordinateRole) -> String {
         CoordinateRole::Locked => "locked".into(),
         CoordinateRole::Dependent(k) => {
             let c = &model.couplers[k];
-            let ind: Vec<&str> = c.independents.iter().map(|&i| model.coordinates[i].name.as_str()).collect();
+            let ind: Vec<&str> = c
+                .independents
+                .iter()
+                .map(|&i| model.coordinates[i].name.as_str())
+                .collect();
             format!("= f({}) [{}]", ind.join(", "), c.name)
         }
     }
@@ -70,7 +77,11 @@ fn to_text(model: &Model) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let n_dep = model.couplers.len();
-    let n_locked = model.coordinates.iter().filter(|c| c.role == CoordinateRole::Locked).count();
+    let n_locked = model
+        .coordinates
+        .iter()
+        .filter(|c| c.role == CoordinateRole::Locked)
+        .count();
     let _ = writeln!(s, "model       {} ({})", model.name, model.source);
     let _ = writeln!(s, "bodies      {} (plus ground)", model.bodies.len() - 1);
     let _ = writeln!(s, "joints      {}", model.joints.len());
@@ -84,37 +95,87 @@ fn to_text(model: &Model) -> String {
     );
     let _ = writeln!(s, "full coords {} movable transform axes", model.n_full());
     let kinds = force_kinds(model);
-    let muscles: Vec<String> = kinds.iter().filter(|(k, _)| k.ends_with("Muscle")).map(|(k, n)| format!("{n} {k}")).collect();
-    let _ = writeln!(s, "muscles     {}{}", model.muscle_count(), if muscles.is_empty() { String::new() } else { format!(" ({})", muscles.join(", ")) });
-    let others: Vec<String> = kinds.iter().filter(|(k, _)| !k.ends_with("Muscle")).map(|(k, n)| format!("{n} {k}")).collect();
+    let muscles: Vec<String> = kinds
+        .iter()
+        .filter(|(k, _)| k.ends_with("Muscle"))
+        .map(|(k, n)| format!("{n} {k}"))
+        .collect();
+    let _ = writeln!(
+        s,
+        "muscles     {}{}",
+        model.muscle_count(),
+        if muscles.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", muscles.join(", "))
+        }
+    );
+    let others: Vec<String> = kinds
+        .iter()
+        .filter(|(k, _)| !k.ends_with("Muscle"))
+        .map(|(k, n)| format!("{n} {k}"))
+        .collect();
     if !others.is_empty() {
         let _ = writeln!(s, "other forces {}", others.join(", "));
     }
     let _ = writeln!(s, "total mass  {:.4} kg", model.total_mass());
-    let _ = writeln!(s, "gravity     {:.5} {:.5} {:.5} m/s²", model.gravity.x, model.gravity.y, model.gravity.z);
+    let _ = writeln!(
+        s,
+        "gravity     {:.5} {:.5} {:.5} m/s²",
+        model.gravity.x, model.gravity.y, model.gravity.z
+    );
     let _ = writeln!(s, "markers     {}", model.markers.len());
     let _ = writeln!(s, "contact     {}", model.contact_geometry.len());
     let _ = writeln!(s, "wrap objects {}", model.wrap_objects.len());
 
-    let _ = writeln!(s, "\nBODIES\n  {:<20} {:>10}  {:<20} {}", "name", "mass (kg)", "joint", "parent");
+    let _ = writeln!(
+        s,
+        "\nBODIES\n  {:<20} {:>10}  {:<20} {}",
+        "name", "mass (kg)", "joint", "parent"
+    );
     for b in model.bodies.iter().skip(1) {
-        let joint = b.joint.map(|j| model.joints[j].name.as_str()).unwrap_or("-");
-        let parent = b.parent.map(|p| model.bodies[p].name.as_str()).unwrap_or("-");
-        let _ = writeln!(s, "  {:<20} {:>10.4}  {:<20} {}", b.name, b.mass, joint, parent);
+        let joint = b
+            .joint
+            .map(|j| model.joints[j].name.as_str())
+            .unwrap_or("-");
+        let parent = b
+            .parent
+            .map(|p| model.bodies[p].name.as_str())
+            .unwrap_or("-");
+        let _ = writeln!(
+            s,
+            "  {:<20} {:>10.4}  {:<20} {}",
+            b.name, b.mass, joint, parent
+        );
     }
-    let _ = writeln!(s, "\nJOINTS\n  {:<22} {:<15} {:<28} {}", "name", "type", "parent -> child", "coordinates");
+    let _ = writeln!(
+        s,
+        "\nJOINTS\n  {:<22} {:<15} {:<28} {}",
+        "name", "type", "parent -> child", "coordinates"
+    );
     for j in &model.joints {
-        let coords: Vec<&str> = j.coordinates.iter().map(|&c| model.coordinates[c].name.as_str()).collect();
+        let coords: Vec<&str> = j
+            .coordinates
+            .iter()
+            .map(|&c| model.coordinates[c].name.as_str())
+            .collect();
         let _ = writeln!(
             s,
             "  {:<22} {:<15} {:<28} {}",
             j.name,
             j.kind.name(),
-            format!("{} -> {}", model.bodies[j.parent_body].name, model.bodies[j.child_body].name),
+            format!(
+                "{} -> {}",
+                model.bodies[j.parent_body].name, model.bodies[j.child_body].name
+            ),
             coords.join(" ")
         );
     }
-    let _ = writeln!(s, "\nCOORDINATES\n  {:<22} {:<14} {:>10}  {:<24} {}", "name", "motion", "default", "range", "role");
+    let _ = writeln!(
+        s,
+        "\nCOORDINATES\n  {:<22} {:<14} {:>10}  {:<24} {}",
+        "name", "motion", "default", "range", "role"
+    );
     for c in &model.coordinates {
         let _ = writeln!(
             s,
@@ -126,7 +187,12 @@ fn to_text(model: &Model) -> String {
             role(model, c.role)
         );
     }
-    let _ = writeln!(s, "\nNOT USED BY MUSCULO ({} warnings; {} display-only elements skipped)", model.warnings.len(), model.visual_elements_skipped);
+    let _ = writeln!(
+        s,
+        "\nNOT USED BY MUSCULO ({} warnings; {} display-only elements skipped)",
+        model.warnings.len(),
+        model.visual_elements_skipped
+    );
     for w in &model.warnings {
         let _ = writeln!(s, "  line {}: {}: {}", w.line, w.element, w.message);
     }

@@ -6,7 +6,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "musculo", version, about = "Musculoskeletal dynamics for motion datasets")]
+#[command(
+    name = "musculo",
+    version,
+    about = "Musculoskeletal dynamics for motion datasets"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

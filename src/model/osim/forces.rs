@@ -28,7 +28,12 @@ pub const ACTUATORS: &[&str] = &[
 
 /// Resolves a socket path naming a coordinate (e.g. `/jointset/knee_r/knee_angle_r` or a bare
 /// name) to its index.
-fn coordinate_from_socket(ctx: &Ctx, node: XNode, model: &Model, tag: &str) -> Result<usize, Error> {
+fn coordinate_from_socket(
+    ctx: &Ctx,
+    node: XNode,
+    model: &Model,
+    tag: &str,
+) -> Result<usize, Error> {
     let path = ctx
         .text(node, tag)
         .filter(|s| !s.is_empty())
@@ -42,7 +47,10 @@ fn coordinate_from_socket(ctx: &Ctx, node: XNode, model: &Model, tag: &str) -> R
     if segs.len() >= 3 && segs[segs.len() - 3] == "jointset" {
         let joint = segs[segs.len() - 2];
         if model.joints[model.coordinates[idx].joint].name != joint {
-            return Err(ctx.err(node, format!("<{tag}>: coordinate `{name}` does not belong to joint `{joint}`")));
+            return Err(ctx.err(
+                node,
+                format!("<{tag}>: coordinate `{name}` does not belong to joint `{joint}`"),
+            ));
         }
     }
     Ok(idx)
@@ -64,7 +72,11 @@ fn frame_socket(
         .map_err(|e| ctx.err(node, format!("<{tag}>: {e}")))
 }
 
-pub(super) fn read_marker(ctx: &mut Ctx, m: XNode, frames: &mut FrameRegistry) -> Result<Marker, Error> {
+pub(super) fn read_marker(
+    ctx: &mut Ctx,
+    m: XNode,
+    frames: &mut FrameRegistry,
+) -> Result<Marker, Error> {
     let name = ctx.name(m)?;
     let owner = format!("/markerset/{name}");
     let (body, x) = frame_socket(ctx, m, frames, &owner, "socket_parent_frame")?;
@@ -99,7 +111,10 @@ pub(super) fn read_contact_geometry(
         }
         "ContactHalfSpace" => ContactShape::HalfSpace,
         _ => {
-            ctx.warn(g, format!("contact geometry `{tag}` is not supported; ignored"));
+            ctx.warn(
+                g,
+                format!("contact geometry `{tag}` is not supported; ignored"),
+            );
             return Ok(None);
         }
     };
@@ -122,7 +137,11 @@ pub(super) fn read_contact_geometry(
     }))
 }
 
-pub(super) fn read_wrap_object(ctx: &mut Ctx, w: XNode, body: usize) -> Result<Option<WrapObject>, Error> {
+pub(super) fn read_wrap_object(
+    ctx: &mut Ctx,
+    w: XNode,
+    body: usize,
+) -> Result<Option<WrapObject>, Error> {
     let tag = w.tag_name().name();
     let positive = |ctx: &Ctx, tag: &str| -> Result<f64, Error> {
         let v = ctx.req_f64(w, tag)?;
@@ -132,7 +151,9 @@ pub(super) fn read_wrap_object(ctx: &mut Ctx, w: XNode, body: usize) -> Result<O
         Ok(v)
     };
     let shape = match tag {
-        "WrapSphere" => WrapShape::Sphere { radius: positive(ctx, "radius")? },
+        "WrapSphere" => WrapShape::Sphere {
+            radius: positive(ctx, "radius")?,
+        },
         "WrapCylinder" => WrapShape::Cylinder {
             radius: positive(ctx, "radius")?,
             length: ctx.f64_or(w, "length", 1.0)?,
@@ -149,7 +170,12 @@ pub(super) fn read_wrap_object(ctx: &mut Ctx, w: XNode, body: usize) -> Result<O
             outer_radius: positive(ctx, "outer_radius")?,
         },
         _ => {
-            ctx.warn(w, format!("wrap object type `{tag}` is not supported; paths that use it are reported"));
+            ctx.warn(
+                w,
+                format!(
+                    "wrap object type `{tag}` is not supported; paths that use it are reported"
+                ),
+            );
             return Ok(None);
         }
     };
@@ -183,7 +209,13 @@ pub(super) fn read_force(
     let name = ctx.name(f)?;
     let kind = f.tag_name().name().to_string();
     let path = match child(f, "GeometryPath") {
-        Some(gp) => Some(read_geometry_path(ctx, gp, frames, model, &format!("/forceset/{name}"))?),
+        Some(gp) => Some(read_geometry_path(
+            ctx,
+            gp,
+            frames,
+            model,
+            &format!("/forceset/{name}"),
+        )?),
         None => None,
     };
     let is_muscle = kind.ends_with("Muscle") || kind.contains("Muscle_");
@@ -197,22 +229,32 @@ pub(super) fn read_force(
             if child(f, tag).is_some() {
                 let v = ctx.req_f64(f, tag)?;
                 if (min_exclusive && v <= 0.0) || v < 0.0 {
-                    let need = if min_exclusive { "positive" } else { "non-negative" };
+                    let need = if min_exclusive {
+                        "positive"
+                    } else {
+                        "non-negative"
+                    };
                     return Err(ctx.err(f, format!("<{tag}> must be {need}, found {v}")));
                 }
             }
         }
         if !SUPPORTED_MUSCLES.contains(&kind.as_str()) {
-            ctx.warn(f, format!(
-                "muscle model `{kind}` is not one musculo implements ({}); its path is kept",
-                SUPPORTED_MUSCLES.join(", ")
-            ));
+            ctx.warn(
+                f,
+                format!(
+                    "muscle model `{kind}` is not one musculo implements ({}); its path is kept",
+                    SUPPORTED_MUSCLES.join(", ")
+                ),
+            );
         }
         if path.is_none() {
             return Err(ctx.err(f, "muscle without a <GeometryPath>"));
         }
     } else if !ACTUATORS.contains(&kind.as_str()) {
-        ctx.warn(f, format!("force element `{kind}` is kept but not applied by musculo's dynamics"));
+        ctx.warn(
+            f,
+            format!("force element `{kind}` is kept but not applied by musculo's dynamics"),
+        );
     }
     Ok(ForceElement {
         name,
@@ -236,7 +278,8 @@ fn read_geometry_path(
         match c.tag_name().name() {
             "PathPointSet" => {
                 for p in set_members(c) {
-                    path.points.push(read_path_point(ctx, p, frames, model, &gp_owner)?);
+                    path.points
+                        .push(read_path_point(ctx, p, frames, model, &gp_owner)?);
                 }
             }
             "PathWrapSet" => {
@@ -249,7 +292,13 @@ fn read_geometry_path(
         }
     }
     if path.points.len() < 2 {
-        return Err(ctx.err(gp, format!("a path needs at least 2 points, found {}", path.points.len())));
+        return Err(ctx.err(
+            gp,
+            format!(
+                "a path needs at least 2 points, found {}",
+                path.points.len()
+            ),
+        ));
     }
     Ok(path)
 }
@@ -276,7 +325,10 @@ fn read_path_point(
             if r.len() != 2 || r[0] > r[1] {
                 return Err(ctx.err(p, "<range> must be two numbers, minimum first"));
             }
-            PathPointKind::Conditional { coordinate, range: [r[0], r[1]] }
+            PathPointKind::Conditional {
+                coordinate,
+                range: [r[0], r[1]],
+            }
         }
         "MovingPathPoint" => {
             let comp = |axis: &str| -> Result<(Function, usize), Error> {
@@ -286,9 +338,13 @@ fn read_path_point(
                     .ok_or_else(|| ctx.err(holder, "holds no function element"))?;
                 let f = parse_function(ctx, fnode)?;
                 if !matches!(f.arity(), Arity::Any | Arity::Exactly(1)) {
-                    return Err(ctx.err(fnode, "a moving point's location must be a function of one coordinate"));
+                    return Err(ctx.err(
+                        fnode,
+                        "a moving point's location must be a function of one coordinate",
+                    ));
                 }
-                let c = coordinate_from_socket(ctx, p, model, &format!("socket_{axis}_coordinate"))?;
+                let c =
+                    coordinate_from_socket(ctx, p, model, &format!("socket_{axis}_coordinate"))?;
                 Ok((f, c))
             };
             let (x, y, z) = (comp("x")?, comp("y")?, comp("z")?);
@@ -301,8 +357,15 @@ fn read_path_point(
     };
     for c in elements(p) {
         match c.tag_name().name() {
-            "socket_parent_frame" | "location" | "socket_coordinate" | "range" | "x_location"
-            | "y_location" | "z_location" | "socket_x_coordinate" | "socket_y_coordinate"
+            "socket_parent_frame"
+            | "location"
+            | "socket_coordinate"
+            | "range"
+            | "x_location"
+            | "y_location"
+            | "z_location"
+            | "socket_x_coordinate"
+            | "socket_y_coordinate"
             | "socket_z_coordinate" => {}
             _ => ctx.unknown(c),
         }
@@ -319,7 +382,10 @@ fn read_path_point(
 
 fn read_path_wrap(ctx: &mut Ctx, w: XNode, model: &Model) -> Result<PathWrap, Error> {
     if w.tag_name().name() != "PathWrap" {
-        return Err(ctx.err(w, format!("unsupported path wrap type `{}`", w.tag_name().name())));
+        return Err(ctx.err(
+            w,
+            format!("unsupported path wrap type `{}`", w.tag_name().name()),
+        ));
     }
     let obj = ctx.req_text(w, "wrap_object")?;
     let hits: Vec<usize> = (0..model.wrap_objects.len())
@@ -332,7 +398,12 @@ fn read_path_wrap(ctx: &mut Ctx, w: XNode, model: &Model) -> Result<PathWrap, Er
                 "unknown wrap object `{obj}` (or one of a type musculo does not support: see the warnings)"
             )));
         }
-        _ => return Err(ctx.err(w, format!("wrap object name `{obj}` is used by several bodies"))),
+        _ => {
+            return Err(ctx.err(
+                w,
+                format!("wrap object name `{obj}` is used by several bodies"),
+            ));
+        }
     };
     let range = match ctx.vec_opt(w, "range")? {
         None => [-1, -1],

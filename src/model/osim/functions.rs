@@ -42,24 +42,35 @@ pub fn function_child<'a, 'i>(parent: XNode<'a, 'i>) -> Option<XNode<'a, 'i>> {
 pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
     let tag = node.tag_name().name();
     let xy = |ctx: &Ctx| -> Result<(Vec<f64>, Vec<f64>), Error> {
-        let x = ctx.vec_opt(node, "x")?.ok_or_else(|| ctx.err(node, "missing <x>"))?;
-        let y = ctx.vec_opt(node, "y")?.ok_or_else(|| ctx.err(node, "missing <y>"))?;
+        let x = ctx
+            .vec_opt(node, "x")?
+            .ok_or_else(|| ctx.err(node, "missing <x>"))?;
+        let y = ctx
+            .vec_opt(node, "y")?
+            .ok_or_else(|| ctx.err(node, "missing <y>"))?;
         Ok((x, y))
     };
     match tag {
         "Constant" => Ok(Function::Constant(ctx.f64_or(node, "value", 0.0)?)),
         "LinearFunction" => {
-            let c = ctx.vec_opt(node, "coefficients")?.unwrap_or_else(|| vec![1.0, 0.0]);
+            let c = ctx
+                .vec_opt(node, "coefficients")?
+                .unwrap_or_else(|| vec![1.0, 0.0]);
             if c.len() < 2 {
-                return Err(ctx.err(node, format!(
-                    "<coefficients> needs at least 2 values (slopes then intercept), found {}",
-                    c.len()
-                )));
+                return Err(ctx.err(
+                    node,
+                    format!(
+                        "<coefficients> needs at least 2 values (slopes then intercept), found {}",
+                        c.len()
+                    ),
+                ));
             }
             Ok(Function::Linear(c))
         }
         "PolynomialFunction" => {
-            let c = ctx.vec_opt(node, "coefficients")?.unwrap_or_else(|| vec![1.0]);
+            let c = ctx
+                .vec_opt(node, "coefficients")?
+                .unwrap_or_else(|| vec![1.0]);
             if c.is_empty() {
                 return Err(ctx.err(node, "<coefficients> is empty"));
             }
@@ -90,7 +101,10 @@ pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
             }
             let m = ctx.f64_or(node, "half_order", 0.0)?;
             if m.fract() != 0.0 || m < 1.0 {
-                return Err(ctx.err(node, format!("<half_order> must be a positive integer, found {m}")));
+                return Err(ctx.err(
+                    node,
+                    format!("<half_order> must be a positive integer, found {m}"),
+                ));
             }
             let (x, y) = xy(ctx)?;
             NaturalSpline::interpolating(m as usize, x, y)
@@ -99,15 +113,21 @@ pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
         }
         "MultiplierFunction" => {
             let scale = ctx.f64_or(node, "scale", 1.0)?;
-            let holder = child(node, "function")
-                .ok_or_else(|| ctx.err(node, "missing <function>"))?;
+            let holder =
+                child(node, "function").ok_or_else(|| ctx.err(node, "missing <function>"))?;
             let inner = function_child(holder)
                 .ok_or_else(|| ctx.err(holder, "<function> holds no function element"))?;
-            Ok(Function::Multiplier(Box::new(parse_function(ctx, inner)?), scale))
+            Ok(Function::Multiplier(
+                Box::new(parse_function(ctx, inner)?),
+                scale,
+            ))
         }
         other => Err(ctx.err(
             node,
-            format!("unsupported function type `{other}` (musculo reads {})", FUNCTION_TAGS.join(", ")),
+            format!(
+                "unsupported function type `{other}` (musculo reads {})",
+                FUNCTION_TAGS.join(", ")
+            ),
         )),
     }
 }

@@ -97,10 +97,13 @@ pub(super) fn read_joints<'a, 'i>(
                                 return Err(ctx.err(f, "another frame has the same path"));
                             }
                         } else {
-                            return Err(ctx.err(f, format!(
-                                "unsupported frame type `{}` in a joint",
-                                f.tag_name().name()
-                            )));
+                            return Err(ctx.err(
+                                f,
+                                format!(
+                                    "unsupported frame type `{}` in a joint",
+                                    f.tag_name().name()
+                                ),
+                            ));
                         }
                     }
                 }
@@ -145,21 +148,35 @@ pub(super) fn read_joints<'a, 'i>(
     Ok(defs)
 }
 
-fn read_coordinate<'a, 'i>(ctx: &mut Ctx<'a, 'i>, k: XNode<'a, 'i>) -> Result<CoordDef<'a, 'i>, Error> {
+fn read_coordinate<'a, 'i>(
+    ctx: &mut Ctx<'a, 'i>,
+    k: XNode<'a, 'i>,
+) -> Result<CoordDef<'a, 'i>, Error> {
     let name = ctx.name(k)?;
     let range = match ctx.vec_opt(k, "range")? {
         None => [-10.0, 10.0], // OpenSim's default range
         Some(r) if r.len() == 2 => [r[0], r[1]],
-        Some(r) => return Err(ctx.err(k, format!("<range> must hold 2 numbers, found {}", r.len()))),
+        Some(r) => {
+            return Err(ctx.err(k, format!("<range> must hold 2 numbers, found {}", r.len())));
+        }
     };
     if range[0] > range[1] {
-        return Err(ctx.err(k, format!("<range> minimum {} exceeds maximum {}", range[0], range[1])));
+        return Err(ctx.err(
+            k,
+            format!("<range> minimum {} exceeds maximum {}", range[0], range[1]),
+        ));
     }
     let prescribed = ctx.bool_or(k, "prescribed", false)?;
     for c in elements(k) {
         match c.tag_name().name() {
-            "default_value" | "default_speed_value" | "range" | "clamped" | "locked"
-            | "prescribed" | "prescribed_function" | "is_free_to_satisfy_constraints" => {}
+            "default_value"
+            | "default_speed_value"
+            | "range"
+            | "clamped"
+            | "locked"
+            | "prescribed"
+            | "prescribed_function"
+            | "is_free_to_satisfy_constraints" => {}
             "motion_type" => {}
             _ => ctx.unknown(c),
         }
@@ -188,7 +205,10 @@ const AXIS_NAMES: [&str; 6] = [
     "translation3",
 ];
 
-fn read_spatial_transform<'a, 'i>(ctx: &mut Ctx<'a, 'i>, st: XNode<'a, 'i>) -> Result<Vec<AxisDef<'a, 'i>>, Error> {
+fn read_spatial_transform<'a, 'i>(
+    ctx: &mut Ctx<'a, 'i>,
+    st: XNode<'a, 'i>,
+) -> Result<Vec<AxisDef<'a, 'i>>, Error> {
     let mut found: [Option<XNode>; 6] = [None; 6];
     for a in elements(st) {
         if a.tag_name().name() != "TransformAxis" {
@@ -197,7 +217,13 @@ fn read_spatial_transform<'a, 'i>(ctx: &mut Ctx<'a, 'i>, st: XNode<'a, 'i>) -> R
         }
         let name = ctx.name(a)?;
         let i = AXIS_NAMES.iter().position(|n| *n == name).ok_or_else(|| {
-            ctx.err(a, format!("TransformAxis name must be one of {}", AXIS_NAMES.join(", ")))
+            ctx.err(
+                a,
+                format!(
+                    "TransformAxis name must be one of {}",
+                    AXIS_NAMES.join(", ")
+                ),
+            )
         })?;
         if found[i].is_some() {
             return Err(ctx.err(a, "this TransformAxis appears twice"));
@@ -206,7 +232,8 @@ fn read_spatial_transform<'a, 'i>(ctx: &mut Ctx<'a, 'i>, st: XNode<'a, 'i>) -> R
     }
     let mut axes = Vec::with_capacity(6);
     for (i, a) in found.iter().enumerate() {
-        let a = a.ok_or_else(|| ctx.err(st, format!("missing TransformAxis `{}`", AXIS_NAMES[i])))?;
+        let a =
+            a.ok_or_else(|| ctx.err(st, format!("missing TransformAxis `{}`", AXIS_NAMES[i])))?;
         let coords: Vec<String> = ctx
             .text(a, "coordinates")
             .unwrap_or("")
@@ -230,14 +257,17 @@ fn read_spatial_transform<'a, 'i>(ctx: &mut Ctx<'a, 'i>, st: XNode<'a, 'i>) -> R
                 _ => return Err(ctx.err(a, "several coordinates but no function")),
             },
         };
-        if let Arity::Exactly(k) = function.arity() {
-            if k != coords.len() {
-                return Err(ctx.err(a, format!(
+        if let Arity::Exactly(k) = function.arity()
+            && k != coords.len()
+        {
+            return Err(ctx.err(
+                a,
+                format!(
                     "{} of {k} argument(s) driven by {} coordinate(s)",
                     function.kind_name(),
                     coords.len()
-                )));
-            }
+                ),
+            ));
         }
         for c in elements(a) {
             let t = c.tag_name().name();
@@ -257,11 +287,14 @@ fn read_spatial_transform<'a, 'i>(ctx: &mut Ctx<'a, 'i>, st: XNode<'a, 'i>) -> R
     for start in [0, 3] {
         for (p, q) in [(0, 1), (0, 2), (1, 2)] {
             if axes[start + p].axis.cross(&axes[start + q].axis).norm() < 1e-5 {
-                return Err(ctx.err(st, format!(
-                    "axes of {} and {} are collinear",
-                    AXIS_NAMES[start + p],
-                    AXIS_NAMES[start + q]
-                )));
+                return Err(ctx.err(
+                    st,
+                    format!(
+                        "axes of {} and {} are collinear",
+                        AXIS_NAMES[start + p],
+                        AXIS_NAMES[start + q]
+                    ),
+                ));
             }
         }
     }
@@ -306,19 +339,30 @@ pub(super) fn build_tree(
             .resolve(&owner, &d.child_socket)
             .map_err(|e| ctx.err(d.node, format!("child frame: {e}")))?;
         if child == 0 {
-            return Err(ctx.err(d.node, "ground is the joint's child: reversed joints are not supported"));
+            return Err(ctx.err(
+                d.node,
+                "ground is the joint's child: reversed joints are not supported",
+            ));
         }
         if child == parent {
             return Err(ctx.err(d.node, "parent and child frames are on the same body"));
         }
         if let Some(other) = child_of[child] {
-            return Err(ctx.err(d.node, format!(
-                "body is already the child of joint `{}` (closed loops are not supported)",
-                defs[other].name
-            )));
+            return Err(ctx.err(
+                d.node,
+                format!(
+                    "body is already the child of joint `{}` (closed loops are not supported)",
+                    defs[other].name
+                ),
+            ));
         }
         child_of[child] = Some(k);
-        resolved.push(Resolved { parent, x_parent, child, x_child });
+        resolved.push(Resolved {
+            parent,
+            x_parent,
+            child,
+            x_child,
+        });
     }
 
     // Stable topological order: repeatedly take, in file order, the joints whose parent body
@@ -348,17 +392,23 @@ pub(super) fn build_tree(
         loop {
             match child_of[body] {
                 None => {
-                    return Err(ctx.err(defs[k].node, format!(
-                        "not connected to ground: body `{}` has no joint to a parent",
-                        body_name_hint(frames, body)
-                    )));
+                    return Err(ctx.err(
+                        defs[k].node,
+                        format!(
+                            "not connected to ground: body `{}` has no joint to a parent",
+                            body_name_hint(frames, body)
+                        ),
+                    ));
                 }
                 Some(j) if chain.contains(&j) => {
                     let names: Vec<&str> = chain.iter().map(|&j| defs[j].name.as_str()).collect();
-                    return Err(ctx.err(defs[k].node, format!(
-                        "joints form a cycle ({}), so no body in it is connected to ground",
-                        names.join(" → ")
-                    )));
+                    return Err(ctx.err(
+                        defs[k].node,
+                        format!(
+                            "joints form a cycle ({}), so no body in it is connected to ground",
+                            names.join(" → ")
+                        ),
+                    ));
                 }
                 Some(j) => {
                     chain.push(j);
@@ -429,7 +479,13 @@ pub(super) fn build_tree(
         for item in recipe {
             match item {
                 RecipeItem::Fixed(x) => steps.push(JointStep::Fixed(x)),
-                RecipeItem::Axis { name, kind, axis, function, args } => {
+                RecipeItem::Axis {
+                    name,
+                    kind,
+                    axis,
+                    function,
+                    args,
+                } => {
                     let di = dofs.len();
                     dofs.push(Dof {
                         name: format!("{}/{}", d.name, name),
@@ -494,7 +550,10 @@ type Recipe<'d, 'a, 'i> = (Vec<&'d CoordDef<'a, 'i>>, Vec<MotionType>, Vec<Recip
 /// The joint's coordinates (in mobility order), their motion types, and the transform
 /// F → M as a sequence of fixed steps and movable axes: translations along F's axes first,
 /// then the rotations in body-fixed order — X_FM = [R₁(θ₁) R₂(θ₂) R₃(θ₃), Σ tᵢ aᵢ].
-fn joint_recipe<'d, 'a, 'i>(ctx: &Ctx, d: &'d JointDef<'a, 'i>) -> Result<Recipe<'d, 'a, 'i>, Error> {
+fn joint_recipe<'d, 'a, 'i>(
+    ctx: &Ctx,
+    d: &'d JointDef<'a, 'i>,
+) -> Result<Recipe<'d, 'a, 'i>, Error> {
     use DofKind::{Hinge, Slide};
     let identity = Function::Linear(vec![1.0, 0.0]);
     let ex = Vec3::x();
@@ -508,7 +567,11 @@ fn joint_recipe<'d, 'a, 'i>(ctx: &Ctx, d: &'d JointDef<'a, 'i>) -> Result<Recipe
         JointKind::Slider => vec![("tx", Slide, ex, 0)],
         JointKind::Universal => vec![("rx", Hinge, ex, 0), ("ry", Hinge, ey, 1)],
         JointKind::Ball | JointKind::Gimbal => {
-            vec![("rx", Hinge, ex, 0), ("ry", Hinge, ey, 1), ("rz", Hinge, ez, 2)]
+            vec![
+                ("rx", Hinge, ex, 0),
+                ("ry", Hinge, ey, 1),
+                ("rz", Hinge, ez, 2),
+            ]
         }
         JointKind::Free => vec![
             ("tx", Slide, ex, 3),
@@ -518,15 +581,22 @@ fn joint_recipe<'d, 'a, 'i>(ctx: &Ctx, d: &'d JointDef<'a, 'i>) -> Result<Recipe
             ("ry", Hinge, ey, 1),
             ("rz", Hinge, ez, 2),
         ],
-        JointKind::Planar => vec![("tx", Slide, ex, 1), ("ty", Slide, ey, 2), ("rz", Hinge, ez, 0)],
+        JointKind::Planar => vec![
+            ("tx", Slide, ex, 1),
+            ("ty", Slide, ey, 2),
+            ("rz", Hinge, ez, 0),
+        ],
     };
     if d.coords.len() != layout.len() {
-        return Err(ctx.err(d.node, format!(
-            "{} needs {} coordinate(s), found {}",
-            d.kind.name(),
-            layout.len(),
-            d.coords.len()
-        )));
+        return Err(ctx.err(
+            d.node,
+            format!(
+                "{} needs {} coordinate(s), found {}",
+                d.kind.name(),
+                layout.len(),
+                d.coords.len()
+            ),
+        ));
     }
     let mut types = vec![MotionType::Rotational; d.coords.len()];
     let mut recipe = Vec::new();
@@ -545,24 +615,43 @@ fn joint_recipe<'d, 'a, 'i>(ctx: &Ctx, d: &'d JointDef<'a, 'i>) -> Result<Recipe
     Ok((d.coords.iter().collect(), types, recipe))
 }
 
-fn custom_recipe<'d, 'a, 'i>(ctx: &Ctx, d: &'d JointDef<'a, 'i>) -> Result<Recipe<'d, 'a, 'i>, Error> {
+fn custom_recipe<'d, 'a, 'i>(
+    ctx: &Ctx,
+    d: &'d JointDef<'a, 'i>,
+) -> Result<Recipe<'d, 'a, 'i>, Error> {
     // Coordinates in order of first appearance in the SpatialTransform (OpenSim's mobility
     // order), each of which must be declared in the joint's <coordinates>.
     let mut order: Vec<usize> = Vec::new();
     for a in &d.axes {
         for n in &a.coords {
             let i = d.coords.iter().position(|c| &c.name == n).ok_or_else(|| {
-                ctx.err(a.node, format!("unknown coordinate `{n}`: it is not one of this joint's coordinates"))
+                ctx.err(
+                    a.node,
+                    format!("unknown coordinate `{n}`: it is not one of this joint's coordinates"),
+                )
             })?;
             if !order.contains(&i) {
                 order.push(i);
             }
         }
     }
-    if let Some(unused) = d.coords.iter().enumerate().find(|(i, _)| !order.contains(i)) {
-        return Err(ctx.err(unused.1.node, "coordinate drives no TransformAxis of its CustomJoint"));
+    if let Some(unused) = d
+        .coords
+        .iter()
+        .enumerate()
+        .find(|(i, _)| !order.contains(i))
+    {
+        return Err(ctx.err(
+            unused.1.node,
+            "coordinate drives no TransformAxis of its CustomJoint",
+        ));
     }
-    let slot = |n: &String| order.iter().position(|&i| &d.coords[i].name == n).unwrap_or(0);
+    let slot = |n: &String| {
+        order
+            .iter()
+            .position(|&i| &d.coords[i].name == n)
+            .unwrap_or(0)
+    };
 
     // OpenSim's motion type rule: an axis with a LinearFunction of slope ±1 makes the
     // coordinate Rotational or Translational; any other function makes it Coupled unless it
@@ -571,27 +660,41 @@ fn custom_recipe<'d, 'a, 'i>(ctx: &Ctx, d: &'d JointDef<'a, 'i>) -> Result<Recip
     for (ai, a) in d.axes.iter().enumerate() {
         for n in &a.coords {
             let s = slot(n);
-            let pure = matches!(&a.function, Function::Linear(c) if c.len() == 2 && c[0].abs() == 1.0);
+            let pure =
+                matches!(&a.function, Function::Linear(c) if c.len() == 2 && c[0].abs() == 1.0);
             if pure {
-                types[s] = Some(if ai < 3 { MotionType::Rotational } else { MotionType::Translational });
+                types[s] = Some(if ai < 3 {
+                    MotionType::Rotational
+                } else {
+                    MotionType::Translational
+                });
             } else if types[s].is_none() {
                 types[s] = Some(MotionType::Coupled);
             }
         }
     }
-    let types = types.into_iter().map(|t| t.unwrap_or(MotionType::Coupled)).collect();
+    let types = types
+        .into_iter()
+        .map(|t| t.unwrap_or(MotionType::Coupled))
+        .collect();
 
     let mut recipe = Vec::new();
     for ai in [3, 4, 5, 0, 1, 2] {
         let a = &d.axes[ai];
         let name = AXIS_NAMES[ai].to_string();
-        let kind = if a.rotation { DofKind::Hinge } else { DofKind::Slide };
+        let kind = if a.rotation {
+            DofKind::Hinge
+        } else {
+            DofKind::Slide
+        };
         if a.function.is_constant() {
             let v = a.function.eval1(0.0).0;
             if v != 0.0 {
                 let x = match kind {
                     DofKind::Slide => Transform::new(crate::spatial::Mat3::identity(), a.axis * v),
-                    DofKind::Hinge => Transform::new(rotation_about_axis(&a.axis, v), Vec3::zeros()),
+                    DofKind::Hinge => {
+                        Transform::new(rotation_about_axis(&a.axis, v), Vec3::zeros())
+                    }
                 };
                 recipe.push(RecipeItem::Fixed(x));
             }

@@ -12,10 +12,7 @@ mod xml;
 use self::functions::{function_child, parse_function};
 use self::xml::{Ctx, XNode, child, elements, set_members};
 use super::frames::{FrameRegistry, OffsetFrameDef, resolve_path};
-use super::{
-    Body, CoordinateRole, CouplerConstraint, Model,
-    reduction::Reduction,
-};
+use super::{Body, CoordinateRole, CouplerConstraint, Model, reduction::Reduction};
 use crate::error::Error;
 use crate::spatial::{Mat3, Transform, Vec3};
 use roxmltree::{Document, ParsingOptions};
@@ -50,7 +47,11 @@ pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<M
             roxmltree::Error::UnexpectedEndOfStream | roxmltree::Error::UnclosedRootNode => {
                 let line = text.matches('\n').count() as u32 + 1;
                 let column = text.rsplit('\n').next().unwrap_or("").chars().count() as u32 + 1;
-                (line, column, format!("{e} (the file ends inside an element: is it truncated?)"))
+                (
+                    line,
+                    column,
+                    format!("{e} (the file ends inside an element: is it truncated?)"),
+                )
             }
             _ => (pos.row, pos.col, e.to_string()),
         };
@@ -151,7 +152,12 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 "force_units" => {
                     let u = c.text().unwrap_or("").trim();
                     if !matches!(u, "N" | "newtons" | "Newtons") {
-                        return Err(ctx.err(c, format!("force units `{u}` are not supported; musculo reads models in N")));
+                        return Err(ctx.err(
+                            c,
+                            format!(
+                                "force units `{u}` are not supported; musculo reads models in N"
+                            ),
+                        ));
                     }
                 }
                 "BodySet" => {
@@ -159,7 +165,10 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                         if b.tag_name().name() == "Body" {
                             self.read_body(ctx, b, options)?;
                         } else {
-                            return Err(ctx.err(b, format!("unsupported body type `{}`", b.tag_name().name())));
+                            return Err(ctx.err(
+                                b,
+                                format!("unsupported body type `{}`", b.tag_name().name()),
+                            ));
                         }
                     }
                 }
@@ -169,7 +178,11 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 "MarkerSet" => self.marker_nodes.extend(set_members(c)),
                 "ContactGeometrySet" => self.contact_nodes.extend(set_members(c)),
                 "ComponentSet" | "components" => {
-                    let base = if c.tag_name().name() == "ComponentSet" { "/componentset" } else { "" };
+                    let base = if c.tag_name().name() == "ComponentSet" {
+                        "/componentset"
+                    } else {
+                        ""
+                    };
                     for m in set_members(c) {
                         self.read_component(ctx, m, base)?;
                     }
@@ -210,7 +223,9 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         if let Some(g) = ground {
             for c in elements(g) {
                 match c.tag_name().name() {
-                    "WrapObjectSet" => self.wrap_nodes.extend(set_members(c).into_iter().map(|w| (w, 0))),
+                    "WrapObjectSet" => self
+                        .wrap_nodes
+                        .extend(set_members(c).into_iter().map(|w| (w, 0))),
                     "components" => {
                         for m in set_members(c) {
                             self.read_component(ctx, m, "/ground")?;
@@ -305,7 +320,9 @@ impl<'a, 'i> ModelReader<'a, 'i> {
             }
         }
         for &m in &self.marker_nodes {
-            model.markers.push(forces::read_marker(ctx, m, &mut self.frames)?);
+            model
+                .markers
+                .push(forces::read_marker(ctx, m, &mut self.frames)?);
         }
         for &c in &self.contact_nodes {
             if let Some(g) = forces::read_contact_geometry(ctx, c, &mut self.frames)? {
@@ -321,7 +338,12 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         Ok(model)
     }
 
-    fn read_body(&mut self, ctx: &mut Ctx<'a, 'i>, b: XNode<'a, 'i>, options: &LoadOptions) -> Result<(), Error> {
+    fn read_body(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        b: XNode<'a, 'i>,
+        options: &LoadOptions,
+    ) -> Result<(), Error> {
         let name = ctx.name(b)?;
         let index = self.bodies.len(); // file-order index before ground is inserted
         let mass = ctx.f64_or(b, "mass", 0.0)?;
@@ -331,14 +353,24 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         let com = ctx.vec3_or(b, "mass_center", Vec3::zeros())?;
         let iv = ctx.vec_opt(b, "inertia")?.unwrap_or_else(|| vec![0.0; 6]);
         if iv.len() != 6 {
-            return Err(ctx.err(b, format!("<inertia> must hold 6 numbers [Ixx Iyy Izz Ixy Ixz Iyz], found {}", iv.len())));
+            return Err(ctx.err(
+                b,
+                format!(
+                    "<inertia> must hold 6 numbers [Ixx Iyy Izz Ixy Ixz Iyz], found {}",
+                    iv.len()
+                ),
+            ));
         }
-        let inertia = Mat3::new(iv[0], iv[3], iv[4], iv[3], iv[1], iv[5], iv[4], iv[5], iv[2]);
+        let inertia = Mat3::new(
+            iv[0], iv[3], iv[4], iv[3], iv[1], iv[5], iv[4], iv[5], iv[2],
+        );
         check_inertia(ctx, b, &inertia, options)?;
         for c in elements(b) {
             match c.tag_name().name() {
                 "mass" | "mass_center" | "inertia" => {}
-                "WrapObjectSet" => self.wrap_nodes.extend(set_members(c).into_iter().map(|w| (w, index))),
+                "WrapObjectSet" => self
+                    .wrap_nodes
+                    .extend(set_members(c).into_iter().map(|w| (w, index))),
                 "components" => {
                     for m in set_members(c) {
                         self.read_component(ctx, m, &format!("/bodyset/{name}"))?;
@@ -359,7 +391,12 @@ impl<'a, 'i> ModelReader<'a, 'i> {
 
     /// A member of `components` / `ComponentSet`: offset frames are registered, anything
     /// else is reported.
-    fn read_component(&mut self, ctx: &mut Ctx<'a, 'i>, c: XNode<'a, 'i>, owner: &str) -> Result<(), Error> {
+    fn read_component(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        c: XNode<'a, 'i>,
+        owner: &str,
+    ) -> Result<(), Error> {
         if c.tag_name().name() == "PhysicalOffsetFrame" {
             let def = read_offset_frame(ctx, c, owner)?;
             if !self.frames.add_offset(def) {
@@ -367,12 +404,23 @@ impl<'a, 'i> ModelReader<'a, 'i> {
             }
             Ok(())
         } else {
-            ctx.warn(c, format!("component of type `{}` is not used by musculo", c.tag_name().name()));
+            ctx.warn(
+                c,
+                format!(
+                    "component of type `{}` is not used by musculo",
+                    c.tag_name().name()
+                ),
+            );
             Ok(())
         }
     }
 
-    fn read_constraint(&mut self, ctx: &mut Ctx<'a, 'i>, c: XNode<'a, 'i>, model: &mut Model) -> Result<(), Error> {
+    fn read_constraint(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        c: XNode<'a, 'i>,
+        model: &mut Model,
+    ) -> Result<(), Error> {
         if c.tag_name().name() != "CoordinateCouplerConstraint" {
             ctx.warn(c, format!(
                 "constraint type `{}` is not supported and is NOT enforced: the dynamics are computed without it",
@@ -382,7 +430,10 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         }
         let name = ctx.name(c)?;
         if !ctx.bool_or(c, "isEnforced", true)? {
-            ctx.warn(c, "isEnforced is false: the coupling is ignored, as in OpenSim");
+            ctx.warn(
+                c,
+                "isEnforced is false: the coupling is ignored, as in OpenSim",
+            );
             return Ok(());
         }
         let find = |n: &str| model.coordinate_index(n);
@@ -392,7 +443,8 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         let indep_text = ctx.req_text(c, "independent_coordinate_names")?;
         let mut independents = Vec::new();
         for n in indep_text.split_whitespace() {
-            let i = find(n).ok_or_else(|| ctx.err(c, format!("unknown independent coordinate `{n}`")))?;
+            let i = find(n)
+                .ok_or_else(|| ctx.err(c, format!("unknown independent coordinate `{n}`")))?;
             if i == dependent {
                 return Err(ctx.err(c, format!("coordinate `{n}` cannot depend on itself")));
             }
@@ -400,16 +452,19 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         }
         let holder = child(c, "coupled_coordinates_function")
             .ok_or_else(|| ctx.err(c, "missing <coupled_coordinates_function>"))?;
-        let fnode = function_child(holder)
-            .ok_or_else(|| ctx.err(holder, "holds no function element"))?;
+        let fnode =
+            function_child(holder).ok_or_else(|| ctx.err(holder, "holds no function element"))?;
         let function = parse_function(ctx, fnode)?;
-        if let super::Arity::Exactly(k) = function.arity() {
-            if k != independents.len() {
-                return Err(ctx.err(fnode, format!(
+        if let super::Arity::Exactly(k) = function.arity()
+            && k != independents.len()
+        {
+            return Err(ctx.err(
+                fnode,
+                format!(
                     "function of {k} argument(s) given {} independent coordinate(s)",
                     independents.len()
-                )));
-            }
+                ),
+            ));
         }
         let scale = ctx.f64_or(c, "scale_factor", 1.0)?;
         let coord = &mut model.coordinates[dependent];
@@ -419,10 +474,13 @@ impl<'a, 'i> ModelReader<'a, 'i> {
             )));
         }
         if let CoordinateRole::Dependent(other) = coord.role {
-            return Err(ctx.err(c, format!(
-                "coordinate `{dep_name}` is already the dependent coordinate of coupler `{}`",
-                model.couplers[other].name
-            )));
+            return Err(ctx.err(
+                c,
+                format!(
+                    "coordinate `{dep_name}` is already the dependent coordinate of coupler `{}`",
+                    model.couplers[other].name
+                ),
+            ));
         }
         coord.role = CoordinateRole::Dependent(model.couplers.len());
         model.couplers.push(CouplerConstraint {
@@ -462,17 +520,25 @@ fn read_offset_frame(ctx: &mut Ctx, f: XNode, owner: &str) -> Result<OffsetFrame
 
 /// Inertia checks: symmetric positive semi-definite with principal moments satisfying the
 /// triangle inequality I₁ + I₂ ≥ I₃ (with a relative tolerance of 1e-9).
-fn check_inertia(ctx: &mut Ctx, b: XNode, inertia: &Mat3, options: &LoadOptions) -> Result<(), Error> {
+fn check_inertia(
+    ctx: &mut Ctx,
+    b: XNode,
+    inertia: &Mat3,
+    options: &LoadOptions,
+) -> Result<(), Error> {
     let eig = nalgebra::SymmetricEigen::new(*inertia).eigenvalues;
     let mut p = [eig[0], eig[1], eig[2]];
     p.sort_by(|a, b| a.total_cmp(b));
     let scale = p[2].abs().max(1e-300);
     let tol = 1e-9 * scale;
     if p[0] < -tol {
-        return Err(ctx.err(b, format!(
-            "inertia is not positive semi-definite (principal moments {:.6e}, {:.6e}, {:.6e})",
-            p[0], p[1], p[2]
-        )));
+        return Err(ctx.err(
+            b,
+            format!(
+                "inertia is not positive semi-definite (principal moments {:.6e}, {:.6e}, {:.6e})",
+                p[0], p[1], p[2]
+            ),
+        ));
     }
     if p[0] + p[1] < p[2] - tol {
         let msg = format!(
@@ -480,7 +546,10 @@ fn check_inertia(ctx: &mut Ctx, b: XNode, inertia: &Mat3, options: &LoadOptions)
             p[0], p[1], p[2]
         );
         if options.allow_nonphysical_inertia {
-            ctx.warn(b, format!("{msg} (accepted: LoadOptions::allow_nonphysical_inertia)"));
+            ctx.warn(
+                b,
+                format!("{msg} (accepted: LoadOptions::allow_nonphysical_inertia)"),
+            );
         } else {
             return Err(ctx.err(b, format!(
                 "{msg}; no rigid body has such an inertia (load with allow_nonphysical_inertia to accept it as OpenSim does)"

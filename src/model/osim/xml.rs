@@ -57,7 +57,8 @@ impl<'a, 'i> Ctx<'a, 'i> {
 
     /// 1-based line of the element's start.
     pub fn line(&self, node: XNode) -> u32 {
-        self.line_starts.partition_point(|&s| s <= node.range().start) as u32
+        self.line_starts
+            .partition_point(|&s| s <= node.range().start) as u32
     }
 
     /// `JointSet > CustomJoint "knee_r" > SpatialTransform > TransformAxis "translation1"`.
@@ -65,7 +66,9 @@ impl<'a, 'i> Ctx<'a, 'i> {
         let mut parts: Vec<String> = node
             .ancestors()
             .filter(|n| n.is_element())
-            .take_while(|n| n.tag_name().name() != "Model" && n.tag_name().name() != "OpenSimDocument")
+            .take_while(|n| {
+                n.tag_name().name() != "Model" && n.tag_name().name() != "OpenSimDocument"
+            })
             .filter(|n| n.tag_name().name() != "objects")
             .map(|n| match n.attribute("name") {
                 Some(name) => format!("{} \"{}\"", n.tag_name().name(), name),
@@ -121,9 +124,9 @@ impl<'a, 'i> Ctx<'a, 'i> {
     pub fn numbers(&self, node: XNode, tag: &str, text: &str) -> Result<Vec<f64>, Error> {
         text.split_whitespace()
             .map(|t| {
-                let v: f64 = t.parse().map_err(|_| {
-                    self.err(node, format!("<{tag}>: `{t}` is not a number"))
-                })?;
+                let v: f64 = t
+                    .parse()
+                    .map_err(|_| self.err(node, format!("<{tag}>: `{t}` is not a number")))?;
                 if v.is_finite() {
                     Ok(v)
                 } else {
@@ -137,9 +140,7 @@ impl<'a, 'i> Ctx<'a, 'i> {
     pub fn vec_opt(&self, node: XNode<'a, 'i>, tag: &str) -> Result<Option<Vec<f64>>, Error> {
         match child(node, tag) {
             None => Ok(None),
-            Some(c) => self
-                .numbers(c, tag, c.text().unwrap_or(""))
-                .map(Some),
+            Some(c) => self.numbers(c, tag, c.text().unwrap_or("")).map(Some),
         }
     }
 
@@ -150,7 +151,10 @@ impl<'a, 'i> Ctx<'a, 'i> {
             Some(c) => {
                 let v = self.numbers(c, tag, c.text().unwrap_or(""))?;
                 if v.len() != 1 {
-                    return Err(self.err(c, format!("<{tag}> must hold one number, found {}", v.len())));
+                    return Err(self.err(
+                        c,
+                        format!("<{tag}> must hold one number, found {}", v.len()),
+                    ));
                 }
                 Ok(v[0])
             }
@@ -171,7 +175,9 @@ impl<'a, 'i> Ctx<'a, 'i> {
             Some(c) => {
                 let v = self.numbers(c, tag, c.text().unwrap_or(""))?;
                 if v.len() != 3 {
-                    return Err(self.err(c, format!("<{tag}> must hold 3 numbers, found {}", v.len())));
+                    return Err(
+                        self.err(c, format!("<{tag}> must hold 3 numbers, found {}", v.len()))
+                    );
                 }
                 Ok(Vec3::new(v[0], v[1], v[2]))
             }
@@ -231,6 +237,8 @@ pub fn child<'a, 'i>(node: XNode<'a, 'i>, tag: &str) -> Option<XNode<'a, 'i>> {
 pub fn set_members<'a, 'i>(set: XNode<'a, 'i>) -> Vec<XNode<'a, 'i>> {
     match child(set, "objects") {
         Some(objs) => elements(objs).collect(),
-        None => elements(set).filter(|c| c.tag_name().name() != "groups").collect(),
+        None => elements(set)
+            .filter(|c| c.tag_name().name() != "groups")
+            .collect(),
     }
 }
