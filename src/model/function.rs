@@ -145,23 +145,25 @@ fn polynomial(c: &[f64], x: f64) -> (f64, f64, f64) {
     (p, d1, d2)
 }
 
-fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), String> {
+/// Validates spline data: equal lengths, at least `min_points`, finite, x strictly increasing.
+pub(crate) fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), String> {
     if x.len() != y.len() {
-        return Err(format!("x has {} values but y has {}", x.len(), y.len()));
-    }
-    if x.len() < min_points {
         return Err(format!(
-            "needs at least {min_points} points, has {}",
-            x.len()
+            "x and y must have the same length (x has {} values but y has {})",
+            x.len(),
+            y.len()
         ));
     }
-    if let Some(i) = x.iter().chain(y.iter()).position(|v| !v.is_finite()) {
-        let (name, j) = if i < x.len() {
-            ("x", i)
-        } else {
-            ("y", i - x.len())
-        };
-        return Err(format!("{name}[{j}] is not a finite number"));
+    if x.is_empty() {
+        return Err("at least one data point is required, got none".to_string());
+    }
+    if x.len() < min_points {
+        return Err(format!("needs at least {min_points} data points, got {}", x.len()));
+    }
+    for (name, v) in [("x", x), ("y", y)] {
+        if let Some((i, a)) = v.iter().enumerate().find(|(_, a)| !a.is_finite()) {
+            return Err(format!("{name} values must be finite ({name}[{i}] = {a})"));
+        }
     }
     for i in 1..x.len() {
         if x[i] <= x[i - 1] {

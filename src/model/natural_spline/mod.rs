@@ -96,39 +96,8 @@ impl NaturalSpline {
                 "half order must be between 1 and {MAX_HALF_ORDER} (spline degree 1, 3, 5 or 7), got {m}"
             ));
         }
-        if x.len() != y.len() {
-            return Err(format!(
-                "x and y must have the same length (x has {}, y has {})",
-                x.len(),
-                y.len()
-            ));
-        }
         let n = x.len();
-        if n == 0 {
-            return Err("at least one data point is required, got none".to_string());
-        }
-        if n < m {
-            return Err(format!(
-                "a natural spline of half order {m} (degree {}) needs at least {m} data points, got {n}",
-                2 * m - 1
-            ));
-        }
-        if let Some((i, v)) = x.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(format!("x values must be finite (x[{i}] = {v})"));
-        }
-        if let Some((i, v)) = y.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(format!("y values must be finite (y[{i}] = {v})"));
-        }
-        for i in 1..n {
-            if x[i] <= x[i - 1] {
-                return Err(format!(
-                    "x values must be strictly increasing (x[{i}] = {} after x[{}] = {})",
-                    x[i],
-                    i - 1,
-                    x[i - 1]
-                ));
-            }
-        }
+        super::function::check_xy(&x, &y, m.max(1))?;
         if n == 1 {
             // Only possible for m = 1: the "interpolating polynomial of degree 0".
             return Ok(Self {
