@@ -7,7 +7,7 @@ use nalgebra::DMatrix;
 
 /// Centre of mass in ground (position stage).
 pub fn center_of_mass(model: &Model, data: &Data) -> crate::Result<Vec3> {
-    data.require(Stage::Position, "center_of_mass")?;
+    data.require(model, Stage::Position, "center_of_mass")?;
     let mut m = 0.0;
     let mut h = Vec3::zeros();
     for b in 1..model.bodies.len() {
@@ -27,7 +27,7 @@ pub fn center_of_mass_jacobian(
     data: &mut Data,
     out: &mut DMatrix<f64>,
 ) -> crate::Result<()> {
-    data.require(Stage::Position, "center_of_mass_jacobian")?;
+    data.require(model, Stage::Position, "center_of_mass_jacobian")?;
     let n = model.nq();
     if out.shape() != (3, n) {
         return Err(crate::Error::invalid(

@@ -10,6 +10,7 @@ use nalgebra::DMatrix;
 
 /// The joint-space inertia matrix M(q) (symmetric positive definite), n × n.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&'d DMatrix<f64>> {
+    data.fits(model)?;
     check_len("q", q, model.nq())?;
     evaluate_position(model, data, q);
     poses(model, data);
@@ -48,7 +49,7 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&
 /// kinematics (position stage or
 /// [`super::forward_kinematics_full`]).
 pub fn crba_full<'d>(model: &Model, data: &'d mut Data) -> crate::Result<&'d DMatrix<f64>> {
-    data.require(Stage::Position, "crba_full")?;
+    data.require(model, Stage::Position, "crba_full")?;
     composite_inertias(model, data);
     let Data {
         composite,

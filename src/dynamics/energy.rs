@@ -6,7 +6,7 @@ use crate::spatial::{Force, Vec3};
 
 /// T = ½ Σ_b v_bᵀ I_b v_b (velocity stage).
 pub fn kinetic_energy(model: &Model, data: &Data) -> crate::Result<f64> {
-    data.require(Stage::Velocity, "kinetic_energy")?;
+    data.require(model, Stage::Velocity, "kinetic_energy")?;
     Ok((1..model.bodies.len())
         .map(|b| 0.5 * data.body_vel[b].dot(&data.body_inertia[b].mul_motion(&data.body_vel[b])))
         .sum())
@@ -14,7 +14,7 @@ pub fn kinetic_energy(model: &Model, data: &Data) -> crate::Result<f64> {
 
 /// V = −Σ_b m_b g · c_b, zero with every centre of mass at the ground origin (position stage).
 pub fn potential_energy(model: &Model, data: &Data) -> crate::Result<f64> {
-    data.require(Stage::Position, "potential_energy")?;
+    data.require(model, Stage::Position, "potential_energy")?;
     let o = data.reference_point;
     Ok((1..model.bodies.len())
         .map(|b| {
@@ -37,7 +37,7 @@ pub struct Momentum {
 
 /// h = Σ_b I_b v_b (velocity stage).
 pub fn momentum(model: &Model, data: &Data) -> crate::Result<Momentum> {
-    data.require(Stage::Velocity, "momentum")?;
+    data.require(model, Stage::Velocity, "momentum")?;
     let mut h = Force::ZERO;
     let mut m = 0.0;
     let mut mc = Vec3::zeros();

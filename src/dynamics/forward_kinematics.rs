@@ -9,6 +9,7 @@ use crate::spatial::{Mat3, Motion, SpatialInertia, Vec3, post_rotate};
 /// Position stage at the independent coordinates `q`: coordinate values, θ, Φ, body poses,
 /// motion subspaces and spatial inertias.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) -> crate::Result<()> {
+    data.fits(model)?;
     check_len("q", q, model.nq())?;
     evaluate_position(model, data, q);
     poses(model, data);
@@ -74,6 +75,7 @@ pub fn forward_kinematics_full(
     theta: &[f64],
     theta_dot: &[f64],
 ) -> crate::Result<()> {
+    data.fits(model)?;
     let nf = model.n_full();
     check_len("theta", theta, nf)?;
     check_len("theta_dot", theta_dot, nf)?;

@@ -15,6 +15,7 @@ pub fn gravity<'d>(
     data: &'d mut Data,
     q: &[f64],
 ) -> crate::Result<&'d DVector<f64>> {
+    data.fits(model)?;
     check_len("q", q, model.nq())?;
     evaluate_position(model, data, q);
     poses(model, data);

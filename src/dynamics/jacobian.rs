@@ -53,8 +53,8 @@ fn accumulate<const R: usize>(
     }
 }
 
-fn require_reduced(data: &Data, algorithm: &'static str) -> crate::Result<()> {
-    data.require(Stage::Position, algorithm)?;
+fn require_reduced(model: &Model, data: &Data, algorithm: &'static str) -> crate::Result<()> {
+    data.require(model, Stage::Position, algorithm)?;
     if data.node_grad.first().is_some_and(|g| g.is_nan()) {
         return Err(crate::Error::StageNotComputed {
             algorithm,
@@ -72,7 +72,7 @@ pub fn point_jacobian(
     point: &Vec3,
     out: &mut DMatrix<f64>,
 ) -> crate::Result<()> {
-    require_reduced(data, "point_jacobian")?;
+    require_reduced(model, data, "point_jacobian")?;
     check_body(model, body)?;
     check_shape(out, 3, model.nq())?;
     out.fill(0.0);
@@ -92,7 +92,7 @@ pub fn body_jacobian(
     body: usize,
     out: &mut DMatrix<f64>,
 ) -> crate::Result<()> {
-    require_reduced(data, "body_jacobian")?;
+    require_reduced(model, data, "body_jacobian")?;
     check_body(model, body)?;
     check_shape(out, 6, model.nq())?;
     out.fill(0.0);
@@ -112,7 +112,7 @@ pub fn contact_jacobian(
     points: &[(usize, Vec3)],
     out: &mut DMatrix<f64>,
 ) -> crate::Result<()> {
-    require_reduced(data, "contact_jacobian")?;
+    require_reduced(model, data, "contact_jacobian")?;
     check_shape(out, 3 * points.len(), model.nq())?;
     out.fill(0.0);
     for (i, (body, p)) in points.iter().enumerate() {
@@ -132,7 +132,7 @@ fn ensure_bias_accelerations(
     data: &mut Data,
     algorithm: &'static str,
 ) -> crate::Result<()> {
-    data.require(Stage::Velocity, algorithm)?;
+    data.require(model, Stage::Velocity, algorithm)?;
     if !data.body_acc_bias_valid {
         let nc = model.reduction.n_coordinates;
         let Data {

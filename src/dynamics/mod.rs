@@ -60,6 +60,9 @@ pub enum Stage {
 /// per thread; no algorithm allocates after it is built.
 #[derive(Clone, Debug)]
 pub struct Data {
+    /// (coordinates, full coordinates, bodies, independent coordinates) of the model this
+    /// workspace was built for.
+    shape: (usize, usize, usize, usize),
     pub(crate) stage: Stage,
     // --- coordinate reduction (nodes: coordinates, then full coordinates) ---
     pub(crate) node_value: Vec<f64>,
@@ -114,6 +117,7 @@ impl Data {
         let nf = model.dofs.len();
         let n = model.nq();
         Data {
+            shape: Self::shape_of(model),
             stage: Stage::None,
             node_value: vec![0.0; n_nodes],
             node_vel: vec![0.0; n_nodes],
@@ -273,6 +277,7 @@ impl Data {
 
     /// Marker positions in ground, in `Model::markers` order.
     pub fn marker_positions(&self, model: &Model, out: &mut [Vec3]) -> crate::Result<()> {
+        self.require(model, Stage::Position, "marker_positions")?;
         if out.len() != model.markers.len() {
             return Err(crate::Error::invalid(
                 "out",
@@ -305,7 +310,36 @@ impl Data {
         &self.tau_full
     }
 
-    pub(crate) fn require(&self, stage: Stage, algorithm: &'static str) -> crate::Result<()> {
+    fn shape_of(model: &Model) -> (usize, usize, usize, usize) {
+        (
+            model.coordinates.len(),
+            model.n_full(),
+            model.bodies.len(),
+            model.nq(),
+        )
+    }
+
+    /// Errors unless this workspace was built for a model of `model`'s shape.
+    pub(crate) fn fits(&self, model: &Model) -> crate::Result<()> {
+        if self.shape != Self::shape_of(model) {
+            return Err(crate::Error::invalid(
+                "data",
+                format!(
+                    "this Data was built for another model (Data::new({}) is needed)",
+                    model.name
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    pub(crate) fn require(
+        &self,
+        model: &Model,
+        stage: Stage,
+        algorithm: &'static str,
+    ) -> crate::Result<()> {
+        self.fits(model)?;
         if self.stage < stage {
             return Err(crate::Error::StageNotComputed {
                 algorithm,

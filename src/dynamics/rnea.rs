@@ -86,6 +86,7 @@ fn reduced_pass(
     with_gravity: bool,
     target: Target,
 ) -> crate::Result<()> {
+    data.fits(model)?;
     check_len("q", q, model.nq())?;
     check_len("qd", qd, model.nq())?;
     evaluate_position(model, data, q);

@@ -158,7 +158,10 @@ pub(crate) fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), St
         return Err("at least one data point is required, got none".to_string());
     }
     if x.len() < min_points {
-        return Err(format!("needs at least {min_points} data points, got {}", x.len()));
+        return Err(format!(
+            "needs at least {min_points} data points, got {}",
+            x.len()
+        ));
     }
     for (name, v) in [("x", x), ("y", y)] {
         if let Some((i, a)) = v.iter().enumerate().find(|(_, a)| !a.is_finite()) {
