@@ -44,6 +44,10 @@ pub enum Error {
         message: String,
     },
 
+    /// MuJoCo (feature `mujoco`) refused the model or is the wrong version.
+    #[error("MuJoCo: {message}")]
+    Mujoco { message: String },
+
     /// An algorithm was called before the stage it depends on was computed for this Data
     /// (e.g. a Jacobian before forward kinematics).
     #[error("{algorithm} needs {needs} to be computed first for this Data")]

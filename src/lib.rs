@@ -18,6 +18,8 @@
 pub mod dynamics;
 pub mod error;
 pub mod model;
+#[cfg(feature = "mujoco")]
+pub mod mujoco;
 pub mod reference;
 pub mod spatial;
 

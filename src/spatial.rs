@@ -245,7 +245,9 @@ impl Motion {
     /// Power pairing mᵀ f = ω·n + v·f.
     #[inline]
     pub fn dot(&self, f: &Force) -> f64 {
-        self.ang.dot(&f.ang) + self.lin.dot(&f.lin)
+        // written out: nalgebra's generic dot goes through iterators here
+        let (a, b) = (&self.ang, &self.lin);
+        a.x * f.ang.x + a.y * f.ang.y + a.z * f.ang.z + b.x * f.lin.x + b.y * f.lin.y + b.z * f.lin.z
     }
 
     /// The velocity of the body point at `r` (r − O given as `offset`): v + ω × offset.
@@ -331,8 +333,15 @@ impl SpatialInertia {
     /// Momentum of a body moving with spatial velocity v: I·v = (I_O ω + h × v, m v − h × ω).
     #[inline]
     pub fn mul_motion(&self, v: &Motion) -> Force {
+        let i = self.inertia.as_slice(); // column-major, symmetric
+        let w = &v.ang;
+        let iw = Vec3::new(
+            i[0] * w.x + i[3] * w.y + i[6] * w.z,
+            i[1] * w.x + i[4] * w.y + i[7] * w.z,
+            i[2] * w.x + i[5] * w.y + i[8] * w.z,
+        );
         Force {
-            ang: self.inertia * v.ang + self.h.cross(&v.lin),
+            ang: iw + self.h.cross(&v.lin),
             lin: v.lin * self.mass - self.h.cross(&v.ang),
         }
     }

@@ -41,7 +41,7 @@ pub fn center_of_mass_jacobian(
     }
     super::crba::composite_inertias(model, data);
     let cols = &model.reduction.columns;
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     for c in 0..cols.len() {
         let sub = &data.composite[cols.body[c]];
         let s = &data.col_motion[c];

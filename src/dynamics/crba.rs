@@ -24,8 +24,8 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&
         mass_matrix,
         ..
     } = data;
-    mass_matrix.fill(0.0);
     let mm = mass_matrix.as_mut_slice(); // column-major: (i, j) at i + j n
+    mm.fill(0.0);
     for c in 0..cols.len() {
         // F = I^c_body(c) S̃_c ;  M[q_c][q_e] += S̃_eᵀ F for e = c and every column e towards
         // ground (and the transposed entry for e ≠ c).
@@ -57,7 +57,7 @@ pub fn crba_full<'d>(model: &Model, data: &'d mut Data) -> crate::Result<&'d DMa
         mass_matrix_full,
         ..
     } = data;
-    mass_matrix_full.fill(0.0);
+    mass_matrix_full.as_mut_slice().fill(0.0);
     for (d, dof) in model.dofs.iter().enumerate() {
         let f = composite[dof.body].mul_motion(&dof_motion[d]);
         let mut e = Some(d);

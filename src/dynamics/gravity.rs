@@ -28,7 +28,7 @@ pub fn gravity<'d>(
         gravity,
         ..
     } = data;
-    gravity.fill(0.0);
+    gravity.as_mut_slice().fill(0.0);
     for c in 0..cols.len() {
         // Σ_{b ⊂ subtree} m_b ∂c_b/∂q_j = m_sub S̃_lin + S̃_ang × h_sub  (h about O)
         let sub = &composite[cols.body[c]];

@@ -75,12 +75,44 @@ pub fn point_jacobian(
     require_reduced(model, data, "point_jacobian")?;
     check_body(model, body)?;
     check_shape(out, 3, model.nq())?;
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     let off = data.point_position(body, point) - data.reference_point;
     accumulate(model, data, body, out, 0, |s| {
         let v = s.linear_at(&off);
         [v.x, v.y, v.z]
     });
+    Ok(())
+}
+
+/// The full-coordinate body Jacobian J_full (6 × n_full; rows as in [`body_jacobian`]):
+/// column d is the motion subspace s_d, taken at the body origin, of every full coordinate
+/// on the path from ground to the body. Valid after any forward kinematics, including
+/// [`super::forward_kinematics_full`].
+pub fn body_jacobian_full(model: &Model, data: &Data, body: usize, out: &mut DMatrix<f64>) -> crate::Result<()> {
+    data.require(model, Stage::Position, "body_jacobian_full")?;
+    check_body(model, body)?;
+    check_shape(out, 6, model.n_full())?;
+    out.as_mut_slice().fill(0.0);
+    let off = data.body_pos[body] - data.reference_point;
+    let mut b = body;
+    let mut last = None;
+    while let Some(j) = model.bodies[b].joint {
+        let r = &model.joints[j].dof_range;
+        if !r.is_empty() {
+            last = Some(r.end - 1);
+            break;
+        }
+        b = model.joints[j].parent_body;
+    }
+    while let Some(d) = last {
+        let s = &data.dof_motion[d];
+        let v = s.linear_at(&off);
+        for i in 0..3 {
+            out[(i, d)] = s.ang[i];
+            out[(3 + i, d)] = v[i];
+        }
+        last = model.dofs[d].parent_dof;
+    }
     Ok(())
 }
 
@@ -95,7 +127,7 @@ pub fn body_jacobian(
     require_reduced(model, data, "body_jacobian")?;
     check_body(model, body)?;
     check_shape(out, 6, model.nq())?;
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     let off = data.body_pos[body] - data.reference_point;
     accumulate(model, data, body, out, 0, |s| {
         let v = s.linear_at(&off);
@@ -114,7 +146,7 @@ pub fn contact_jacobian(
 ) -> crate::Result<()> {
     require_reduced(model, data, "contact_jacobian")?;
     check_shape(out, 3 * points.len(), model.nq())?;
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     for (i, (body, p)) in points.iter().enumerate() {
         check_body(model, *body)?;
         let off = data.point_position(*body, p) - data.reference_point;

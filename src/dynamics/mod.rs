@@ -38,7 +38,7 @@ pub use forward_kinematics::{
 };
 pub use gravity::gravity;
 pub use jacobian::{
-    body_jacobian, body_jacobian_dot_qd, contact_jacobian, contact_jacobian_dot_qd, point_jacobian,
+    body_jacobian, body_jacobian_dot_qd, body_jacobian_full, contact_jacobian, contact_jacobian_dot_qd, point_jacobian,
     point_jacobian_dot_qd,
 };
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};

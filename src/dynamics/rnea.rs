@@ -108,7 +108,7 @@ fn reduced_pass(
         Target::Bias => bias,
         Target::Coriolis => coriolis,
     };
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     let cols = &model.reduction.columns;
     for c in 0..cols.len() {
         out[cols.q[c]] += col_motion[c].dot(&body_force[cols.body[c]]);

@@ -14,6 +14,7 @@
 
 mod frames;
 pub mod function;
+pub mod mjcf;
 pub mod natural_spline;
 mod osim;
 pub(crate) mod reduction;

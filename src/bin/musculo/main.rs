@@ -1,5 +1,6 @@
 //! The `musculo` command-line tool: a thin layer over the library.
 
+mod export_mjcf;
 mod inspect;
 
 use clap::{Parser, Subcommand};
@@ -21,12 +22,16 @@ enum Command {
     /// Read a model and print its bodies, joints, coordinates, muscles, total mass and
     /// anything musculo does not use.
     Inspect(inspect::Args),
+    /// Write the model as MuJoCo MJCF: one hinge or slide per movable transform axis, so
+    /// MuJoCo's coordinates are musculo's full coordinates.
+    ExportMjcf(export_mjcf::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(args) => inspect::run(&args),
+        Command::ExportMjcf(args) => export_mjcf::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,511 @@
+//! Export to MuJoCo's MJCF, as the *expanded* tree: one MuJoCo hinge or slide joint per
+//! movable transform axis, in the order OpenSim applies them, so that MuJoCo's qpos are
+//! musculo's full coordinates θ (joint names are the full coordinates' names,
+//! `joint/axis`).
+//!
+//! Each MuJoCo body frame is the OpenSim body frame. With the joint's fixed steps and the
+//! full coordinates at zero, the body sits at X_PB(0) = X_PF · X_FM(0) · X_MB; a joint's axis
+//! and anchor are those of its transform axis expressed in the body frame at θ = 0. MuJoCo
+//! composes a body's joints by right-multiplying body-fixed motions, which reproduces
+//! X_FM(θ) = Π (fixed step)·(axis motion) exactly, fixed rotations between axes included.
+//!
+//! What MJCF cannot express is approximated where possible and always listed in
+//! [`MjcfExport::notes`]: couplings between full coordinates become joint equality
+//! constraints with quartic polynomials (splines are fitted), conditional and moving path
+//! points become fixed sites, ellipsoid and torus wrap objects are left out, and MuJoCo's
+//! muscle curves replace the Hill-type ones (optimal fibre and tendon slack lengths and the
+//! maximum force and velocity are kept).
+
+use super::{ContactShape, DofKind, JointStep, Model, PathPointKind, WrapShape};
+use crate::dynamics::{self, Data};
+use crate::spatial::{Mat3, Transform, Vec3};
+use nalgebra::{DMatrix, DVector, UnitQuaternion};
+use std::collections::HashMap;
+use std::fmt::Write;
+
+/// The MJCF text and the list of everything it could not express exactly.
+#[derive(Clone, Debug)]
+pub struct MjcfExport {
+    pub xml: String,
+    pub notes: Vec<String>,
+}
+
+/// Default range of normalised fibre length of MuJoCo's muscle (its `range` attribute).
+const MUSCLE_RANGE: [f64; 2] = [0.75, 1.05];
+
+fn v3(v: &Vec3) -> String {
+    format!("{} {} {}", v.x, v.y, v.z)
+}
+
+fn quat(r: &Mat3) -> String {
+    let q = UnitQuaternion::from_matrix(r);
+    format!("{} {} {} {}", q.w, q.i, q.j, q.k)
+}
+
+/// XML-escapes a name for an attribute value.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// Pose, in the body frame at θ = 0, of the frame that precedes each step of a joint; and
+/// X_PB(0).
+fn joint_frames_at_zero(model: &Model, j: usize) -> (Transform, HashMap<usize, Transform>) {
+    let joint = &model.joints[j];
+    let mut c = Transform::identity(); // X_F,current
+    let mut before = Vec::new();
+    for step in &joint.steps {
+        match step {
+            JointStep::Fixed(x) => c = c.compose(x),
+            JointStep::Dof(d) => before.push((*d, c)),
+        }
+    }
+    // X_B,F = (X_FM(0) X_MB)⁻¹
+    let x_fb = c.compose(&joint.child_offset_inv);
+    let x_bf = x_fb.inverse();
+    let frames = before.into_iter().map(|(d, x)| (d, x_bf.compose(&x))).collect();
+    (joint.parent_offset.compose(&x_fb), frames)
+}
+
+/// Least-squares quartic y ≈ Σ a_k x^k on samples; returns (coefficients, max |error|).
+fn fit_quartic(x: &[f64], y: &[f64]) -> ([f64; 5], f64) {
+    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
+    let a = DMatrix::from_fn(x.len(), 5, |i, k| (x[i] / scale).powi(k as i32));
+    let b = DVector::from_column_slice(y);
+    let sol = a.clone().svd(true, true).solve(&b, 1e-14).unwrap_or_else(|_| DVector::zeros(5));
+    let err = (&a * &sol - &b).amax();
+    let mut c = [0.0; 5];
+    for k in 0..5 {
+        c[k] = sol[k] / scale.powi(k as i32);
+    }
+    (c, err)
+}
+
+/// Exports `model` to MJCF.
+pub fn to_mjcf(model: &Model) -> MjcfExport {
+    let mut notes = Vec::new();
+    let mut out = String::new();
+    let nb = model.bodies.len();
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); nb];
+    for (j, joint) in model.joints.iter().enumerate() {
+        children[joint.parent_body].push(j);
+    }
+    // The default pose, for choosing the path segment each wrap object belongs to.
+    let mut data = Data::new(model);
+    let q0 = model.default_q();
+    let fk_ok = dynamics::forward_kinematics(model, &mut data, &q0).is_ok();
+
+    // Sites, geoms and inertia per body.
+    let mut body_extra: Vec<String> = vec![String::new(); nb];
+    for m in &model.markers {
+        let _ = writeln!(
+            body_extra[m.body],
+            "<site name=\"marker:{}\" pos=\"{}\" size=\"0.008\" rgba=\"0.2 0.4 1 1\"/>",
+            esc(&m.name),
+            v3(&m.location_in_body)
+        );
+    }
+    for g in &model.contact_geometry {
+        match g.shape {
+            ContactShape::Sphere { radius } => {
+                let _ = writeln!(
+                    body_extra[g.body],
+                    "<geom name=\"contact:{}\" type=\"sphere\" size=\"{radius}\" pos=\"{}\" rgba=\"0.9 0.5 0.2 1\"/>",
+                    esc(&g.name),
+                    v3(&g.pose_in_body.pos)
+                );
+            }
+            ContactShape::HalfSpace => {
+                // OpenSim's half-space fills x > 0 of its frame (outward normal −x); a MuJoCo
+                // plane's normal is its frame's +z: rotate so that z_plane = −x_halfspace.
+                let r = g.pose_in_body.rot * Mat3::new(0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
+                let _ = writeln!(
+                    body_extra[g.body],
+                    "<geom name=\"contact:{}\" type=\"plane\" size=\"0 0 1\" pos=\"{}\" quat=\"{}\" rgba=\"0.8 0.8 0.8 1\"/>",
+                    esc(&g.name),
+                    v3(&g.pose_in_body.pos),
+                    quat(&r)
+                );
+            }
+        }
+    }
+    let mut wrap_ok = vec![false; model.wrap_objects.len()];
+    for (w, obj) in model.wrap_objects.iter().enumerate() {
+        let p = &obj.pose_in_body;
+        let (shape, size) = match obj.shape {
+            WrapShape::Sphere { radius } => ("sphere", format!("{radius}")),
+            WrapShape::Cylinder { radius, length } => ("cylinder", format!("{radius} {}", 0.5 * length)),
+            _ => {
+                notes.push(format!(
+                    "wrap object `{}` ({}) cannot be represented in MJCF: left out, paths that use it run straight",
+                    obj.name,
+                    if matches!(obj.shape, WrapShape::Ellipsoid { .. }) { "WrapEllipsoid" } else { "WrapTorus" }
+                ));
+                continue;
+            }
+        };
+        wrap_ok[w] = true;
+        // MuJoCo's cylinder axis is its frame's z, like OpenSim's WrapCylinder.
+        let _ = writeln!(
+            body_extra[obj.body],
+            "<geom name=\"wrap:{}\" type=\"{shape}\" size=\"{size}\" pos=\"{}\" quat=\"{}\" contype=\"0\" conaffinity=\"0\" group=\"3\" rgba=\"0.5 0.9 0.9 0.4\"/>",
+            esc(&obj.name),
+            v3(&p.pos),
+            quat(&p.rot)
+        );
+        // A side site on the quadrant's side selects which side the tendon wraps around.
+        let q = obj.quadrant.trim().to_ascii_lowercase();
+        let dir = match q.as_str() {
+            "+x" | "x" => Some(Vec3::x()),
+            "-x" => Some(-Vec3::x()),
+            "+y" | "y" => Some(Vec3::y()),
+            "-y" => Some(-Vec3::y()),
+            "+z" | "z" => Some(Vec3::z()),
+            "-z" => Some(-Vec3::z()),
+            _ => None,
+        };
+        if let Some(dir) = dir {
+            let r = match obj.shape {
+                WrapShape::Sphere { radius } | WrapShape::Cylinder { radius, .. } => radius,
+                _ => 0.0,
+            };
+            let _ = writeln!(
+                body_extra[obj.body],
+                "<site name=\"side:{}\" pos=\"{}\" size=\"0.002\" group=\"3\"/>",
+                esc(&obj.name),
+                v3(&(p.pos + p.rot * dir * (2.0 * r)))
+            );
+        }
+    }
+
+    // Tendons and muscles.
+    let mut tendons = String::new();
+    let mut actuators = String::new();
+    let mut pennated = 0;
+    for f in &model.forces {
+        let Some(path) = &f.path else { continue };
+        let mut entries: Vec<String> = Vec::new();
+        let mut site_names = Vec::new();
+        for (i, p) in path.points.iter().enumerate() {
+            let name = format!("path:{}:{i}", f.name);
+            let loc = p.frame_in_body.apply_point(&p.location);
+            let _ = writeln!(body_extra[p.body], "<site name=\"{}\" pos=\"{}\" size=\"0.004\"/>", esc(&name), v3(&loc));
+            match p.kind {
+                PathPointKind::Fixed => {}
+                PathPointKind::Conditional { .. } => notes.push(format!(
+                    "`{}`: conditional path point `{}` exported as a fixed site (MJCF has no conditional points)",
+                    f.name, p.name
+                )),
+                PathPointKind::Moving { .. } => notes.push(format!(
+                    "`{}`: moving path point `{}` exported as a fixed site at its default-pose location",
+                    f.name, p.name
+                )),
+            }
+            site_names.push(name);
+        }
+        // Each representable wrap goes between the two sites of the segment (within its
+        // range) closest to the wrap centre at the default pose.
+        let mut wrap_after: Vec<Option<usize>> = vec![None; path.points.len()];
+        for pw in &path.wraps {
+            if !wrap_ok[pw.wrap_object] {
+                continue;
+            }
+            let n = path.points.len();
+            let (lo, hi) = if pw.range[0] < 1 || pw.range[1] < 1 {
+                (0, n - 1)
+            } else {
+                ((pw.range[0] as usize - 1).min(n - 1), (pw.range[1] as usize - 1).min(n - 1))
+            };
+            let obj = &model.wrap_objects[pw.wrap_object];
+            let best = (lo..hi.max(lo + 1).min(n - 1)).min_by(|&a, &b| {
+                let d = |i: usize| {
+                    if !fk_ok {
+                        return 0.0;
+                    }
+                    let pa = data.point_position(path.points[i].body, &path.points[i].frame_in_body.apply_point(&path.points[i].location));
+                    let pb = data.point_position(path.points[i + 1].body, &path.points[i + 1].frame_in_body.apply_point(&path.points[i + 1].location));
+                    let c = data.point_position(obj.body, &obj.pose_in_body.pos);
+                    let ab = pb - pa;
+                    let t = ((c - pa).dot(&ab) / ab.norm_squared().max(1e-300)).clamp(0.0, 1.0);
+                    (pa + ab * t - c).norm()
+                };
+                d(a).total_cmp(&d(b))
+            });
+            match best {
+                Some(i) if wrap_after[i].is_none() => wrap_after[i] = Some(pw.wrap_object),
+                _ => notes.push(format!(
+                    "`{}`: wrap object `{}` shares a path segment with another wrap; left out (MJCF allows one per segment)",
+                    f.name, obj.name
+                )),
+            }
+        }
+        if path.wraps.len() > 1 {
+            notes.push(format!(
+                "`{}`: {} wrap objects are each fixed to one path segment; OpenSim chooses the wrapping segment as the path moves",
+                f.name,
+                path.wraps.len()
+            ));
+        }
+        for (i, s) in site_names.iter().enumerate() {
+            entries.push(format!("<site site=\"{}\"/>", esc(s)));
+            if let Some(w) = wrap_after[i] {
+                let obj = &model.wrap_objects[w];
+                let side = if obj.quadrant.trim().eq_ignore_ascii_case("all") || obj.quadrant.trim().is_empty() {
+                    String::new()
+                } else {
+                    format!(" sidesite=\"side:{}\"", esc(&obj.name))
+                };
+                entries.push(format!("<geom geom=\"wrap:{}\"{side}/>", esc(&obj.name)));
+            }
+        }
+        let _ = writeln!(tendons, "<spatial name=\"{}\" width=\"0.003\">\n  {}\n</spatial>", esc(&f.name), entries.join("\n  "));
+        if f.is_muscle() {
+            let num = |tag: &str| f.raw.number(tag);
+            let (Some(fmax), Some(l0), Some(lt)) =
+                (num("max_isometric_force"), num("optimal_fiber_length"), num("tendon_slack_length"))
+            else {
+                notes.push(format!("muscle `{}` lacks force or length parameters: no actuator", f.name));
+                continue;
+            };
+            // MuJoCo's muscle: L0 = (lr₁ − lr₀)/(r₁ − r₀), tendon length lr₀ − r₀ L0; choose
+            // the length range that gives OpenSim's optimal fibre and tendon slack lengths.
+            let lr = [lt + MUSCLE_RANGE[0] * l0, lt + MUSCLE_RANGE[1] * l0];
+            let vmax = num("max_contraction_velocity").unwrap_or(10.0);
+            let tact = num("activation_time_constant").unwrap_or(0.01);
+            let tdeact = num("deactivation_time_constant").unwrap_or(0.04);
+            let _ = writeln!(
+                actuators,
+                "<muscle name=\"{}\" tendon=\"{}\" force=\"{fmax}\" lengthrange=\"{} {}\" range=\"{} {}\" vmax=\"{vmax}\" timeconst=\"{tact} {tdeact}\"/>",
+                esc(&f.name),
+                esc(&f.name),
+                lr[0],
+                lr[1],
+                MUSCLE_RANGE[0],
+                MUSCLE_RANGE[1]
+            );
+            if num("pennation_angle_at_optimal").is_some_and(|a| a != 0.0) {
+                pennated += 1;
+            }
+        }
+    }
+    if pennated > 0 {
+        notes.push(format!("{pennated} muscles have a pennation angle, which MuJoCo's muscle does not model"));
+    }
+    if model.muscle_count() > 0 {
+        notes.push(format!(
+            "{} muscles use MuJoCo's muscle curves (force-length, force-velocity, passive) instead of their OpenSim curves",
+            model.muscle_count()
+        ));
+    }
+
+    // Couplings: every full coordinate that is a function of an independent coordinate other
+    // than the reference axis of that coordinate becomes a joint equality constraint.
+    let (equalities, limits) = couplings(model, &mut notes);
+
+    // Bodies.
+    let _ = writeln!(out, "<mujoco model=\"{}\">", esc(&model.name));
+    let balance = model.warnings.iter().any(|w| w.message.contains("triangle inequality"));
+    if balance {
+        notes.push("some inertias violate the triangle inequality: exported with MuJoCo's balanceinertia".into());
+    }
+    let _ = writeln!(
+        out,
+        "<compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"true\" balanceinertia=\"{balance}\">\n  <lengthrange mode=\"none\"/>\n</compiler>"
+    );
+    let _ = writeln!(out, "<option gravity=\"{}\"/>", v3(&model.gravity));
+    let _ = writeln!(out, "<default><joint armature=\"0\" damping=\"0\"/><geom contype=\"1\" conaffinity=\"1\"/></default>");
+    let _ = writeln!(out, "<worldbody>\n<light pos=\"0 0 4\" dir=\"0 0 -1\"/>");
+    out += &body_extra[0];
+    let mut stack: Vec<(usize, bool)> = children[0].iter().rev().map(|&j| (j, false)).collect();
+    while let Some((j, closing)) = stack.pop() {
+        if closing {
+            out += "</body>\n";
+            continue;
+        }
+        let joint = &model.joints[j];
+        let b = joint.child_body;
+        let body = &model.bodies[b];
+        let (x_pb, frames) = joint_frames_at_zero(model, j);
+        let _ = writeln!(out, "<body name=\"{}\" pos=\"{}\" quat=\"{}\">", esc(&body.name), v3(&x_pb.pos), quat(&x_pb.rot));
+        let mut mass = body.mass;
+        let moving = !joint.dof_range.is_empty() || {
+            let mut p = joint.parent_body;
+            let mut m = false;
+            while let Some(pj) = model.bodies[p].joint {
+                if !model.joints[pj].dof_range.is_empty() {
+                    m = true;
+                    break;
+                }
+                p = model.joints[pj].parent_body;
+            }
+            m
+        };
+        let mut i = body.inertia_about_com;
+        if moving && (mass <= 0.0 || i.trace() <= 0.0) {
+            notes.push(format!(
+                "body `{}` has no mass or inertia; MuJoCo needs both on moving bodies: exported with 1e-9 kg and 1e-12 kg·m²",
+                body.name
+            ));
+            mass = mass.max(1e-9);
+            if i.trace() <= 0.0 {
+                i = Mat3::identity() * 1e-12;
+            }
+        }
+        if mass > 0.0 {
+            let _ = writeln!(
+                out,
+                "<inertial pos=\"{}\" mass=\"{mass}\" fullinertia=\"{} {} {} {} {} {}\"/>",
+                v3(&body.com_in_body),
+                i[(0, 0)],
+                i[(1, 1)],
+                i[(2, 2)],
+                i[(0, 1)],
+                i[(0, 2)],
+                i[(1, 2)]
+            );
+        }
+        for d in joint.dof_range.clone() {
+            let dof = &model.dofs[d];
+            let x = frames[&d];
+            let (kind, axis) = match dof.kind {
+                DofKind::Hinge => ("hinge", x.rot * dof.axis),
+                DofKind::Slide => ("slide", x.rot * dof.axis),
+            };
+            let limit = match limits[d] {
+                Some([lo, hi]) => format!("limited=\"true\" range=\"{lo} {hi}\""),
+                None => "limited=\"false\"".to_string(),
+            };
+            let _ = writeln!(out, "<joint name=\"{}\" type=\"{kind}\" pos=\"{}\" axis=\"{}\" {limit}/>", esc(&dof.name), v3(&x.pos), v3(&axis));
+        }
+        out += &body_extra[b];
+        stack.push((j, true));
+        for &c in children[b].iter().rev() {
+            stack.push((c, false));
+        }
+    }
+    out += "</worldbody>\n";
+    if !equalities.is_empty() {
+        let _ = writeln!(out, "<equality>\n{equalities}</equality>");
+    }
+    // MuJoCo's qpos0 is θ = 0, where coupled axes (e.g. a knee's translations) violate their
+    // equalities; the keyframe `default` is the model's default pose, which satisfies them.
+    if fk_ok {
+        let qpos: Vec<String> = qpos_order(model, &children)
+            .into_iter()
+            .map(|d| data.theta(model)[d].to_string())
+            .collect();
+        let _ = writeln!(out, "<keyframe>\n<key name=\"default\" qpos=\"{}\"/>\n</keyframe>", qpos.join(" "));
+    }
+    if !tendons.is_empty() {
+        let _ = writeln!(out, "<tendon>\n{tendons}</tendon>");
+    }
+    if !actuators.is_empty() {
+        let _ = writeln!(out, "<actuator>\n{actuators}</actuator>");
+    }
+    out += "</mujoco>\n";
+    for w in &model.warnings {
+        if w.message.contains("NOT enforced") {
+            notes.push(format!("{}: {}", w.element, w.message));
+        }
+    }
+    MjcfExport { xml: out, notes }
+}
+
+/// The full coordinates in MuJoCo's qpos order: bodies depth-first as written, each body's
+/// joints in order.
+fn qpos_order(model: &Model, children: &[Vec<usize>]) -> Vec<usize> {
+    let mut order = Vec::with_capacity(model.n_full());
+    let mut stack: Vec<usize> = children[0].iter().rev().copied().collect();
+    while let Some(j) = stack.pop() {
+        order.extend(model.joints[j].dof_range.clone());
+        stack.extend(children[model.joints[j].child_body].iter().rev());
+    }
+    order
+}
+
+/// Joint equality constraints for the full coordinates that depend on independent
+/// coordinates: per independent coordinate, one reference axis (preferably θ = q itself);
+/// every other axis of that coordinate follows it by a quartic fitted over the coordinate's
+/// range. Axes of locked coordinates are held at their value. Also returns, per full
+/// coordinate, the range of its coordinate when the axis value is the coordinate itself (the
+/// joint limit a MuJoCo simulation should respect; the fits hold only within it).
+fn couplings(model: &Model, notes: &mut Vec<String>) -> (String, Vec<Option<[f64; 2]>>) {
+    let r = &model.reduction;
+    let nc = r.n_coordinates;
+    let mut data = Data::new(model);
+    let q0 = model.default_q();
+    let mut limits = vec![None; model.n_full()];
+    if dynamics::forward_kinematics(model, &mut data, &q0).is_err() {
+        return (String::new(), limits);
+    }
+    let theta0 = data.theta(model).to_vec();
+    let mut out = String::new();
+    let deps = |d: usize| &r.dep_index[r.dep_start[nc + d]..r.dep_start[nc + d + 1]];
+    // Reference axis per independent coordinate: the first with Φ_dj = 1 at the default pose
+    // and θ_d = q_j, else the first that depends on q_j alone.
+    let mut reference: Vec<Option<usize>> = vec![None; model.nq()];
+    for d in 0..model.n_full() {
+        if let [j] = deps(d) {
+            let c = r.independent[*j];
+            let exact = (theta0[d] - q0[*j]).abs() < 1e-15
+                && matches!(&model.dofs[d].function, super::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
+                && model.dofs[d].args == [c];
+            if exact && reference[*j].is_none_or(|p| !matches!(&model.dofs[p].function, super::Function::Linear(k) if k[0] == 1.0 && k[1] == 0.0)) {
+                reference[*j] = Some(d);
+            } else if reference[*j].is_none() {
+                reference[*j] = Some(d);
+            }
+        }
+    }
+    for d in 0..model.n_full() {
+        let name = esc(&model.dofs[d].name);
+        match deps(d) {
+            [] => {
+                let _ = writeln!(out, "<joint joint1=\"{name}\" polycoef=\"{} 0 0 0 0\"/>", theta0[d]);
+            }
+            [j] if reference[*j] == Some(d) => {
+                if matches!(&model.dofs[d].function, super::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
+                    && model.dofs[d].args == [r.independent[*j]]
+                {
+                    limits[d] = Some(model.coordinates[r.independent[*j]].range);
+                }
+            }
+            [j] => {
+                let rd = reference[*j].unwrap_or(d);
+                let [lo, hi] = model.coordinates[r.independent[*j]].range;
+                let (mut xs, mut ys) = (Vec::new(), Vec::new());
+                let mut q = q0.clone();
+                for k in 0..=40 {
+                    q[*j] = lo + (hi - lo) * k as f64 / 40.0;
+                    if dynamics::forward_kinematics(model, &mut data, &q).is_ok() {
+                        xs.push(data.theta(model)[rd]);
+                        ys.push(data.theta(model)[d]);
+                    }
+                }
+                let (c, err) = fit_quartic(&xs, &ys);
+                let scale = ys.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
+                if err > 1e-9 * scale {
+                    notes.push(format!(
+                        "`{}` follows `{}` through a quartic fitted over [{lo}, {hi}] (max error {err:.2e})",
+                        model.dofs[d].name, model.dofs[rd].name
+                    ));
+                }
+                let _ = writeln!(
+                    out,
+                    "<joint joint1=\"{name}\" joint2=\"{}\" polycoef=\"{} {} {} {} {}\"/>",
+                    esc(&model.dofs[rd].name),
+                    c[0],
+                    c[1],
+                    c[2],
+                    c[3],
+                    c[4]
+                );
+            }
+            several => notes.push(format!(
+                "`{}` depends on {} independent coordinates; MJCF equalities couple two joints only, so it is left free",
+                model.dofs[d].name,
+                several.len()
+            )),
+        }
+    }
+    (out, limits)
+}
