@@ -17,9 +17,11 @@
 
 pub mod dynamics;
 pub mod error;
+pub mod io;
 pub mod model;
 #[cfg(feature = "mujoco")]
 pub mod mujoco;
+pub mod muscle;
 pub mod reference;
 pub mod spatial;
 

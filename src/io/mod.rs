@@ -1,0 +1,1 @@
+//! Readers and writers of motion and result files. (In progress.)

@@ -1,0 +1,1 @@
+//! First-order activation dynamics, forward and inverse. (In progress.)

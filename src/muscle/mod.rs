@@ -1,0 +1,6 @@
+//! Muscles: geometry paths (points, wrapping, lengths, moment arms), Hill-type force models
+//! and activation dynamics.
+
+pub mod activation;
+pub mod hill;
+pub mod wrap;
