@@ -106,7 +106,11 @@ fn compare(label: &str, mut ours: impl FnMut(usize), mut theirs: impl FnMut(usiz
     let (_, am, _) = stats(a);
     let (_, bm, _) = stats(b);
     let (rlo, rmed, rhi) = stats(r);
-    println!("  {label:<44} musculo {:>7.2} µs   MuJoCo {:>7.2} µs   ratio {rmed:.2} ({rlo:.2} – {rhi:.2})", am / 1e3, bm / 1e3);
+    println!(
+        "  {label:<44} musculo {:>7.2} µs   MuJoCo {:>7.2} µs   ratio {rmed:.2} ({rlo:.2} – {rhi:.2})",
+        am / 1e3,
+        bm / 1e3
+    );
     rmed
 }
 
@@ -163,7 +167,9 @@ fn bench(label: &str, model: &Model) {
     compare(
         "bias_full: rnea_full(θ,θ̇,0) | same",
         |i| {
-            black_box(dynamics::rnea_full(model, &mut d2, &s[i].theta, &s[i].theta_dot, &zeros).unwrap());
+            black_box(
+                dynamics::rnea_full(model, &mut d2, &s[i].theta, &s[i].theta_dot, &zeros).unwrap(),
+            );
         },
         |i| {
             twin.set_state(&s[i].theta, &s[i].theta_dot);
@@ -194,9 +200,18 @@ fn main() {
     let dir = musculo::reference::directory();
     for (label, rel) in [
         ("Arm26", "opensim-models/Models/Arm26/arm26.osim"),
-        ("Gait10dof18musc", "opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim"),
-        ("Gait2392", "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim"),
-        ("Rajagopal2016", "opensim-models/Models/Rajagopal/Rajagopal2016.osim"),
+        (
+            "Gait10dof18musc",
+            "opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim",
+        ),
+        (
+            "Gait2392",
+            "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        ),
+        (
+            "Rajagopal2016",
+            "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+        ),
     ] {
         match Model::from_osim_file(dir.join(rel)) {
             Ok(m) => bench(label, &m),

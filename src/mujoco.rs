@@ -71,14 +71,22 @@ impl MujocoTwin {
         let nv = m.nv as usize;
         if m.nq as usize != model.n_full() || nv != model.n_full() {
             return Err(Error::Mujoco {
-                message: format!("MuJoCo has nq = {}, nv = {nv} for {} full coordinates", m.nq, model.n_full()),
+                message: format!(
+                    "MuJoCo has nq = {}, nv = {nv} for {} full coordinates",
+                    m.nq,
+                    model.n_full()
+                ),
             });
         }
         let id = |kind: mj::mjtObj, name: &str| -> crate::Result<usize> {
-            let c = CString::new(name).map_err(|_| Error::Mujoco { message: format!("name `{name}` contains NUL") })?;
+            let c = CString::new(name).map_err(|_| Error::Mujoco {
+                message: format!("name `{name}` contains NUL"),
+            })?;
             // SAFETY: m is a valid model and c a valid C string.
             let i = unsafe { mj::mj_name2id(m, kind as i32, c.as_ptr()) };
-            usize::try_from(i).map_err(|_| Error::Mujoco { message: format!("no MuJoCo object named `{name}`") })
+            usize::try_from(i).map_err(|_| Error::Mujoco {
+                message: format!("no MuJoCo object named `{name}`"),
+            })
         };
         let mut adr = Vec::with_capacity(nv);
         for dof in &model.dofs {
@@ -87,7 +95,9 @@ impl MujocoTwin {
             let a = unsafe { *m.jnt_qposadr.add(j) } as usize;
             let v = unsafe { *m.jnt_dofadr.add(j) } as usize;
             if a != v {
-                return Err(Error::Mujoco { message: format!("joint `{}` has qpos {a} but dof {v}", dof.name) });
+                return Err(Error::Mujoco {
+                    message: format!("joint `{}` has qpos {a} but dof {v}", dof.name),
+                });
             }
             adr.push(a);
         }
@@ -171,7 +181,13 @@ impl MujocoTwin {
     }
 
     /// τ_full = M_full θ̈ + C θ̇ + G in musculo's full-coordinate order.
-    pub fn inverse_dynamics(&mut self, theta: &[f64], theta_dot: &[f64], theta_ddot: &[f64], out: &mut [f64]) {
+    pub fn inverse_dynamics(
+        &mut self,
+        theta: &[f64],
+        theta_dot: &[f64],
+        theta_ddot: &[f64],
+        out: &mut [f64],
+    ) {
         self.set_state(theta, theta_dot);
         self.inverse_dynamics_stages(theta_ddot);
         for (i, &a) in self.adr.iter().enumerate() {
@@ -237,8 +253,16 @@ mod tests {
     #[test]
     fn a_different_library_version_is_a_readable_error() {
         let e = check_version(3_016_002, 3_017_000).unwrap_err().to_string();
-        assert!(e.contains("3.16.2") && e.contains("3.17.0") && e.contains("setup-mujoco.sh"), "{e}");
+        assert!(
+            e.contains("3.16.2") && e.contains("3.17.0") && e.contains("setup-mujoco.sh"),
+            "{e}"
+        );
         assert!(check_version(EXPECTED_VERSION, EXPECTED_VERSION).is_ok());
-        assert_eq!(linked_version(), EXPECTED_VERSION, "this build links {}", version_string(linked_version()));
+        assert_eq!(
+            linked_version(),
+            EXPECTED_VERSION,
+            "this build links {}",
+            version_string(linked_version())
+        );
     }
 }

@@ -247,7 +247,12 @@ impl Motion {
     pub fn dot(&self, f: &Force) -> f64 {
         // written out: nalgebra's generic dot goes through iterators here
         let (a, b) = (&self.ang, &self.lin);
-        a.x * f.ang.x + a.y * f.ang.y + a.z * f.ang.z + b.x * f.lin.x + b.y * f.lin.y + b.z * f.lin.z
+        a.x * f.ang.x
+            + a.y * f.ang.y
+            + a.z * f.ang.z
+            + b.x * f.lin.x
+            + b.y * f.lin.y
+            + b.z * f.lin.z
     }
 
     /// The velocity of the body point at `r` (r − O given as `offset`): v + ω × offset.

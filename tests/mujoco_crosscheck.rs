@@ -17,7 +17,13 @@ const STATES: usize = 200;
 const TOL: f64 = 1e-9;
 
 fn crosscheck(path: &Path, seed: u64) {
-    let model = Model::from_osim_file_with(path, &LoadOptions { allow_nonphysical_inertia: true }).unwrap();
+    let model = Model::from_osim_file_with(
+        path,
+        &LoadOptions {
+            allow_nonphysical_inertia: true,
+        },
+    )
+    .unwrap();
     let name = path.file_name().unwrap().to_string_lossy().to_string();
     let mut twin = MujocoTwin::new(&model).unwrap_or_else(|e| panic!("{name}: {e}"));
     let (n, nf, nb) = (model.nq(), model.n_full(), model.bodies.len());
@@ -31,7 +37,8 @@ fn crosscheck(path: &Path, seed: u64) {
     for state in 0..STATES {
         let q = random_q(&model, &mut rng);
         let qd = random_vec(n, 2.0, &mut rng);
-        let ctx = |what: &str, e: f64| format!("{name} state {state}: {what}: relative difference {e:e}");
+        let ctx =
+            |what: &str, e: f64| format!("{name} state {state}: {what}: relative difference {e:e}");
 
         // Full coordinates, their rates and Φ, Φ̇q̇ from musculo.
         dynamics::forward_kinematics_velocity(&model, &mut data, &q, &qd).unwrap();
@@ -52,20 +59,32 @@ fn crosscheck(path: &Path, seed: u64) {
         for b in 1..nb {
             let (r_mj, p_mj) = twin.body_pose(b);
             let (r, p) = data.body_pose(b);
-            let e = (r - r_mj).amax().max((p - p_mj).amax() / p_mj.norm().max(1.0));
-            assert!(e <= TOL, "{}", ctx(&format!("pose of {}", model.bodies[b].name), e));
+            let e = (r - r_mj)
+                .amax()
+                .max((p - p_mj).amax() / p_mj.norm().max(1.0));
+            assert!(
+                e <= TOL,
+                "{}",
+                ctx(&format!("pose of {}", model.bodies[b].name), e)
+            );
             worst[1] = worst[1].max(e);
             twin.body_jacobian(b, &mut j_mj);
             dynamics::body_jacobian_full(&model, &data, b, &mut j_us).unwrap();
             let e = (&j_us - &j_mj).amax() / j_mj.amax().max(1.0);
-            assert!(e <= TOL, "{}", ctx(&format!("Jacobian of {}", model.bodies[b].name), e));
+            assert!(
+                e <= TOL,
+                "{}",
+                ctx(&format!("Jacobian of {}", model.bodies[b].name), e)
+            );
             worst[2] = worst[2].max(e);
         }
 
         // Bias forces.
         twin.bias(&theta, &theta_dot, &mut b_mj);
         let zeros = vec![0.0; nf];
-        let b_full = DVector::from_column_slice(dynamics::rnea_full(&model, &mut data, &theta, &theta_dot, &zeros).unwrap());
+        let b_full = DVector::from_column_slice(
+            dynamics::rnea_full(&model, &mut data, &theta, &theta_dot, &zeros).unwrap(),
+        );
         let b_mj_v = DVector::from_column_slice(&b_mj);
         let e = (&b_full - &b_mj_v).amax() / b_mj_v.amax().max(1.0);
         assert!(e <= TOL, "{}", ctx("bias_full vs MuJoCo qfrc_bias", e));
@@ -77,7 +96,9 @@ fn crosscheck(path: &Path, seed: u64) {
         let e = (&m - &m_red).amax() / m_red.amax();
         assert!(e <= TOL, "{}", ctx("M vs Φᵀ M_mj Φ", e));
         worst[4] = worst[4].max(e);
-        let bias = dynamics::nonlinear_effects(&model, &mut data, &q, &qd).unwrap().clone();
+        let bias = dynamics::nonlinear_effects(&model, &mut data, &q, &qd)
+            .unwrap()
+            .clone();
         let b_red = phi.transpose() * (&b_mj_v + &m_mj * &phidot_qd);
         let e = (&bias - &b_red).amax() / b_red.amax().max(1.0);
         assert!(e <= TOL, "{}", ctx("bias vs Φᵀ(bias_mj + M_mj Φ̇q̇)", e));
@@ -87,7 +108,12 @@ fn crosscheck(path: &Path, seed: u64) {
         "{name}: {STATES} states, n = {n}, n_full = {nf}; worst relative differences to MuJoCo {}: \
          M_full {:.1e}, poses {:.1e}, Jacobians {:.1e}, bias_full {:.1e}, reduced M {:.1e}, reduced bias {:.1e}",
         musculo::mujoco::linked_version(),
-        worst[0], worst[1], worst[2], worst[3], worst[4], worst[5]
+        worst[0],
+        worst[1],
+        worst[2],
+        worst[3],
+        worst[4],
+        worst[5]
     );
 }
 
@@ -104,12 +130,18 @@ fn arm26_matches_mujoco() {
 
 #[test]
 fn gait10dof18musc_matches_mujoco() {
-    check("opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim", 22);
+    check(
+        "opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim",
+        22,
+    );
 }
 
 #[test]
 fn gait2392_matches_mujoco() {
-    check("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim", 23);
+    check(
+        "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        23,
+    );
 }
 
 #[test]
@@ -119,13 +151,22 @@ fn rajagopal2016_matches_mujoco() {
 
 #[test]
 fn demo_model_matches_mujoco() {
-    crosscheck(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo.osim"), 25);
+    crosscheck(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo.osim"),
+        25,
+    );
 }
 
 #[test]
 fn every_reference_model_loads_into_mujoco() {
     for p in reference_models() {
-        let model = Model::from_osim_file_with(&p, &LoadOptions { allow_nonphysical_inertia: true }).unwrap();
+        let model = Model::from_osim_file_with(
+            &p,
+            &LoadOptions {
+                allow_nonphysical_inertia: true,
+            },
+        )
+        .unwrap();
         if let Err(e) = MujocoTwin::new(&model) {
             panic!("{}: {e}", p.display());
         }
@@ -151,30 +192,49 @@ fn exported_models_simulate_in_mujoco_with_their_couplings_held() {
         for actuation in [true, false] {
             let mut mj = MjModel::from_xml_string(&xml).unwrap();
             if !actuation {
-                unsafe { mj.ffi_mut().opt.disableflags |= c::mjtDisableBit::mjDSBL_ACTUATION as i32 };
+                unsafe {
+                    mj.ffi_mut().opt.disableflags |= c::mjtDisableBit::mjDSBL_ACTUATION as i32
+                };
             }
             let mut d = MjData::new(&mj);
             unsafe { c::mj_resetDataKeyframe(mj.ffi(), d.ffi_mut(), 0) };
             for _ in 0..250 {
                 d.step();
             }
-            let qpos: Vec<f64> = unsafe { std::slice::from_raw_parts(d.ffi().qpos, model.n_full()) }.to_vec();
-            assert!(qpos.iter().all(|v| v.is_finite()), "{rel}: non-finite state");
+            let qpos: Vec<f64> =
+                unsafe { std::slice::from_raw_parts(d.ffi().qpos, model.n_full()) }.to_vec();
+            assert!(
+                qpos.iter().all(|v| v.is_finite()),
+                "{rel}: non-finite state"
+            );
             if actuation {
                 continue;
             }
             let adr = |n: &str| {
                 let name = std::ffi::CString::new(n).unwrap();
-                let id = unsafe { c::mj_name2id(mj.ffi(), c::mjtObj::mjOBJ_JOINT as i32, name.as_ptr()) };
+                let id = unsafe {
+                    c::mj_name2id(mj.ffi(), c::mjtObj::mjOBJ_JOINT as i32, name.as_ptr())
+                };
                 unsafe { *mj.ffi().jnt_qposadr.add(id as usize) as usize }
             };
-            let knee = model.dofs.iter().find(|d| d.name.ends_with("knee_r/rotation1")).unwrap();
+            let knee = model
+                .dofs
+                .iter()
+                .find(|d| d.name.ends_with("knee_r/rotation1"))
+                .unwrap();
             let angle = qpos[adr(&knee.name)];
             for axis in ["translation1", "translation2"] {
-                let tx = model.dofs.iter().find(|d| d.name.ends_with(&format!("knee_r/{axis}"))).unwrap();
+                let tx = model
+                    .dofs
+                    .iter()
+                    .find(|d| d.name.ends_with(&format!("knee_r/{axis}")))
+                    .unwrap();
                 let (spline, _, _) = tx.function.eval1(angle);
                 let got = qpos[adr(&tx.name)];
-                assert!((got - spline).abs() < 2e-4, "{rel}: knee {axis} {got} vs spline {spline} at angle {angle}");
+                assert!(
+                    (got - spline).abs() < 2e-4,
+                    "{rel}: knee {axis} {got} vs spline {spline} at angle {angle}"
+                );
             }
         }
     }

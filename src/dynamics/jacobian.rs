@@ -88,7 +88,12 @@ pub fn point_jacobian(
 /// column d is the motion subspace s_d, taken at the body origin, of every full coordinate
 /// on the path from ground to the body. Valid after any forward kinematics, including
 /// [`super::forward_kinematics_full`].
-pub fn body_jacobian_full(model: &Model, data: &Data, body: usize, out: &mut DMatrix<f64>) -> crate::Result<()> {
+pub fn body_jacobian_full(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    out: &mut DMatrix<f64>,
+) -> crate::Result<()> {
     data.require(model, Stage::Position, "body_jacobian_full")?;
     check_body(model, body)?;
     check_shape(out, 6, model.n_full())?;

@@ -38,8 +38,8 @@ pub use forward_kinematics::{
 };
 pub use gravity::gravity;
 pub use jacobian::{
-    body_jacobian, body_jacobian_dot_qd, body_jacobian_full, contact_jacobian, contact_jacobian_dot_qd, point_jacobian,
-    point_jacobian_dot_qd,
+    body_jacobian, body_jacobian_dot_qd, body_jacobian_full, contact_jacobian,
+    contact_jacobian_dot_qd, point_jacobian, point_jacobian_dot_qd,
 };
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};
 
@@ -210,6 +210,26 @@ impl Data {
     /// Rates of all coordinates at the current state (velocity stage).
     pub fn coordinate_speeds<'a>(&'a self, model: &Model) -> &'a [f64] {
         &self.node_vel[..model.reduction.n_coordinates]
+    }
+
+    /// q̇_j of the last velocity-stage computation.
+    pub fn independent_speed(&self, model: &Model, j: usize) -> f64 {
+        self.node_vel[model.reduction.independent[j]]
+    }
+
+    /// The non-zero entries (j, ∂c/∂q_j) of coordinate `c`'s gradient.
+    pub fn coordinate_gradient<'a>(
+        &'a self,
+        model: &'a Model,
+        c: usize,
+    ) -> impl Iterator<Item = (usize, f64)> + 'a {
+        let r = &model.reduction;
+        (r.dep_start[c]..r.dep_start[c + 1]).map(move |e| (r.dep_index[e], self.node_grad[e]))
+    }
+
+    /// Reduced motion column S̃_c (see `Reduction::columns`).
+    pub(crate) fn column_motion(&self, c: usize) -> &Motion {
+        &self.col_motion[c]
     }
 
     /// Full coordinates θ.

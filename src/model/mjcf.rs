@@ -44,7 +44,10 @@ fn quat(r: &Mat3) -> String {
 
 /// XML-escapes a name for an attribute value.
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('"', "&quot;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// Pose, in the body frame at θ = 0, of the frame that precedes each step of a joint; and
@@ -62,7 +65,10 @@ fn joint_frames_at_zero(model: &Model, j: usize) -> (Transform, HashMap<usize, T
     // X_B,F = (X_FM(0) X_MB)⁻¹
     let x_fb = c.compose(&joint.child_offset_inv);
     let x_bf = x_fb.inverse();
-    let frames = before.into_iter().map(|(d, x)| (d, x_bf.compose(&x))).collect();
+    let frames = before
+        .into_iter()
+        .map(|(d, x)| (d, x_bf.compose(&x)))
+        .collect();
     (joint.parent_offset.compose(&x_fb), frames)
 }
 
@@ -71,7 +77,11 @@ fn fit_quartic(x: &[f64], y: &[f64]) -> ([f64; 5], f64) {
     let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
     let a = DMatrix::from_fn(x.len(), 5, |i, k| (x[i] / scale).powi(k as i32));
     let b = DVector::from_column_slice(y);
-    let sol = a.clone().svd(true, true).solve(&b, 1e-14).unwrap_or_else(|_| DVector::zeros(5));
+    let sol = a
+        .clone()
+        .svd(true, true)
+        .solve(&b, 1e-14)
+        .unwrap_or_else(|_| DVector::zeros(5));
     let err = (&a * &sol - &b).amax();
     let mut c = [0.0; 5];
     for k in 0..5 {
@@ -117,7 +127,8 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             ContactShape::HalfSpace => {
                 // OpenSim's half-space fills x > 0 of its frame (outward normal −x); a MuJoCo
                 // plane's normal is its frame's +z: rotate so that z_plane = −x_halfspace.
-                let r = g.pose_in_body.rot * Mat3::new(0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
+                let r =
+                    g.pose_in_body.rot * Mat3::new(0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
                 let _ = writeln!(
                     body_extra[g.body],
                     "<geom name=\"contact:{}\" type=\"plane\" size=\"0 0 1\" pos=\"{}\" quat=\"{}\" rgba=\"0.8 0.8 0.8 1\"/>",
@@ -133,7 +144,9 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
         let p = &obj.pose_in_body;
         let (shape, size) = match obj.shape {
             WrapShape::Sphere { radius } => ("sphere", format!("{radius}")),
-            WrapShape::Cylinder { radius, length } => ("cylinder", format!("{radius} {}", 0.5 * length)),
+            WrapShape::Cylinder { radius, length } => {
+                ("cylinder", format!("{radius} {}", 0.5 * length))
+            }
             _ => {
                 notes.push(format!(
                     "wrap object `{}` ({}) cannot be represented in MJCF: left out, paths that use it run straight",
@@ -188,7 +201,12 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
         for (i, p) in path.points.iter().enumerate() {
             let name = format!("path:{}:{i}", f.name);
             let loc = p.frame_in_body.apply_point(&p.location);
-            let _ = writeln!(body_extra[p.body], "<site name=\"{}\" pos=\"{}\" size=\"0.004\"/>", esc(&name), v3(&loc));
+            let _ = writeln!(
+                body_extra[p.body],
+                "<site name=\"{}\" pos=\"{}\" size=\"0.004\"/>",
+                esc(&name),
+                v3(&loc)
+            );
             match p.kind {
                 PathPointKind::Fixed => {}
                 PathPointKind::Conditional { .. } => notes.push(format!(
@@ -213,7 +231,10 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             let (lo, hi) = if pw.range[0] < 1 || pw.range[1] < 1 {
                 (0, n - 1)
             } else {
-                ((pw.range[0] as usize - 1).min(n - 1), (pw.range[1] as usize - 1).min(n - 1))
+                (
+                    (pw.range[0] as usize - 1).min(n - 1),
+                    (pw.range[1] as usize - 1).min(n - 1),
+                )
             };
             let obj = &model.wrap_objects[pw.wrap_object];
             let best = (lo..hi.max(lo + 1).min(n - 1)).min_by(|&a, &b| {
@@ -221,8 +242,18 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
                     if !fk_ok {
                         return 0.0;
                     }
-                    let pa = data.point_position(path.points[i].body, &path.points[i].frame_in_body.apply_point(&path.points[i].location));
-                    let pb = data.point_position(path.points[i + 1].body, &path.points[i + 1].frame_in_body.apply_point(&path.points[i + 1].location));
+                    let pa = data.point_position(
+                        path.points[i].body,
+                        &path.points[i]
+                            .frame_in_body
+                            .apply_point(&path.points[i].location),
+                    );
+                    let pb = data.point_position(
+                        path.points[i + 1].body,
+                        &path.points[i + 1]
+                            .frame_in_body
+                            .apply_point(&path.points[i + 1].location),
+                    );
                     let c = data.point_position(obj.body, &obj.pose_in_body.pos);
                     let ab = pb - pa;
                     let t = ((c - pa).dot(&ab) / ab.norm_squared().max(1e-300)).clamp(0.0, 1.0);
@@ -249,7 +280,9 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             entries.push(format!("<site site=\"{}\"/>", esc(s)));
             if let Some(w) = wrap_after[i] {
                 let obj = &model.wrap_objects[w];
-                let side = if obj.quadrant.trim().eq_ignore_ascii_case("all") || obj.quadrant.trim().is_empty() {
+                let side = if obj.quadrant.trim().eq_ignore_ascii_case("all")
+                    || obj.quadrant.trim().is_empty()
+                {
                     String::new()
                 } else {
                     format!(" sidesite=\"side:{}\"", esc(&obj.name))
@@ -257,13 +290,23 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
                 entries.push(format!("<geom geom=\"wrap:{}\"{side}/>", esc(&obj.name)));
             }
         }
-        let _ = writeln!(tendons, "<spatial name=\"{}\" width=\"0.003\">\n  {}\n</spatial>", esc(&f.name), entries.join("\n  "));
+        let _ = writeln!(
+            tendons,
+            "<spatial name=\"{}\" width=\"0.003\">\n  {}\n</spatial>",
+            esc(&f.name),
+            entries.join("\n  ")
+        );
         if f.is_muscle() {
             let num = |tag: &str| f.raw.number(tag);
-            let (Some(fmax), Some(l0), Some(lt)) =
-                (num("max_isometric_force"), num("optimal_fiber_length"), num("tendon_slack_length"))
-            else {
-                notes.push(format!("muscle `{}` lacks force or length parameters: no actuator", f.name));
+            let (Some(fmax), Some(l0), Some(lt)) = (
+                num("max_isometric_force"),
+                num("optimal_fiber_length"),
+                num("tendon_slack_length"),
+            ) else {
+                notes.push(format!(
+                    "muscle `{}` lacks force or length parameters: no actuator",
+                    f.name
+                ));
                 continue;
             };
             // MuJoCo's muscle: L0 = (lr₁ − lr₀)/(r₁ − r₀), tendon length lr₀ − r₀ L0; choose
@@ -288,7 +331,9 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
         }
     }
     if pennated > 0 {
-        notes.push(format!("{pennated} muscles have a pennation angle, which MuJoCo's muscle does not model"));
+        notes.push(format!(
+            "{pennated} muscles have a pennation angle, which MuJoCo's muscle does not model"
+        ));
     }
     if model.muscle_count() > 0 {
         notes.push(format!(
@@ -303,16 +348,25 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
 
     // Bodies.
     let _ = writeln!(out, "<mujoco model=\"{}\">", esc(&model.name));
-    let balance = model.warnings.iter().any(|w| w.message.contains("triangle inequality"));
+    let balance = model
+        .warnings
+        .iter()
+        .any(|w| w.message.contains("triangle inequality"));
     if balance {
-        notes.push("some inertias violate the triangle inequality: exported with MuJoCo's balanceinertia".into());
+        notes.push(
+            "some inertias violate the triangle inequality: exported with MuJoCo's balanceinertia"
+                .into(),
+        );
     }
     let _ = writeln!(
         out,
         "<compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"true\" balanceinertia=\"{balance}\">\n  <lengthrange mode=\"none\"/>\n</compiler>"
     );
     let _ = writeln!(out, "<option gravity=\"{}\"/>", v3(&model.gravity));
-    let _ = writeln!(out, "<default><joint armature=\"0\" damping=\"0\"/><geom contype=\"1\" conaffinity=\"1\"/></default>");
+    let _ = writeln!(
+        out,
+        "<default><joint armature=\"0\" damping=\"0\"/><geom contype=\"1\" conaffinity=\"1\"/></default>"
+    );
     let _ = writeln!(out, "<worldbody>\n<light pos=\"0 0 4\" dir=\"0 0 -1\"/>");
     out += &body_extra[0];
     let mut stack: Vec<(usize, bool)> = children[0].iter().rev().map(|&j| (j, false)).collect();
@@ -325,7 +379,13 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
         let b = joint.child_body;
         let body = &model.bodies[b];
         let (x_pb, frames) = joint_frames_at_zero(model, j);
-        let _ = writeln!(out, "<body name=\"{}\" pos=\"{}\" quat=\"{}\">", esc(&body.name), v3(&x_pb.pos), quat(&x_pb.rot));
+        let _ = writeln!(
+            out,
+            "<body name=\"{}\" pos=\"{}\" quat=\"{}\">",
+            esc(&body.name),
+            v3(&x_pb.pos),
+            quat(&x_pb.rot)
+        );
         let mut mass = body.mass;
         let moving = !joint.dof_range.is_empty() || {
             let mut p = joint.parent_body;
@@ -374,7 +434,13 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
                 Some([lo, hi]) => format!("limited=\"true\" range=\"{lo} {hi}\""),
                 None => "limited=\"false\"".to_string(),
             };
-            let _ = writeln!(out, "<joint name=\"{}\" type=\"{kind}\" pos=\"{}\" axis=\"{}\" {limit}/>", esc(&dof.name), v3(&x.pos), v3(&axis));
+            let _ = writeln!(
+                out,
+                "<joint name=\"{}\" type=\"{kind}\" pos=\"{}\" axis=\"{}\" {limit}/>",
+                esc(&dof.name),
+                v3(&x.pos),
+                v3(&axis)
+            );
         }
         out += &body_extra[b];
         stack.push((j, true));
@@ -393,7 +459,11 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             .into_iter()
             .map(|d| data.theta(model)[d].to_string())
             .collect();
-        let _ = writeln!(out, "<keyframe>\n<key name=\"default\" qpos=\"{}\"/>\n</keyframe>", qpos.join(" "));
+        let _ = writeln!(
+            out,
+            "<keyframe>\n<key name=\"default\" qpos=\"{}\"/>\n</keyframe>",
+            qpos.join(" ")
+        );
     }
     if !tendons.is_empty() {
         let _ = writeln!(out, "<tendon>\n{tendons}</tendon>");

@@ -3,4 +3,5 @@
 
 pub mod activation;
 pub mod hill;
+pub mod path;
 pub mod wrap;

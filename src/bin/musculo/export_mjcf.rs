@@ -32,7 +32,10 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     let export = mjcf::to_mjcf(&model);
     // Write next to the target and rename, so an interrupted run never leaves half a file.
     let tmp = args.output.with_extension("xml.partial");
-    let io = |source| musculo::Error::Io { path: args.output.clone(), source };
+    let io = |source| musculo::Error::Io {
+        path: args.output.clone(),
+        source,
+    };
     std::fs::write(&tmp, &export.xml).map_err(io)?;
     std::fs::rename(&tmp, &args.output).map_err(io)?;
     eprintln!(
@@ -44,7 +47,10 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     if export.notes.is_empty() {
         eprintln!("everything in the model is represented exactly");
     } else {
-        eprintln!("{} item(s) MJCF cannot express exactly:", export.notes.len());
+        eprintln!(
+            "{} item(s) MJCF cannot express exactly:",
+            export.notes.len()
+        );
         for n in &export.notes {
             eprintln!("  note: {n}");
         }

@@ -1,0 +1,150 @@
+//! Geometry paths: lengths, lengthening speeds and moment arms against independent
+//! references — sums of segment lengths and central finite differences of ℓ(q).
+
+mod common;
+use common::*;
+use musculo::model::{LoadOptions, PathPointKind};
+use musculo::muscle::path::{PathData, PathSet, compute_paths};
+use musculo::{Data, Model, dynamics};
+use std::path::Path;
+
+const H: f64 = 1e-6;
+
+fn load(path: &Path) -> Model {
+    Model::from_osim_file_with(
+        path,
+        &LoadOptions {
+            allow_nonphysical_inertia: true,
+        },
+    )
+    .unwrap()
+}
+
+/// A state is usable for finite differences when no conditional point's coordinate sits
+/// within 1e-4 of its range bounds (the active set, hence ℓ, jumps there).
+fn away_from_conditional_bounds(model: &Model, data: &Data) -> bool {
+    let c = data.coordinate_values(model);
+    model
+        .forces
+        .iter()
+        .filter_map(|f| f.path.as_ref())
+        .flat_map(|p| &p.points)
+        .all(|p| match p.kind {
+            PathPointKind::Conditional { coordinate, range } => {
+                (c[coordinate] - range[0]).abs() > 1e-4 && (c[coordinate] - range[1]).abs() > 1e-4
+            }
+            _ => true,
+        })
+}
+
+fn lengths(model: &Model, set: &PathSet, d: &mut Data, pd: &mut PathData, q: &[f64]) -> Vec<f64> {
+    dynamics::forward_kinematics(model, d, q).unwrap();
+    compute_paths(model, d, set, pd).unwrap();
+    pd.length.clone()
+}
+
+fn check_model(path: &Path, states: usize, seed: u64) {
+    let model = load(path);
+    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    let set = PathSet::new(&model).unwrap();
+    let n = model.nq();
+    let mut data = Data::new(&model);
+    let mut d2 = Data::new(&model);
+    let mut pd = PathData::new(&model, &set);
+    let mut p2 = PathData::new(&model, &set);
+    let mut rng = Rng::new(seed);
+    let mut worst = 0.0f64;
+    let mut worst_speed = 0.0f64;
+    let mut done = 0;
+    while done < states {
+        let q = random_q(&model, &mut rng);
+        let qd = random_vec(n, 2.0, &mut rng);
+        dynamics::forward_kinematics_velocity(&model, &mut data, &q, &qd).unwrap();
+        if !away_from_conditional_bounds(&model, &data) {
+            continue;
+        }
+        done += 1;
+        compute_paths(&model, &data, &set, &mut pd).unwrap();
+        for j in 0..n {
+            let (mut qp, mut qm) = (q.clone(), q.clone());
+            qp[j] += H;
+            qm[j] -= H;
+            let lp = lengths(&model, &set, &mut d2, &mut p2, &qp);
+            let lm = lengths(&model, &set, &mut d2, &mut p2, &qm);
+            for k in 0..set.len() {
+                let fd = -(lp[k] - lm[k]) / (2.0 * H);
+                let e = (pd.moment_arms[(j, k)] - fd).abs();
+                assert!(
+                    e <= 1e-6,
+                    "{name}: {} about {}: r = {} vs −∂ℓ/∂q by differences {fd}",
+                    set.paths[k].name,
+                    model.q_names()[j],
+                    pd.moment_arms[(j, k)]
+                );
+                worst = worst.max(e);
+            }
+        }
+        // ℓ̇ against differences along q̇.
+        let shift = |s: f64| -> Vec<f64> { q.iter().zip(&qd).map(|(a, b)| a + s * b).collect() };
+        let lp = lengths(&model, &set, &mut d2, &mut p2, &shift(H));
+        let lm = lengths(&model, &set, &mut d2, &mut p2, &shift(-H));
+        for k in 0..set.len() {
+            let fd = (lp[k] - lm[k]) / (2.0 * H);
+            let e = (pd.speed[k] - fd).abs();
+            assert!(
+                e <= 1e-6,
+                "{name}: speed of {}: {} vs {fd}",
+                set.paths[k].name,
+                pd.speed[k]
+            );
+            worst_speed = worst_speed.max(e);
+        }
+    }
+    eprintln!(
+        "{name}: {} paths, {states} states: worst |r − (−∂ℓ/∂q by differences)| = {worst:.1e}, worst ℓ̇ gap {worst_speed:.1e}",
+        set.len()
+    );
+}
+
+#[test]
+fn moment_arms_equal_finite_differences_of_length_on_every_reference_model() {
+    for (i, p) in reference_models().iter().enumerate() {
+        check_model(p, 10, 300 + i as u64);
+    }
+}
+
+#[test]
+fn via_point_path_length_is_the_sum_of_its_segments() {
+    let Some(p) =
+        reference_file("opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim")
+    else {
+        return;
+    };
+    let model = load(&p);
+    let set = PathSet::new(&model).unwrap();
+    let mut data = Data::new(&model);
+    let mut pd = PathData::new(&model, &set);
+    let mut rng = Rng::new(5);
+    for _ in 0..20 {
+        let q = random_q(&model, &mut rng);
+        dynamics::forward_kinematics(&model, &mut data, &q).unwrap();
+        compute_paths(&model, &data, &set, &mut pd).unwrap();
+        for (k, path) in set.paths.iter().enumerate() {
+            let gp = model.forces[path.force].path.as_ref().unwrap();
+            if gp
+                .points
+                .iter()
+                .any(|p| !matches!(p.kind, PathPointKind::Fixed))
+            {
+                continue;
+            }
+            let pts: Vec<_> = gp
+                .points
+                .iter()
+                .map(|p| data.point_position(p.body, &p.frame_in_body.apply_point(&p.location)))
+                .collect();
+            let sum: f64 = pts.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+            assert!((pd.length[k] - sum).abs() < 1e-14, "{}", path.name);
+        }
+    }
+}
