@@ -1,0 +1,391 @@
+//! Reading: the header dialects, the label row and the data rows, with the checks of the
+//! module documentation.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use super::{
+    Dialect, HeaderLine, ReadOptions, RepeatedTime, Table, classify_header_line,
+    looks_like_data_row,
+};
+use crate::{Error, Result};
+
+fn line_u32(index: usize) -> u32 {
+    u32::try_from(index + 1).unwrap_or(u32::MAX)
+}
+
+fn content_error(source: &str, line: u32, element: String, message: String) -> Error {
+    Error::Model {
+        file: source.to_string(),
+        line,
+        element,
+        message,
+    }
+}
+
+/// A count declared in the header, with the line that declared it.
+struct Declared {
+    key: String,
+    value: usize,
+    line: u32,
+}
+
+impl Table {
+    /// Reads a `.sto` or `.mot` file.
+    pub fn read(path: &Path) -> Result<Table> {
+        Table::read_with(path, &ReadOptions::default())
+    }
+
+    /// Reads a `.sto` or `.mot` file with options.
+    pub fn read_with(path: &Path, options: &ReadOptions) -> Result<Table> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Table::parse_with(&text, &path.display().to_string(), options)
+    }
+
+    /// Parses the text of a storage file; `source` names it in error messages.
+    pub fn parse(text: &str, source: &str) -> Result<Table> {
+        Table::parse_with(text, source, &ReadOptions::default())
+    }
+
+    /// Parses the text of a storage file with options.
+    pub fn parse_with(text: &str, source: &str, options: &ReadOptions) -> Result<Table> {
+        let mut lines = text.lines().enumerate();
+        let mut table = Table {
+            name: String::new(),
+            dialect: Dialect::Unversioned,
+            in_degrees: None,
+            metadata: Vec::new(),
+            description: Vec::new(),
+            labels: Vec::new(),
+            time: Vec::new(),
+            values: Vec::new(),
+            dropped_repeated_rows: Vec::new(),
+        };
+        let header_err = |line: u32, key: &str, message: String| {
+            content_error(source, line, format!("header \"{key}\""), message)
+        };
+
+        // Header, up to `endheader`.
+        let mut first = true;
+        let mut end_line = None;
+        let mut has_version = false;
+        let mut has_opensim_version = false;
+        let mut declared_rows: Option<Declared> = None;
+        let mut declared_columns: Option<Declared> = None;
+        let mut last_line = 0;
+        // A header line that looks like the column labels, for the missing-`endheader` error.
+        let mut labels_like_line = None;
+        for (index, raw) in lines.by_ref() {
+            let line = line_u32(index);
+            last_line = line;
+            let class = classify_header_line(raw, first);
+            if class != HeaderLine::Blank {
+                first = false;
+            }
+            match class {
+                HeaderLine::Blank => {}
+                HeaderLine::End => {
+                    end_line = Some(line);
+                    break;
+                }
+                HeaderLine::Name(text) | HeaderLine::Description(text)
+                    if looks_like_data_row(text) =>
+                {
+                    return Err(content_error(
+                        source,
+                        line,
+                        "header".into(),
+                        match labels_like_line {
+                            Some(l) => format!(
+                                "a row of numbers before the `endheader` line (line {l} looks \
+                                 like the column labels; the header must end with `endheader` \
+                                 before them)"
+                            ),
+                            None => "a row of numbers before the `endheader` line".into(),
+                        },
+                    ));
+                }
+                HeaderLine::Name(name) => table.name = name.to_string(),
+                HeaderLine::Description(text) => {
+                    if labels_like_line.is_none() && text.split_whitespace().next() == Some("time")
+                    {
+                        labels_like_line = Some(line);
+                    }
+                    table.description.push(text.to_string())
+                }
+                HeaderLine::KeyValue(key, value) => match key {
+                    "name" => table.name = value.to_string(),
+                    "version" => {
+                        value.parse::<i64>().map_err(|_| {
+                            header_err(line, key, format!("`{value}` is not an integer"))
+                        })?;
+                        has_version = true;
+                    }
+                    "OpenSimVersion" => has_opensim_version = true,
+                    "DataType" if value != "double" => {
+                        return Err(header_err(
+                            line,
+                            key,
+                            format!("only DataType=double is supported, not `{value}`"),
+                        ));
+                    }
+                    "DataType" => {}
+                    "range" => {
+                        let numbers: Vec<Option<f64>> = value
+                            .split_whitespace()
+                            .map(|v| v.parse::<f64>().ok().filter(|x| x.is_finite()))
+                            .collect();
+                        if numbers.len() != 2 || numbers.contains(&None) {
+                            return Err(header_err(
+                                line,
+                                key,
+                                format!(
+                                    "expected two numbers (first and last time), found `{value}`"
+                                ),
+                            ));
+                        }
+                    }
+                    "inDegrees" => {
+                        table.in_degrees = match value.to_ascii_lowercase().as_str() {
+                            "yes" | "y" => Some(true),
+                            "no" | "n" => Some(false),
+                            _ => {
+                                return Err(header_err(
+                                    line,
+                                    key,
+                                    format!("expected `yes` or `no`, found `{value}`"),
+                                ));
+                            }
+                        }
+                    }
+                    "nRows" | "nr" | "datarows" | "nColumns" | "nc" | "datacolumns" => {
+                        let count: usize = value.parse().map_err(|_| {
+                            header_err(line, key, format!("`{value}` is not a count"))
+                        })?;
+                        let slot = if matches!(key, "nRows" | "nr" | "datarows") {
+                            &mut declared_rows
+                        } else {
+                            &mut declared_columns
+                        };
+                        if let Some(previous) = slot
+                            && previous.value != count
+                        {
+                            return Err(header_err(
+                                line,
+                                key,
+                                format!(
+                                    "declares {count}, but `{}` on line {} declares {}",
+                                    previous.key, previous.line, previous.value
+                                ),
+                            ));
+                        }
+                        *slot = Some(Declared {
+                            key: key.to_string(),
+                            value: count,
+                            line,
+                        });
+                    }
+                    "endheader" => {
+                        return Err(header_err(
+                            line,
+                            key,
+                            "`endheader` with a value: the header's end is ambiguous".into(),
+                        ));
+                    }
+                    _ => table.metadata.push((key.to_string(), value.to_string())),
+                },
+            }
+        }
+        let Some(end_line) = end_line else {
+            return Err(content_error(
+                source,
+                last_line.max(1),
+                "header".into(),
+                match (last_line, labels_like_line) {
+                    (0, _) => "the file is empty".into(),
+                    (_, Some(l)) => format!(
+                        "no `endheader` line (line {l} looks like the column labels; the \
+                         header must end with `endheader` before them)"
+                    ),
+                    _ => "no `endheader` line".into(),
+                },
+            ));
+        };
+        table.dialect = match (has_opensim_version, has_version) {
+            (true, _) => Dialect::OpenSim4,
+            (false, true) => Dialect::Version1,
+            (false, false) => Dialect::Unversioned,
+        };
+
+        // Column labels.
+        let Some((label_index, label_row)) = lines.by_ref().find(|(_, l)| !l.trim().is_empty())
+        else {
+            return Err(content_error(
+                source,
+                end_line,
+                "table".into(),
+                "no column labels after `endheader`".into(),
+            ));
+        };
+        let label_line = line_u32(label_index);
+        let mut labels: Vec<&str> = if label_row.contains('\t') {
+            label_row
+                .split('\t')
+                .map(str::trim)
+                .filter(|l| !l.is_empty())
+                .collect()
+        } else {
+            label_row.split_whitespace().collect()
+        };
+        if labels[0] != "time" {
+            return Err(content_error(
+                source,
+                label_line,
+                format!("column \"{}\"", labels[0]),
+                "the first column must be `time`".into(),
+            ));
+        }
+        labels.remove(0);
+        let mut seen: HashMap<&str, usize> = HashMap::with_capacity(labels.len() + 1);
+        seen.insert("time", 0);
+        for (c, &label) in labels.iter().enumerate() {
+            if let Some(previous) = seen.insert(label, c + 1) {
+                return Err(content_error(
+                    source,
+                    label_line,
+                    format!("column \"{label}\""),
+                    format!(
+                        "duplicate column label (columns {} and {}, time being column 1)",
+                        previous + 1,
+                        c + 2
+                    ),
+                ));
+            }
+        }
+        if let Some(d) = &declared_columns
+            && d.value != labels.len() + 1
+        {
+            return Err(header_err(
+                d.line,
+                &d.key,
+                format!(
+                    "declares {} columns, but the label row (line {label_line}) has {} \
+                     (time included)",
+                    d.value,
+                    labels.len() + 1
+                ),
+            ));
+        }
+        table.labels = labels.into_iter().map(String::from).collect();
+
+        // Data rows.
+        let width = table.labels.len();
+        let column_name = |c: usize| -> String {
+            match c {
+                0 => "column \"time\"".to_string(),
+                c if c <= width => format!("column \"{}\"", table.labels[c - 1]),
+                c => format!("column {} (beyond the last label)", c + 1),
+            }
+        };
+        let mut previous_time_line = 0;
+        let mut rows_in_file = 0;
+        for (index, raw) in lines {
+            let raw = raw.trim();
+            if raw.is_empty() {
+                continue;
+            }
+            let line = line_u32(index);
+            let row = table.time.len();
+            rows_in_file += 1;
+            let mut count = 0;
+            for (c, token) in raw.split_whitespace().enumerate() {
+                count += 1;
+                if c > width {
+                    continue;
+                }
+                let value = token
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        content_error(
+                            source,
+                            line,
+                            column_name(c),
+                            format!("row {row}: `{token}` is not a finite number"),
+                        )
+                    })?;
+                if c == 0 {
+                    table.time.push(value);
+                } else {
+                    table.values.push(value);
+                }
+            }
+            if count != width + 1 {
+                let c = count.min(width + 1);
+                return Err(content_error(
+                    source,
+                    line,
+                    column_name(c),
+                    format!(
+                        "row {row} has {count} values, expected {} (time and {width} labels)",
+                        width + 1
+                    ),
+                ));
+            }
+            if row > 0 {
+                let (t_prev, t) = (table.time[row - 1], table.time[row]);
+                if t == t_prev && options.repeated_time != RepeatedTime::Error {
+                    table.time.pop();
+                    if options.repeated_time == RepeatedTime::KeepFirst {
+                        table.values.truncate(row * width);
+                        table.dropped_repeated_rows.push(line);
+                    } else {
+                        table.values.drain((row - 1) * width..row * width);
+                        table.dropped_repeated_rows.push(previous_time_line);
+                        previous_time_line = line;
+                    }
+                    continue;
+                }
+                if t <= t_prev {
+                    let what = if t == t_prev {
+                        "repeats"
+                    } else {
+                        "is earlier than"
+                    };
+                    return Err(content_error(
+                        source,
+                        line,
+                        column_name(0),
+                        format!(
+                            "row {row}: time {t} {what} the previous row's {t_prev} \
+                             (line {previous_time_line}); time must increase strictly"
+                        ),
+                    ));
+                }
+            }
+            previous_time_line = line;
+        }
+        if table.time.is_empty() {
+            return Err(content_error(
+                source,
+                label_line,
+                "table".into(),
+                "no data rows after the column labels".into(),
+            ));
+        }
+        if let Some(d) = &declared_rows
+            && d.value != rows_in_file
+        {
+            return Err(header_err(
+                d.line,
+                &d.key,
+                format!("declares {} rows, but the file has {rows_in_file}", d.value),
+            ));
+        }
+        Ok(table)
+    }
+}

@@ -1,1 +1,0 @@
-//! First-order activation dynamics, forward and inverse. (In progress.)
