@@ -23,6 +23,7 @@ pub mod model;
 pub mod mujoco;
 pub mod muscle;
 pub mod reference;
+pub mod solve;
 pub mod spatial;
 
 pub use dynamics::Data;

@@ -23,6 +23,7 @@
 mod center_of_mass;
 mod crba;
 mod energy;
+mod external_forces;
 mod forward_kinematics;
 mod gravity;
 mod jacobian;
@@ -32,6 +33,7 @@ mod rnea;
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian};
 pub use crba::{crba, crba_full};
 pub use energy::{Momentum, kinetic_energy, momentum, potential_energy};
+pub use external_forces::add_body_wrench;
 pub use forward_kinematics::{
     forward_kinematics, forward_kinematics_acceleration, forward_kinematics_full,
     forward_kinematics_velocity,

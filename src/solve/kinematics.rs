@@ -1,0 +1,134 @@
+//! Kinematics preparation: independent coordinates q(t) from a motion table (.mot/.sto),
+//! and their smooth derivatives q̇(t), q̈(t), as OpenSim's tools compute them.
+//!
+//! Columns are matched to coordinates by name (`knee_angle_r`, or an OpenSim 4 state path
+//! such as `/jointset/knee_r/knee_angle_r/value`); with `inDegrees=yes`, rotational
+//! coordinates are converted to radians (OpenSim converts only coordinates whose motion type
+//! is rotational). Dependent and locked coordinates are not read: the reduction computes them.
+//!
+//! Differentiation uses the interpolating natural quintic spline through each column
+//! (OpenSim's `GCVSplineSet(5, …)` with zero error variance), which is smooth (C⁴) and exact
+//! for polynomials of degree ≤ 2 outside the data; two variants match OpenSim's tools:
+//! - [`Differentiation::SecondDerivative`] (Inverse Dynamics tool): q̇ = S'(t), q̈ = S''(t);
+//! - [`Differentiation::SplineOfSpeeds`] (Analyze tool, Static Optimization): q̇ = S'(t), and
+//!   q̈ is the derivative of a second quintic spline through the speeds S'(t_i) sampled at
+//!   the data times.
+
+use crate::error::Error;
+use crate::io::Table;
+use crate::model::natural_spline::NaturalSpline;
+use crate::model::{Model, MotionType};
+
+/// How q̈ is obtained from the spline of q.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Differentiation {
+    #[default]
+    SecondDerivative,
+    SplineOfSpeeds,
+}
+
+/// q(t), q̇(t), q̈(t) for every independent coordinate.
+#[derive(Clone, Debug)]
+pub struct CoordinateTrajectory {
+    /// The data times.
+    pub time: Vec<f64>,
+    q: Vec<NaturalSpline>,
+    /// Splines of the speeds, for `SplineOfSpeeds`.
+    qd: Option<Vec<NaturalSpline>>,
+}
+
+impl CoordinateTrajectory {
+    /// Fits the trajectory of every independent coordinate of `model` in `table`.
+    pub fn from_table(
+        model: &Model,
+        table: &Table,
+        mode: Differentiation,
+    ) -> crate::Result<CoordinateTrajectory> {
+        let file = table.name.clone();
+        let degrees = table.in_degrees.unwrap_or(false);
+        let mut q = Vec::with_capacity(model.nq());
+        let mut columns = Vec::with_capacity(model.nq());
+        for &c in &model.reduction.independent {
+            let coord = &model.coordinates[c];
+            let found = table
+                .labels
+                .iter()
+                .position(|l| column_names_coordinate(l, &coord.name));
+            let col = found.ok_or_else(|| Error::Model {
+                file: file.clone(),
+                line: 0,
+                element: format!("column \"{}\"", coord.name),
+                message: format!(
+                    "no column for the model's independent coordinate `{}` (labels: {})",
+                    coord.name,
+                    table.labels.join(", ")
+                ),
+            })?;
+            let scale = if degrees && coord.motion_type == MotionType::Rotational {
+                std::f64::consts::PI / 180.0
+            } else {
+                1.0
+            };
+            let values: Vec<f64> = (0..table.n_rows())
+                .map(|r| table.value(r, col).unwrap_or(f64::NAN) * scale)
+                .collect();
+            columns.push(values);
+        }
+        for (values, &c) in columns.into_iter().zip(&model.reduction.independent) {
+            let spline =
+                NaturalSpline::interpolating(3, table.time.clone(), values).map_err(|m| {
+                    Error::Model {
+                        file: file.clone(),
+                        line: 0,
+                        element: format!("column \"{}\"", model.coordinates[c].name),
+                        message: m,
+                    }
+                })?;
+            q.push(spline);
+        }
+        let qd = match mode {
+            Differentiation::SecondDerivative => None,
+            Differentiation::SplineOfSpeeds => Some(
+                q.iter()
+                    .map(|s| {
+                        let speeds: Vec<f64> = table.time.iter().map(|&t| s.eval(t).1).collect();
+                        NaturalSpline::interpolating(3, table.time.clone(), speeds)
+                    })
+                    .collect::<Result<Vec<_>, String>>()
+                    .map_err(|m| Error::Model {
+                        file: file.clone(),
+                        line: 0,
+                        element: "table".into(),
+                        message: m,
+                    })?,
+            ),
+        };
+        Ok(CoordinateTrajectory {
+            time: table.time.clone(),
+            q,
+            qd,
+        })
+    }
+
+    /// q, q̇, q̈ at time t (outside the data the splines extrapolate as OpenSim's do).
+    pub fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        for (j, s) in self.q.iter().enumerate() {
+            let (v, d1, d2) = s.eval(t);
+            q[j] = v;
+            qd[j] = d1;
+            qdd[j] = match &self.qd {
+                Some(u) => u[j].eval(t).1,
+                None => d2,
+            };
+        }
+    }
+}
+
+/// True when a column label names the coordinate: its name, or a state path ending in
+/// `/<name>/value`.
+fn column_names_coordinate(label: &str, name: &str) -> bool {
+    label == name
+        || label
+            .strip_suffix("/value")
+            .is_some_and(|p| p.rsplit('/').next() == Some(name))
+}
