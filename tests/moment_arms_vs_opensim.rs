@@ -73,9 +73,13 @@ fn muscle_moments_balance_inverse_dynamics_with_opensim_so_forces_gait2392() {
     .unwrap();
     let kinematics = Table::read(&kin_file).unwrap();
     let forces = Table::read(&force_file).unwrap();
-    let traj =
-        CoordinateTrajectory::from_table(&model, &kinematics, Differentiation::SplineOfSpeeds)
-            .unwrap();
+    let traj = CoordinateTrajectory::from_table(
+        &model,
+        &kinematics,
+        &kin_file.display().to_string(),
+        Differentiation::SplineOfSpeeds,
+    )
+    .unwrap();
     let set = PathSet::new(&model).unwrap();
     let n = model.nq();
     let mut data = Data::new(&model);

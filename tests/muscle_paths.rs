@@ -148,3 +148,26 @@ fn via_point_path_length_is_the_sum_of_its_segments() {
         }
     }
 }
+
+#[test]
+fn parallel_paths_equal_serial_paths() {
+    use musculo::muscle::path::compute_paths_parallel;
+    let Some(p) = reference_file("opensim-models/Models/Rajagopal/Rajagopal2016.osim") else {
+        return;
+    };
+    let model = load(&p);
+    let set = PathSet::new(&model).unwrap();
+    let mut data = Data::new(&model);
+    let (mut a, mut b) = (PathData::new(&model, &set), PathData::new(&model, &set));
+    let mut rng = Rng::new(9);
+    for _ in 0..10 {
+        let q = random_q(&model, &mut rng);
+        let qd = random_vec(model.nq(), 1.0, &mut rng);
+        dynamics::forward_kinematics_velocity(&model, &mut data, &q, &qd).unwrap();
+        compute_paths(&model, &data, &set, &mut a).unwrap();
+        compute_paths_parallel(&model, &data, &set, &mut b).unwrap();
+        assert_eq!(a.length, b.length);
+        assert_eq!(a.speed, b.speed);
+        assert_eq!(a.moment_arms, b.moment_arms);
+    }
+}

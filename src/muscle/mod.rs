@@ -4,4 +4,7 @@
 pub mod activation;
 pub mod hill;
 pub mod path;
+mod set;
 pub mod wrap;
+
+pub use set::{MuscleData, MuscleSet, compute_muscles};

@@ -80,10 +80,25 @@ pub struct PathSet {
 impl PathSet {
     /// Builds the path definitions of every force element that has a geometry path.
     pub fn new(model: &Model) -> crate::Result<PathSet> {
+        Self::with_filter(model, |_| true)
+    }
+
+    /// The paths of the muscles only, in `Model::forces` order.
+    pub fn muscles(model: &Model) -> crate::Result<PathSet> {
+        Self::with_filter(model, |f| f.is_muscle())
+    }
+
+    fn with_filter(
+        model: &Model,
+        keep: impl Fn(&crate::model::ForceElement) -> bool,
+    ) -> crate::Result<PathSet> {
         let mut paths = Vec::new();
         let mut max_nodes = 0;
         for (fi, f) in model.forces.iter().enumerate() {
             let Some(gp) = &f.path else { continue };
+            if !keep(f) {
+                continue;
+            }
             let mut points = Vec::with_capacity(gp.points.len());
             for p in &gp.points {
                 let kind = match &p.kind {
@@ -176,6 +191,24 @@ struct Node {
     surface: f64,
 }
 
+/// Per-worker scratch: the nodes of the current path and the forces it puts on bodies.
+#[derive(Clone, Debug)]
+struct Scratch {
+    nodes: Vec<Node>,
+    body_force: Vec<Force>,
+    touched: Vec<usize>,
+}
+
+impl Scratch {
+    fn new(model: &Model, set: &PathSet) -> Scratch {
+        Scratch {
+            nodes: Vec::with_capacity(set.max_nodes.max(2)),
+            body_force: vec![Force::ZERO; model.bodies.len()],
+            touched: Vec::with_capacity(model.bodies.len()),
+        }
+    }
+}
+
 /// Workspace for computing the paths of one model; one per thread.
 #[derive(Clone, Debug)]
 pub struct PathData {
@@ -186,9 +219,9 @@ pub struct PathData {
     /// Moment arms r (n × paths): r[(j, k)] = −∂ℓ_k/∂q_j, so a tension F_k ≥ 0 produces the
     /// generalized force r_jk F_k.
     pub moment_arms: DMatrix<f64>,
-    nodes: Vec<Node>,
-    body_force: Vec<Force>,
-    touched: Vec<usize>,
+    /// One scratch per rayon worker for [`compute_paths_parallel`]; the first serves
+    /// [`compute_paths`].
+    scratch: Vec<Scratch>,
 }
 
 impl PathData {
@@ -197,33 +230,88 @@ impl PathData {
             length: vec![0.0; set.len()],
             speed: vec![0.0; set.len()],
             moment_arms: DMatrix::zeros(model.nq(), set.len()),
-            nodes: Vec::with_capacity(set.max_nodes.max(2)),
-            body_force: vec![Force::ZERO; model.bodies.len()],
-            touched: Vec::with_capacity(model.bodies.len()),
+            scratch: (0..rayon::current_num_threads().max(1))
+                .map(|_| Scratch::new(model, set))
+                .collect(),
         }
     }
 }
 
 /// Lengths and moment arms of every path at the state of `data` (position stage at least);
-/// with the velocity stage also the lengthening speeds ℓ̇ = −rᵀq̇.
+/// with the velocity stage also the lengthening speeds ℓ̇ = −rᵀq̇. Allocates nothing.
 pub fn compute_paths(
     model: &Model,
     data: &Data,
     set: &PathSet,
     out: &mut PathData,
 ) -> crate::Result<()> {
+    check(model, data, set, out)?;
+    let n = model.nq().max(1);
+    let PathData {
+        length,
+        speed,
+        moment_arms,
+        scratch,
+    } = out;
+    let columns = moment_arms.as_mut_slice().chunks_mut(n);
+    for (k, ((r, l), v)) in columns
+        .zip(length.iter_mut())
+        .zip(speed.iter_mut())
+        .enumerate()
+    {
+        (*l, *v) = compute_path(model, data, &set.paths[k], &mut scratch[0], r);
+    }
+    Ok(())
+}
+
+/// [`compute_paths`] with the paths split over rayon's worker threads (each path is
+/// independent of the others).
+pub fn compute_paths_parallel(
+    model: &Model,
+    data: &Data,
+    set: &PathSet,
+    out: &mut PathData,
+) -> crate::Result<()> {
+    use rayon::prelude::*;
+    check(model, data, set, out)?;
+    if set.is_empty() {
+        return Ok(());
+    }
+    let n = model.nq().max(1);
+    let per = set.len().div_ceil(out.scratch.len()).max(1);
+    let PathData {
+        length,
+        speed,
+        moment_arms,
+        scratch,
+    } = out;
+    moment_arms
+        .as_mut_slice()
+        .par_chunks_mut(n * per)
+        .zip(length.par_chunks_mut(per))
+        .zip(speed.par_chunks_mut(per))
+        .zip(scratch.par_iter_mut())
+        .enumerate()
+        .for_each(|(w, (((r, l), v), sc))| {
+            for (i, ((ri, li), vi)) in r
+                .chunks_mut(n)
+                .zip(l.iter_mut())
+                .zip(v.iter_mut())
+                .enumerate()
+            {
+                (*li, *vi) = compute_path(model, data, &set.paths[w * per + i], sc, ri);
+            }
+        });
+    Ok(())
+}
+
+fn check(model: &Model, data: &Data, set: &PathSet, out: &PathData) -> crate::Result<()> {
     data.require(model, Stage::Position, "compute_paths")?;
     if out.moment_arms.shape() != (model.nq(), set.len()) {
         return Err(Error::invalid(
             "out",
             "PathData was built for another model or path set",
         ));
-    }
-    let with_speed = data.stage() >= Stage::Velocity;
-    for k in 0..set.len() {
-        let (len, speed) = compute_path(model, data, &set.paths[k], out, k, with_speed);
-        out.length[k] = len;
-        out.speed[k] = speed;
     }
     Ok(())
 }
@@ -248,15 +336,15 @@ fn point_location(model: &Model, data: &Data, p: &PointDef) -> (Vec3, bool) {
     }
 }
 
+/// ℓ and ℓ̇ of one path, and its moment arms into `r` (length n).
 fn compute_path(
     model: &Model,
     data: &Data,
     path: &PathGeometry,
-    out: &mut PathData,
-    k: usize,
-    with_speed: bool,
+    scratch: &mut Scratch,
+    r: &mut [f64],
 ) -> (f64, f64) {
-    let nodes = &mut out.nodes;
+    let nodes = &mut scratch.nodes;
     nodes.clear();
     for (i, p) in path.points.iter().enumerate() {
         let (local, active) = point_location(model, data, p);
@@ -278,13 +366,13 @@ fn compute_path(
         data,
         path,
         nodes,
-        &mut out.body_force,
-        &mut out.touched,
-        out.moment_arms.column_mut(k),
+        &mut scratch.body_force,
+        &mut scratch.touched,
+        r,
     );
-    let speed = if with_speed {
+    let speed = if data.stage() >= Stage::Velocity {
         -(0..model.nq())
-            .map(|j| out.moment_arms[(j, k)] * data.independent_speed(model, j))
+            .map(|j| r[j] * data.independent_speed(model, j))
             .sum::<f64>()
     } else {
         0.0
@@ -313,7 +401,7 @@ fn moment_arms(
     nodes: &[Node],
     body_force: &mut [Force],
     touched: &mut Vec<usize>,
-    mut r: nalgebra::DVectorViewMut<f64>,
+    r: &mut [f64],
 ) {
     r.fill(0.0);
     let o = data.reference_point();

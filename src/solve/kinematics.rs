@@ -38,42 +38,17 @@ pub struct CoordinateTrajectory {
 }
 
 impl CoordinateTrajectory {
-    /// Fits the trajectory of every independent coordinate of `model` in `table`.
+    /// Fits the trajectory of every independent coordinate of `model` in `table` (read from
+    /// `source`, named in errors).
     pub fn from_table(
         model: &Model,
         table: &Table,
+        source: &str,
         mode: Differentiation,
     ) -> crate::Result<CoordinateTrajectory> {
-        let file = table.name.clone();
-        let degrees = table.in_degrees.unwrap_or(false);
+        let file = source.to_string();
+        let columns = independent_columns(model, table, source)?;
         let mut q = Vec::with_capacity(model.nq());
-        let mut columns = Vec::with_capacity(model.nq());
-        for &c in &model.reduction.independent {
-            let coord = &model.coordinates[c];
-            let found = table
-                .labels
-                .iter()
-                .position(|l| column_names_coordinate(l, &coord.name));
-            let col = found.ok_or_else(|| Error::Model {
-                file: file.clone(),
-                line: 0,
-                element: format!("column \"{}\"", coord.name),
-                message: format!(
-                    "no column for the model's independent coordinate `{}` (labels: {})",
-                    coord.name,
-                    table.labels.join(", ")
-                ),
-            })?;
-            let scale = if degrees && coord.motion_type == MotionType::Rotational {
-                std::f64::consts::PI / 180.0
-            } else {
-                1.0
-            };
-            let values: Vec<f64> = (0..table.n_rows())
-                .map(|r| table.value(r, col).unwrap_or(f64::NAN) * scale)
-                .collect();
-            columns.push(values);
-        }
         for (values, &c) in columns.into_iter().zip(&model.reduction.independent) {
             let spline =
                 NaturalSpline::interpolating(3, table.time.clone(), values).map_err(|m| {
@@ -122,6 +97,45 @@ impl CoordinateTrajectory {
             };
         }
     }
+}
+
+/// The values of every independent coordinate of `model` in `table`, one column per
+/// coordinate in q order, in radians (rotational coordinates are converted when the table
+/// says `inDegrees=yes`). A missing column is an error naming it.
+pub fn independent_columns(
+    model: &Model,
+    table: &Table,
+    source: &str,
+) -> crate::Result<Vec<Vec<f64>>> {
+    let degrees = table.in_degrees.unwrap_or(false);
+    let mut columns = Vec::with_capacity(model.nq());
+    for &c in &model.reduction.independent {
+        let coord = &model.coordinates[c];
+        let col = table
+            .labels
+            .iter()
+            .position(|l| column_names_coordinate(l, &coord.name))
+            .ok_or_else(|| Error::Model {
+                file: source.to_string(),
+                line: 0,
+                element: format!("column \"{}\"", coord.name),
+                message: format!(
+                    "no column for the model's independent coordinate `{}`",
+                    coord.name
+                ),
+            })?;
+        let scale = if degrees && coord.motion_type == MotionType::Rotational {
+            std::f64::consts::PI / 180.0
+        } else {
+            1.0
+        };
+        columns.push(
+            (0..table.n_rows())
+                .map(|r| table.value(r, col).unwrap_or(f64::NAN) * scale)
+                .collect(),
+        );
+    }
+    Ok(columns)
 }
 
 /// True when a column label names the coordinate: its name, or a state path ending in

@@ -2,6 +2,7 @@
 
 mod export_mjcf;
 mod inspect;
+mod muscles;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -25,6 +26,9 @@ enum Command {
     /// Write the model as MuJoCo MJCF: one hinge or slide per movable transform axis, so
     /// MuJoCo's coordinates are musculo's full coordinates.
     ExportMjcf(export_mjcf::Args),
+    /// Musculotendon lengths, moment arms and maximum isometric moments along a motion, as
+    /// OpenSim-style .sto files.
+    Muscles(muscles::Args),
 }
 
 fn main() -> ExitCode {
@@ -32,6 +36,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Inspect(args) => inspect::run(&args),
         Command::ExportMjcf(args) => export_mjcf::run(&args),
+        Command::Muscles(args) => muscles::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
