@@ -16,7 +16,7 @@ use common::*;
 use musculo::io::Table;
 use musculo::model::LoadOptions;
 use musculo::muscle::path::{PathData, PathSet, compute_paths};
-use musculo::solve::kinematics::{CoordinateTrajectory, Differentiation};
+use musculo::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
 use musculo::spatial::Vec3;
 use musculo::{Data, Model, dynamics};
 
@@ -77,7 +77,7 @@ fn muscle_moments_balance_inverse_dynamics_with_opensim_so_forces_gait2392() {
         &model,
         &kinematics,
         &kin_file.display().to_string(),
-        Differentiation::SplineOfSpeeds,
+        &KinematicsOptions { lowpass_hz: None, differentiation: Differentiation::SplineOfSpeeds },
     )
     .unwrap();
     let set = PathSet::new(&model).unwrap();

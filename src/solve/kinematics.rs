@@ -14,6 +14,7 @@
 //!   q̈ is the derivative of a second quintic spline through the speeds S'(t_i) sampled at
 //!   the data times.
 
+use super::filter::{lowpass_butterworth3, pad_odd};
 use crate::error::Error;
 use crate::io::Table;
 use crate::model::natural_spline::NaturalSpline;
@@ -25,6 +26,14 @@ pub enum Differentiation {
     #[default]
     SecondDerivative,
     SplineOfSpeeds,
+}
+
+/// How coordinates are prepared.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct KinematicsOptions {
+    /// Low-pass cutoff (Hz); None: no filtering (OpenSim's −1).
+    pub lowpass_hz: Option<f64>,
+    pub differentiation: Differentiation,
 }
 
 /// q(t), q̇(t), q̈(t) for every independent coordinate.
@@ -39,43 +48,65 @@ pub struct CoordinateTrajectory {
 
 impl CoordinateTrajectory {
     /// Fits the trajectory of every independent coordinate of `model` in `table` (read from
-    /// `source`, named in errors).
+    /// `source`, named in errors), low-pass filtered first when `options.lowpass_hz` is set
+    /// (OpenSim's padding by half the record at each end and zero-lag third-order
+    /// Butterworth; the splines then span the padded record, as in OpenSim).
     pub fn from_table(
         model: &Model,
         table: &Table,
         source: &str,
-        mode: Differentiation,
+        options: &KinematicsOptions,
     ) -> crate::Result<CoordinateTrajectory> {
         let file = source.to_string();
-        let columns = independent_columns(model, table, source)?;
+        let err = |element: String, message: String| Error::Model {
+            file: file.clone(),
+            line: 0,
+            element,
+            message,
+        };
+        let mut columns = independent_columns(model, table, source)?;
+        let mut time = table.time.clone();
+        if let Some(fc) = options.lowpass_hz {
+            let n = time.len();
+            if n < 4 {
+                return Err(err(
+                    "table".into(),
+                    format!("{n} rows are too few to filter (4 or more needed)"),
+                ));
+            }
+            let dt = (time[n - 1] - time[0]) / (n - 1) as f64;
+            let uniform = time
+                .windows(2)
+                .all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-6 * dt);
+            if !uniform {
+                return Err(err(
+                    "column \"time\"".into(),
+                    "filtering needs uniformly sampled rows; resample the motion first".into(),
+                ));
+            }
+            let pad = n / 2;
+            time = pad_odd(&time, pad);
+            for (col, &c) in columns.iter_mut().zip(&model.reduction.independent) {
+                *col = lowpass_butterworth3(&pad_odd(col, pad), dt, fc)
+                    .map_err(|m| err(format!("column \"{}\"", model.coordinates[c].name), m))?;
+            }
+        }
         let mut q = Vec::with_capacity(model.nq());
         for (values, &c) in columns.into_iter().zip(&model.reduction.independent) {
-            let spline =
-                NaturalSpline::interpolating(3, table.time.clone(), values).map_err(|m| {
-                    Error::Model {
-                        file: file.clone(),
-                        line: 0,
-                        element: format!("column \"{}\"", model.coordinates[c].name),
-                        message: m,
-                    }
-                })?;
+            let spline = NaturalSpline::interpolating(3, time.clone(), values)
+                .map_err(|m| err(format!("column \"{}\"", model.coordinates[c].name), m))?;
             q.push(spline);
         }
-        let qd = match mode {
+        let qd = match options.differentiation {
             Differentiation::SecondDerivative => None,
             Differentiation::SplineOfSpeeds => Some(
                 q.iter()
                     .map(|s| {
-                        let speeds: Vec<f64> = table.time.iter().map(|&t| s.eval(t).1).collect();
-                        NaturalSpline::interpolating(3, table.time.clone(), speeds)
+                        let speeds: Vec<f64> = time.iter().map(|&t| s.eval(t).1).collect();
+                        NaturalSpline::interpolating(3, time.clone(), speeds)
                     })
                     .collect::<Result<Vec<_>, String>>()
-                    .map_err(|m| Error::Model {
-                        file: file.clone(),
-                        line: 0,
-                        element: "table".into(),
-                        message: m,
-                    })?,
+                    .map_err(|m| err("table".into(), m))?,
             ),
         };
         Ok(CoordinateTrajectory {

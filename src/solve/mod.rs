@@ -1,4 +1,5 @@
 //! Solvers that turn recorded motion into the quantities of the equations of motion:
 //! kinematics preparation (filtering, differentiation).
 
+pub mod filter;
 pub mod kinematics;

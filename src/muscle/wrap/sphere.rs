@@ -1,0 +1,162 @@
+//! Sphere wrapping, as OpenSim's `WrapSphere::wrapLine` defines it.
+
+use std::f64::consts::PI;
+
+use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
+use crate::spatial::Vec3;
+
+/// Wraps the segment P → S over a sphere of radius `radius` centred at the origin.
+///
+/// Definition followed (OpenSim `WrapSphere`):
+/// - `InsideRadius` if P or S is strictly inside the sphere; `NoWrap` if the segment does not
+///   cross it: both roots λ of |S + λ(P − S)|² = R² must lie in (0, 1). This holds whatever
+///   the quadrant: a quadrant only chooses the side of the sphere the path goes around.
+/// - `mandatory` (OpenSim's `mandatoryWrap`) only with a quadrant and P or S on its active
+///   side; an unconstrained sphere wrap is a plain `wrapped` in OpenSim.
+/// - The path lies in the plane through P, S and the centre. With P at angle 0 and S at
+///   angle Δ ∈ (0, π] in that plane, the tangent points from a point at distance d are at
+///   ±β, β = acos(R/d) from its direction, and the tangent length is h = √(d² − R²).
+///   *Near* wrap (the side the segment passes, the shortest path): T1 at β1, T2 at Δ − β2,
+///   arc θ = Δ − β1 − β2. *Far* wrap (around the other side): T1 at −β1, T2 at Δ + β2,
+///   θ = 2π − Δ − β1 − β2. length = h1 + R·θ + h2.
+/// - Quadrant `(axis, sign)`: if both P and S are on the active side, the near wrap. Otherwise
+///   OpenSim takes the far pair unless the sum of its tangent directions (T1 − P) + (T2 − S)
+///   points away from the active side (negative component along `sign·e_axis`), in which
+///   case the near pair.
+///
+/// Deliberate deviations: (1) for a far-side wrap longer than half a turn OpenSim stores a
+/// *negative* surface length (`angle = −(2π − angle)`), which shortens the muscle; the
+/// geometric, positive arc length is returned here. (2) When P, S and the centre are
+/// collinear (OpenSim: within 1e-5 rad) OpenSim reuses the previous frame's tangent points;
+/// this function is stateless and picks the plane containing the line and the quadrant axis
+/// (or, unconstrained, the coordinate axis least aligned with the line). Every plane gives
+/// the same length there, so only the tangent points and the one-sided gradient depend on
+/// that choice.
+///
+/// Gradients: both wraps are stationary paths (taut strings), so by the envelope theorem
+/// ∂length/∂P is the unit vector from T1 to P, written as (h1/d1)·P̂ ∓ (R/d1)·ê so that it
+/// stays finite when P lies on the sphere (likewise S).
+///
+/// Degenerate input: zero, negative or non-finite radius, non-finite points, or P = S give
+/// `NoWrap`.
+pub fn wrap_sphere(radius: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> WrapOutcome {
+    if !(radius > 0.0 && radius.is_finite() && quadrant.is_valid() && all_finite(p, s)) {
+        return WrapOutcome::NoWrap;
+    }
+    if p.norm() < radius || s.norm() < radius {
+        return WrapOutcome::InsideRadius;
+    }
+    wrap_outside(radius, quadrant, p, s).map_or(WrapOutcome::NoWrap, WrapOutcome::Wrapped)
+}
+
+fn wrap_outside(r: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> Option<Wrapped> {
+    let (d1, d2) = (p.norm(), s.norm());
+
+    // Segment S + λ(P − S) against |x|² = R²: both crossings strictly inside the segment.
+    let ps = p - s;
+    let a = ps.norm_squared();
+    let b = 2.0 * s.dot(&ps);
+    let c = s.norm_squared() - r * r;
+    let disc = b * b - 4.0 * a * c;
+    if !(a > 0.0) || disc < 0.0 {
+        return None;
+    }
+    let l_hi = (-b + disc.sqrt()) / (2.0 * a);
+    let l_lo = (-b - disc.sqrt()) / (2.0 * a);
+    if !(0.0 < l_lo && l_lo <= l_hi && l_hi < 1.0) {
+        return None;
+    }
+
+    // In-plane frame: ex along P, ey towards S's side, n the plane normal.
+    let ex = p / d1;
+    let n = wrap_plane_normal(p, s, ps, quadrant);
+    let ey = n.cross(&ex);
+    let delta = s.dot(&ey).max(0.0).atan2(s.dot(&ex));
+    let (h1, h2) = (
+        (d1 * d1 - r * r).max(0.0).sqrt(),
+        (d2 * d2 - r * r).max(0.0).sqrt(),
+    );
+    let (beta1, beta2) = (h1.atan2(r), h2.atan2(r));
+    let on_circle = |angle: f64| (ex * angle.cos() + ey * angle.sin()) * r;
+
+    let near = (beta1, delta - beta2, (delta - beta1 - beta2).max(0.0), 1.0);
+    let far = (
+        -beta1,
+        delta + beta2,
+        (2.0 * PI - delta - beta1 - beta2).max(0.0),
+        -1.0,
+    );
+    let mut mandatory = false;
+    let (a1, a2, theta, sense) = match quadrant.constraint() {
+        None => near,
+        Some((axis, sign)) => {
+            let (p_active, s_active) = (dsign(p[axis]) == sign, dsign(s[axis]) == sign);
+            mandatory = p_active || s_active;
+            if p_active && s_active {
+                near
+            } else {
+                let pull = (on_circle(far.0) - p) + (on_circle(far.1) - s);
+                if pull[axis] * sign < 0.0 { near } else { far }
+            }
+        }
+    };
+    let (t1, t2) = (on_circle(a1), on_circle(a2));
+
+    let surface_length = r * theta;
+    let length = h1 + surface_length + h2;
+    // ê: in-plane unit perpendicular to the point's direction, towards increasing angle.
+    let dlength_dp = ex * (h1 / d1) - ey * (sense * r / d1);
+    let s_hat = s / d2;
+    let dlength_ds = s_hat * (h2 / d2) + n.cross(&s_hat) * (sense * r / d2);
+    if !(length.is_finite()
+        && dlength_dp
+            .iter()
+            .chain(dlength_ds.iter())
+            .all(|g| g.is_finite()))
+    {
+        return None; // overflow with extreme coordinates
+    }
+
+    Some(Wrapped {
+        t1,
+        t2,
+        surface_length,
+        length,
+        dlength_dp,
+        dlength_ds,
+        mandatory,
+        arc: SurfaceArc {
+            center: Vec3::zeros(),
+            w1: t1,
+            w2: n.cross(&t1) * sense,
+            w3: Vec3::zeros(),
+            span: theta,
+        },
+    })
+}
+
+/// Unit normal of the plane through P, S and the centre, oriented so that S lies at a
+/// positive angle from P about it; a deterministic choice when the three are collinear.
+fn wrap_plane_normal(p: &Vec3, s: &Vec3, ps: Vec3, quadrant: Quadrant) -> Vec3 {
+    let n = p.cross(s);
+    let nn = n.norm();
+    if nn > 1e-12 * p.norm() * s.norm() {
+        return n / nn;
+    }
+    let u = ps / ps.norm();
+    let least_aligned = (0..3)
+        .min_by(|&i, &j| u[i].abs().total_cmp(&u[j].abs()))
+        .unwrap_or(0);
+    let preferred = quadrant
+        .constraint()
+        .map_or(least_aligned, |(axis, _)| axis);
+    for axis in [preferred, least_aligned] {
+        let m = u.cross(&Vec3::ith(axis, 1.0));
+        let mn = m.norm();
+        if mn > 1e-6 {
+            return m / mn;
+        }
+    }
+    // Unreachable for a unit u (its least-aligned axis is at least 54.7° away).
+    Vec3::z()
+}
