@@ -77,7 +77,10 @@ fn muscle_moments_balance_inverse_dynamics_with_opensim_so_forces_gait2392() {
         &model,
         &kinematics,
         &kin_file.display().to_string(),
-        &KinematicsOptions { lowpass_hz: None, differentiation: Differentiation::SplineOfSpeeds },
+        &KinematicsOptions {
+            lowpass_hz: None,
+            differentiation: Differentiation::SplineOfSpeeds,
+        },
     )
     .unwrap();
     let set = PathSet::new(&model).unwrap();
@@ -146,4 +149,79 @@ fn muscle_moments_balance_inverse_dynamics_with_opensim_so_forces_gait2392() {
         forces.n_rows()
     );
     check(&rows, 0.02);
+}
+
+#[test]
+fn muscle_moments_balance_inverse_dynamics_with_opensim_so_forces_arm26() {
+    // Arm26 static optimization (OpenSim's tutorial, physiological and non-physiological):
+    // kinematics from its IK, low-pass filtered at 6 Hz as the setup file says; no external
+    // loads and no reserve actuators, so the six muscles carry both coordinates' moments.
+    let dir = "opensim-models/Tutorials/Computed_Muscle_Control/OutputReference";
+    let (Some(model_file), Some(kin_file)) = (
+        reference_file("opensim-models/Models/Arm26/arm26.osim"),
+        reference_file(&format!(
+            "{dir}/InverseKinematics/arm26_InverseKinematics.mot"
+        )),
+    ) else {
+        return;
+    };
+    let model = Model::from_osim_file(&model_file).unwrap();
+    let kinematics = Table::read(&kin_file).unwrap();
+    let traj = CoordinateTrajectory::from_table(
+        &model,
+        &kinematics,
+        &kin_file.display().to_string(),
+        &KinematicsOptions {
+            lowpass_hz: Some(6.0),
+            differentiation: Differentiation::SplineOfSpeeds,
+        },
+    )
+    .unwrap();
+    let set = PathSet::new(&model).unwrap();
+    for variant in ["PhysiologicalResults", "NonphysiologicalResults"] {
+        let Some(force_file) = reference_file(&format!(
+            "{dir}/StaticOptimization/{variant}/arm26_StaticOptimization_force.sto"
+        )) else {
+            return;
+        };
+        let forces = Table::read(&force_file).unwrap();
+        let n = model.nq();
+        let mut data = Data::new(&model);
+        let mut pd = PathData::new(&model, &set);
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let cols: Vec<usize> = set
+            .paths
+            .iter()
+            .map(|p| forces.column_index(&p.name).unwrap())
+            .collect();
+        let mut err2 = vec![0.0; n];
+        let mut peak = vec![0.0f64; n];
+        for r in 0..forces.n_rows() {
+            traj.eval(forces.time[r], &mut q, &mut qd, &mut qdd);
+            let tau = dynamics::rnea(&model, &mut data, &q, &qd, &qdd)
+                .unwrap()
+                .as_slice()
+                .to_vec();
+            compute_paths(&model, &data, &set, &mut pd).unwrap();
+            for j in 0..n {
+                let moment: f64 = cols
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &c)| pd.moment_arms[(j, k)] * forces.value(r, c).unwrap())
+                    .sum();
+                err2[j] += (moment - tau[j]).powi(2);
+                peak[j] = peak[j].max(tau[j].abs());
+            }
+        }
+        let names = model.q_names();
+        let rows: Vec<Row> = (0..n)
+            .map(|j| Row {
+                coordinate: names[j].to_string(),
+                peak: peak[j],
+                rmse: (err2[j] / forces.n_rows() as f64).sqrt(),
+            })
+            .collect();
+        eprintln!("arm26 {variant}, {} frames:", forces.n_rows());
+        check(&rows, 0.02);
+    }
 }

@@ -109,7 +109,7 @@ fn check_model(path: &Path, states: usize, seed: u64) {
 #[test]
 fn moment_arms_equal_finite_differences_of_length_on_every_reference_model() {
     for (i, p) in reference_models().iter().enumerate() {
-        check_model(p, 10, 300 + i as u64);
+        check_model(p, 20, 300 + i as u64);
     }
 }
 

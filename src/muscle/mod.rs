@@ -7,4 +7,4 @@ pub mod path;
 mod set;
 pub mod wrap;
 
-pub use set::{MuscleData, MuscleSet, compute_muscles};
+pub use set::{MuscleData, MuscleSet, TendonMode, compute_muscles};

@@ -49,6 +49,18 @@ impl MuscleSet {
     }
 }
 
+/// Which tendon model the forces use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TendonMode {
+    /// Each muscle's own: rigid if its file sets `ignore_tendon_compliance`, otherwise the
+    /// compliant-tendon equilibrium (fiber and tendon forces balanced for ℓ, ℓ̇).
+    #[default]
+    AsModel,
+    /// Rigid tendon for every muscle: the closed form F = (a f_L f_V + f_PE) F_max cos α, as
+    /// static optimization with muscle physiology uses it.
+    Rigid,
+}
+
 /// Workspace of a [`MuscleSet`]: one per thread.
 #[derive(Clone, Debug)]
 pub struct MuscleData {
@@ -76,14 +88,16 @@ impl MuscleData {
 }
 
 /// One frame for all muscles at the state of `data` (velocity stage for speeds): lengths,
-/// speeds and moment arms, then each muscle's force at its activation in its own tendon mode
-/// (rigid, or compliant equilibrium). With `parallel`, the paths are computed on rayon's
-/// threads. The generalized muscle forces are `moment_arms · force`.
+/// speeds and moment arms, then each muscle's force at its activation with the tendon model
+/// `tendon`. With `parallel`, the paths are computed on rayon's threads (worth it only for
+/// many muscles with expensive wrapping; for a frame of a gait model the serial call is
+/// faster). The generalized muscle forces are `moment_arms · force`.
 pub fn compute_muscles(
     model: &Model,
     data: &Data,
     set: &MuscleSet,
     activation: &[f64],
+    tendon: TendonMode,
     parallel: bool,
     out: &mut MuscleData,
 ) -> crate::Result<()> {
@@ -105,7 +119,11 @@ pub fn compute_muscles(
         compute_paths(model, data, &set.paths, &mut out.paths)?;
     }
     for (k, m) in set.muscles.iter().enumerate() {
-        let s = m.state(activation[k], out.paths.length[k], out.paths.speed[k]);
+        let (a, l, v) = (activation[k], out.paths.length[k], out.paths.speed[k]);
+        let s = match tendon {
+            TendonMode::AsModel => m.state(a, l, v),
+            TendonMode::Rigid => m.state_rigid_tendon(a, l, v),
+        };
         out.state[k] = s;
         out.force[k] = s.tendon_force;
     }

@@ -135,6 +135,25 @@ impl Thelen2003Curves {
         }
     }
 
+    /// The tendon curve of OpenSim 2.x's Thelen muscle (today's `Thelen2003Muscle_Deprecated`),
+    /// which produced results written by OpenSim 2 (e.g. the Arm26 CMC tutorial outputs): the
+    /// paper's rounded constants (toe strain 0.609 ε₀, stiffness 1.712/ε₀, toe force 0.333333,
+    /// which make the curve slightly discontinuous in slope) plus a small stiffness so the
+    /// tendon never goes fully slack: f_T2(ε) = f_toe-or-linear(ε) + 0.001 (1 + ε).
+    pub fn tendon_force_length_opensim2(&self, norm_tendon_length: f64) -> f64 {
+        const TOE_FORCE_OPENSIM2: f64 = 0.333333;
+        let strain = norm_tendon_length - 1.0;
+        let e_toe = 0.609 * self.fmax_tendon_strain;
+        let f = if strain > e_toe {
+            1.712 / self.fmax_tendon_strain * (strain - e_toe) + TOE_FORCE_OPENSIM2
+        } else if strain > 0.0 {
+            TOE_FORCE_OPENSIM2 * ((K_TOE * strain / e_toe).exp() - 1.0) / (K_TOE.exp() - 1.0)
+        } else {
+            0.0
+        };
+        f + 0.001 * (1.0 + strain)
+    }
+
     /// Shape constant of the eccentric branch, c = (Flen − 1) / (2 + 2/A_f).
     fn eccentric_shape(&self) -> f64 {
         (self.flen - 1.0) / (2.0 + 2.0 / self.af)

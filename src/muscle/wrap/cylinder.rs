@@ -4,9 +4,11 @@
 
 use std::f64::consts::PI;
 
-use super::real::{Real, V3};
+use nalgebra::Matrix3x6;
+
+use super::real::{Real, V3, join};
 use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
-use crate::spatial::Vec3;
+use crate::spatial::{Mat3, Vec3};
 
 /// Wraps the segment P → S over a cylinder of radius `radius` whose axis is z, centred at the
 /// origin, extending over z ∈ [−length/2, length/2].
@@ -45,6 +47,9 @@ use crate::spatial::Vec3;
 ///
 /// Gradients: the path is a geodesic, so ∂length/∂P is the unit vector from T1 to P (envelope
 /// theorem), written as (H·∂H/∂P − Δz·ẑ)/length so that it stays finite on the surface.
+/// The contact points' Jacobians `dt1`, `dt2` are the exact derivatives, in closed form, of
+/// the tangent points in the projection and of the heights P.z + Δz·h1/H and
+/// S.z − Δz·h2/H; the direction round the axis is a discrete choice.
 ///
 /// Degenerate input: non-positive or non-finite radius or length, non-finite points, P = S,
 /// or a segment parallel to the axis (unless a quadrant forces the wrap) give `NoWrap`.
@@ -88,6 +93,7 @@ fn wrap_outside(
     {
         return None; // overflow with extreme coordinates
     }
+    let (dt1, dt2) = contact_jacobians(radius, p, s, g, &dh_dp, &dh_ds);
     Some(Wrapped {
         t1: w.t1,
         t2: w.t2,
@@ -95,6 +101,8 @@ fn wrap_outside(
         length: w.length,
         dlength_dp,
         dlength_ds,
+        dt1,
+        dt2,
         mandatory: w.mandatory,
         arc: w.arc,
     })
@@ -118,6 +126,10 @@ pub(crate) struct CylGeometry {
 pub(crate) struct CylWrap<T> {
     pub t1: Vec3,
     pub t2: Vec3,
+    /// t1 and t2 on `T` (their values as `t1`, `t2` only up to round-off; constants when `T`
+    /// carries no derivatives).
+    pub t1_t: V3<T>,
+    pub t2_t: V3<T>,
     pub length: T,
     pub surface_length: f64,
     pub arc: SurfaceArc,
@@ -275,10 +287,17 @@ pub(crate) fn cylinder_core<T: Real>(
     if outside(t1.z) && outside(t2.z) {
         return None;
     }
+    let (t1_t, t2_t) = if T::HAS_GRAD {
+        contact_points(r, p, s, sense, h_total_t)
+    } else {
+        (V3::cst(&t1), V3::cst(&t2))
+    };
     let w1 = Vec3::new(t1.x, t1.y, 0.0);
     Some(CylWrap {
         t1,
         t2,
+        t1_t,
+        t2_t,
         length,
         surface_length: r * theta * len / h_total,
         arc: SurfaceArc {
@@ -301,4 +320,79 @@ pub(crate) fn cylinder_core<T: Real>(
         },
         mandatory,
     })
+}
+
+/// ∂T1/∂(P, S) and ∂T2/∂(P, S) in closed form. In the projection T1 = α·P_xy + β·(ẑ × P_xy),
+/// T2 = γ·S_xy − δ·(ẑ × S_xy), with α = R²/d1², β = σR·h1/d1², γ = R²/d2², δ = σR·h2/d2²
+/// (σ = `sense`); heights T1.z = P.z + Δz·h1/H, T2.z = S.z − Δz·h2/H, with ∂H from
+/// `dh_dp`, `dh_ds`.
+fn contact_jacobians(
+    r: f64,
+    p: &Vec3,
+    s: &Vec3,
+    g: &CylGeometry,
+    dh_dp: &Vec3,
+    dh_ds: &Vec3,
+) -> (Matrix3x6<f64>, Matrix3x6<f64>) {
+    let (pxy, sxy) = (Vec3::new(p.x, p.y, 0.0), Vec3::new(s.x, s.y, 0.0));
+    let (d1sq, d2sq) = (pxy.norm_squared(), sxy.norm_squared());
+    let (r2, sense) = (r * r, g.sense);
+    let flat = Mat3::from_diagonal(&Vec3::new(1.0, 1.0, 0.0));
+    let zx = Vec3::z().cross_matrix();
+    let (hh, dz) = (g.h_total, g.dz);
+
+    // T1: ∇α = −2α·P_xy/d1², ∇β = σR(2R² − d1²)/(h1·d1⁴)·P_xy.
+    let (alpha, beta) = (r2 / d1sq, sense * r * g.h1 / d1sq);
+    let grad_alpha = pxy * (-2.0 * alpha / d1sq);
+    let grad_beta = pxy * (sense * r * (2.0 * r2 - d1sq) / (g.h1 * d1sq * d1sq));
+    let mut dt1_dp = pxy * grad_alpha.transpose()
+        + flat * alpha
+        + Vec3::new(-p.y, p.x, 0.0) * grad_beta.transpose()
+        + zx * beta;
+    let mut dt1_ds = Mat3::zeros();
+    // T1.z: ∂/∂P = ẑ(1 − h1/H) + Δz·P_xy/(H·h1) − Δz·h1·∂H/∂P/H²,
+    //       ∂/∂S = ẑ·h1/H − Δz·h1·∂H/∂S/H².
+    let k1 = dz * g.h1 / (hh * hh);
+    let row1_p = Vec3::z() * (1.0 - g.h1 / hh) + pxy * (dz / (hh * g.h1)) - dh_dp * k1;
+    let row1_s = Vec3::z() * (g.h1 / hh) - dh_ds * k1;
+    dt1_dp.set_row(2, &row1_p.transpose());
+    dt1_ds.set_row(2, &row1_s.transpose());
+
+    // T2, likewise with −δ.
+    let (gamma, delta) = (r2 / d2sq, sense * r * g.h2 / d2sq);
+    let grad_gamma = sxy * (-2.0 * gamma / d2sq);
+    let grad_delta = sxy * (sense * r * (2.0 * r2 - d2sq) / (g.h2 * d2sq * d2sq));
+    let mut dt2_ds = sxy * grad_gamma.transpose() + flat * gamma
+        - Vec3::new(-s.y, s.x, 0.0) * grad_delta.transpose()
+        - zx * delta;
+    let mut dt2_dp = Mat3::zeros();
+    let k2 = dz * g.h2 / (hh * hh);
+    let row2_s = Vec3::z() * (1.0 - g.h2 / hh) - sxy * (dz / (hh * g.h2)) + dh_ds * k2;
+    let row2_p = Vec3::z() * (g.h2 / hh) + dh_dp * k2;
+    dt2_ds.set_row(2, &row2_s.transpose());
+    dt2_dp.set_row(2, &row2_p.transpose());
+
+    (join(&dt1_dp, &dt1_ds), join(&dt2_dp, &dt2_ds))
+}
+
+/// The contact points on `T`, as `cylinder_core` places them: in the projection the tangent
+/// points (R/d)(R·d̂ ± σh·û) (σ = `sense`, û = ẑ × d̂), at heights P.z + Δz·h1/H and
+/// S.z − Δz·h2/H, with `h_total` = H on `T`.
+fn contact_points<T: Real>(r: f64, p: &V3<T>, s: &V3<T>, sense: f64, h_total: T) -> (V3<T>, V3<T>) {
+    let (dd1, dd2) = (p.x * p.x + p.y * p.y, s.x * s.x + s.y * s.y);
+    let (h1, h2) = ((dd1 - r * r).sqrt(), (dd2 - r * r).sqrt());
+    let (k1, k2) = (T::cst(r) / dd1, T::cst(r) / dd2);
+    let (sh1, sh2) = (h1 * sense, h2 * sense);
+    let dz = s.z - p.z;
+    let t1 = V3::new(
+        (p.x * r - p.y * sh1) * k1,
+        (p.y * r + p.x * sh1) * k1,
+        p.z + dz * h1 / h_total,
+    );
+    let t2 = V3::new(
+        (s.x * r + s.y * sh2) * k2,
+        (s.y * r - s.x * sh2) * k2,
+        s.z - dz * h2 / h_total,
+    );
+    (t1, t2)
 }

@@ -4,7 +4,7 @@ use std::f64::consts::PI;
 
 use super::closest::{Ellipsoid, closest, unit_to_closest_with_jacobian};
 use super::elliptic::ellipse_arc_length;
-use super::real::{D6, Real, V3, gradients, seed};
+use super::real::{D6, Real, V3, gradients, jacobian, seed};
 use super::{EllipsoidMethod, Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
 use crate::spatial::{Mat3, Vec3};
 
@@ -92,7 +92,8 @@ const LM_MAX_INNER: usize = 64;
 ///
 /// Gradients: exact derivatives of this construction, by dual numbers through every step
 /// (root-finding lifted by the implicit-function theorem, elliptic integrals with their
-/// closed-form partials). The length is piecewise smooth: it jumps where a discrete choice
+/// closed-form partials); the contact points' Jacobians `dt1`, `dt2` come from the same
+/// pass. The length is piecewise smooth: it jumps where a discrete choice
 /// changes (method regime, quadrant flip, the contact point OpenSim's solver lands on, the
 /// arc's direction), and, for the fan, where one of its 298 samples crosses the
 /// ellipsoid's medial plane and its closest point jumps (OpenSim's "jitter").
@@ -133,6 +134,8 @@ pub fn wrap_ellipsoid(
         length: w.length.v,
         dlength_dp,
         dlength_ds,
+        dt1: jacobian(&w.t1_t),
+        dt2: jacobian(&w.t2_t),
         mandatory: true,
         arc: w.arc,
     })
@@ -141,6 +144,9 @@ pub fn wrap_ellipsoid(
 pub(crate) struct EllipsoidWrap<T> {
     pub t1: Vec3,
     pub t2: Vec3,
+    /// t1 and t2 on `T`.
+    pub t1_t: V3<T>,
+    pub t2_t: V3<T>,
     pub length: T,
     pub surface_length: f64,
     pub arc: SurfaceArc,
@@ -379,6 +385,8 @@ pub(crate) fn planar_wrap<T: Real>(
     Some(EllipsoidWrap {
         t1: t1v,
         t2: t2v,
+        t1_t: t1,
+        t2_t: t2,
         length,
         surface_length: arc.val(),
         arc: SurfaceArc {

@@ -23,8 +23,12 @@
 //! closed form (unit vectors T1→P and T2→S); the ellipsoid and torus constructions are not
 //! stationary in their hidden choices (wrap plane, cylinder placement), so they are
 //! differentiated exactly by forward-mode dual numbers (`real::D6`), with the iterative parts
-//! lifted by the implicit-function theorem. No function here allocates, and every iteration
-//! has a fixed bound.
+//! lifted by the implicit-function theorem. `Wrapped::dt1` / `dt2`, the Jacobians of the
+//! contact points with respect to (P, S), are exact derivatives of what each algorithm
+//! computes: by dual numbers through the ellipsoid and torus constructions (the same passes
+//! that give their length gradients), and in closed form for the sphere and the cylinder,
+//! whose contact points are closed forms of P and S. No function here allocates, and every
+//! iteration has a fixed bound.
 //!
 //! Checked against OpenSim 4.6 itself (`tests/opensim_reference.txt`, random segments over
 //! every surface, method and quadrant): the sphere agrees to round-off, the cylinder to
@@ -51,6 +55,8 @@ pub use cylinder::wrap_cylinder;
 pub use ellipsoid::wrap_ellipsoid;
 pub use sphere::wrap_sphere;
 pub use torus::wrap_torus;
+
+use nalgebra::Matrix3x6;
 
 use crate::spatial::Vec3;
 
@@ -181,6 +187,13 @@ pub struct Wrapped {
     pub dlength_dp: Vec3,
     /// Exact ∂length/∂S, wrap frame fixed.
     pub dlength_ds: Vec3,
+    /// Exact ∂t1/∂(P, S), wrap frame fixed: 3 × 6, rows x, y, z of t1, columns P.x, P.y,
+    /// P.z, S.x, S.y, S.z. Unbounded as P or S approaches the surface (a contact point
+    /// moves as the square root of the point's distance to it); not finite when P or S lies
+    /// exactly on it.
+    pub dt1: Matrix3x6<f64>,
+    /// Exact ∂t2/∂(P, S), laid out as `dt1`.
+    pub dt2: Matrix3x6<f64>,
     /// OpenSim's `mandatoryWrap`: its path algorithm must take this segment's wrap (rather
     /// than the segment of the path whose wrap lengthens it least). See each function for
     /// when OpenSim sets it.

@@ -7,7 +7,9 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-use crate::spatial::Vec3;
+use nalgebra::Matrix3x6;
+
+use crate::spatial::{Mat3, Vec3};
 
 /// The arithmetic the wrap algorithms need, implemented by `f64` and `D6`.
 pub(crate) trait Real:
@@ -324,6 +326,19 @@ pub(crate) fn seed(p: &Vec3, s: &Vec3) -> (V3<D6>, V3<D6>) {
         V3::new(D6::var(p.x, 0), D6::var(p.y, 1), D6::var(p.z, 2)),
         V3::new(D6::var(s.x, 3), D6::var(s.y, 4), D6::var(s.z, 5)),
     )
+}
+
+/// The 3 × 6 Jacobian of a dual vector: rows x, y, z; columns ∂/∂P (0..3), ∂/∂S (3..6).
+pub(crate) fn jacobian(v: &V3<D6>) -> Matrix3x6<f64> {
+    Matrix3x6::from_fn(|i, k| v.at(i).g[k])
+}
+
+/// [∂/∂P | ∂/∂S] as one 3 × 6 matrix.
+pub(crate) fn join(dp: &Mat3, ds: &Mat3) -> Matrix3x6<f64> {
+    let mut j = Matrix3x6::zeros();
+    j.fixed_view_mut::<3, 3>(0, 0).copy_from(dp);
+    j.fixed_view_mut::<3, 3>(0, 3).copy_from(ds);
+    j
 }
 
 /// Split a dual scalar's derivative into ∂/∂P and ∂/∂S.

@@ -2,8 +2,11 @@
 
 use std::f64::consts::PI;
 
+use nalgebra::Matrix3x6;
+
+use super::real::join;
 use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
-use crate::spatial::Vec3;
+use crate::spatial::{Mat3, Vec3};
 
 /// Wraps the segment P → S over a sphere of radius `radius` centred at the origin.
 ///
@@ -35,7 +38,10 @@ use crate::spatial::Vec3;
 ///
 /// Gradients: both wraps are stationary paths (taut strings), so by the envelope theorem
 /// ∂length/∂P is the unit vector from T1 to P, written as (h1/d1)·P̂ ∓ (R/d1)·ê so that it
-/// stays finite when P lies on the sphere (likewise S).
+/// stays finite when P lies on the sphere (likewise S). The contact points' Jacobians
+/// `dt1`, `dt2` are the exact derivatives, in closed form, of T1 = (R/d1)(R·P̂ + σh1·ê1),
+/// T2 = (R/d2)(R·Ŝ − σh2·(n × Ŝ)) (σ = +1 near, −1 far), n the plane normal; the side is a
+/// discrete choice.
 ///
 /// Degenerate input: zero, negative or non-finite radius, non-finite points, or P = S give
 /// `NoWrap`.
@@ -69,7 +75,7 @@ fn wrap_outside(r: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> Option<Wrappe
 
     // In-plane frame: ex along P, ey towards S's side, n the plane normal.
     let ex = p / d1;
-    let n = wrap_plane_normal(p, s, ps, quadrant);
+    let (n, plane) = wrap_plane_normal(p, s, ps, quadrant);
     let ey = n.cross(&ex);
     let delta = s.dot(&ey).max(0.0).atan2(s.dot(&ex));
     let (h1, h2) = (
@@ -116,6 +122,7 @@ fn wrap_outside(r: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> Option<Wrappe
     {
         return None; // overflow with extreme coordinates
     }
+    let (dt1, dt2) = contact_jacobians(r, p, s, &n, plane, sense, h1, h2);
 
     Some(Wrapped {
         t1,
@@ -124,6 +131,8 @@ fn wrap_outside(r: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> Option<Wrappe
         length,
         dlength_dp,
         dlength_ds,
+        dt1,
+        dt2,
         mandatory,
         arc: SurfaceArc {
             center: Vec3::zeros(),
@@ -135,13 +144,22 @@ fn wrap_outside(r: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> Option<Wrappe
     })
 }
 
+/// Which construction `wrap_plane_normal` used: P × S, or (collinear) the line direction
+/// crossed with a coordinate axis.
+#[derive(Clone, Copy)]
+enum Plane {
+    Cross,
+    Line(usize),
+    Fixed,
+}
+
 /// Unit normal of the plane through P, S and the centre, oriented so that S lies at a
 /// positive angle from P about it; a deterministic choice when the three are collinear.
-fn wrap_plane_normal(p: &Vec3, s: &Vec3, ps: Vec3, quadrant: Quadrant) -> Vec3 {
+fn wrap_plane_normal(p: &Vec3, s: &Vec3, ps: Vec3, quadrant: Quadrant) -> (Vec3, Plane) {
     let n = p.cross(s);
     let nn = n.norm();
     if nn > 1e-12 * p.norm() * s.norm() {
-        return n / nn;
+        return (n / nn, Plane::Cross);
     }
     let u = ps / ps.norm();
     let least_aligned = (0..3)
@@ -154,9 +172,74 @@ fn wrap_plane_normal(p: &Vec3, s: &Vec3, ps: Vec3, quadrant: Quadrant) -> Vec3 {
         let m = u.cross(&Vec3::ith(axis, 1.0));
         let mn = m.norm();
         if mn > 1e-6 {
-            return m / mn;
+            return (m / mn, Plane::Line(axis));
         }
     }
     // Unreachable for a unit u (its least-aligned axis is at least 54.7° away).
-    Vec3::z()
+    (Vec3::z(), Plane::Fixed)
+}
+
+/// ∂T1/∂(P, S) and ∂T2/∂(P, S) of the closed forms T1 = α·P + β·(n × P),
+/// T2 = γ·S − δ·(n × S), with α = R²/d1², β = σR·h1/d1², γ = R²/d2², δ = σR·h2/d2²
+/// (σ = `sense`: +1 near wrap, −1 far) and the plane normal n = m/|m| as
+/// `wrap_plane_normal` built it: m = P × S, or (P − S) × e_axis.
+#[allow(clippy::too_many_arguments)]
+fn contact_jacobians(
+    r: f64,
+    p: &Vec3,
+    s: &Vec3,
+    n: &Vec3,
+    plane: Plane,
+    sense: f64,
+    h1: f64,
+    h2: f64,
+) -> (Matrix3x6<f64>, Matrix3x6<f64>) {
+    // n = m/|m| with dm = −[c_p]× dP + [c_s]× dS (m = P × S: c_p = S, c_s = P;
+    // m = (P − S) × e: c_p = c_s = e), so dn = μ(I − n nᵀ)(∓[c]×) with μ = 1/|m|, and
+    // [X]×(I − n nᵀ)[c]× = c Xᵀ − (X·c) I − (X × n)(n × c)ᵀ: no matrix products.
+    let (mu, c_p, c_s) = match plane {
+        Plane::Cross => (1.0 / p.cross(s).norm(), *s, *p),
+        Plane::Line(axis) => {
+            let e = Vec3::ith(axis, 1.0);
+            (1.0 / (p - s).cross(&e).norm(), e, e)
+        }
+        Plane::Fixed => (0.0, Vec3::zeros(), Vec3::zeros()),
+    };
+    // [X]× ∂n/∂P and [X]× ∂n/∂S.
+    let x_dn = |x: &Vec3| {
+        let term = |c: &Vec3| {
+            c * x.transpose()
+                - Mat3::from_diagonal_element(x.dot(c))
+                - x.cross(n) * n.cross(c).transpose()
+        };
+        (term(&c_p) * (-mu), term(&c_s) * mu)
+    };
+    let nx = n.cross_matrix();
+    let (d1sq, d2sq) = (p.norm_squared(), s.norm_squared());
+    let r2 = r * r;
+
+    // T1: ∇α = −2α·P/d1², ∇β = σR(2R² − d1²)/(h1·d1⁴)·P, d(n × P) = [n]× dP − [P]× dn.
+    let (alpha, beta) = (r2 / d1sq, sense * r * h1 / d1sq);
+    let grad_alpha = p * (-2.0 * alpha / d1sq);
+    let grad_beta = p * (sense * r * (2.0 * r2 - d1sq) / (h1 * d1sq * d1sq));
+    let w = n.cross(p);
+    let (p_dn_dp, p_dn_ds) = x_dn(p);
+    let dt1_dp = p * grad_alpha.transpose()
+        + Mat3::from_diagonal_element(alpha)
+        + w * grad_beta.transpose()
+        + (nx - p_dn_dp) * beta;
+    let dt1_ds = p_dn_ds * (-beta);
+
+    // T2, likewise with −δ.
+    let (gamma, delta) = (r2 / d2sq, sense * r * h2 / d2sq);
+    let grad_gamma = s * (-2.0 * gamma / d2sq);
+    let grad_delta = s * (sense * r * (2.0 * r2 - d2sq) / (h2 * d2sq * d2sq));
+    let v = n.cross(s);
+    let (s_dn_dp, s_dn_ds) = x_dn(s);
+    let dt2_ds = s * grad_gamma.transpose() + Mat3::from_diagonal_element(gamma)
+        - v * grad_delta.transpose()
+        - (nx - s_dn_ds) * delta;
+    let dt2_dp = s_dn_dp * delta;
+
+    (join(&dt1_dp, &dt1_ds), join(&dt2_dp, &dt2_ds))
 }

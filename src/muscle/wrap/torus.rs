@@ -3,7 +3,7 @@
 //! on its side facing the torus axis.
 
 use super::cylinder::cylinder_core;
-use super::real::{D6, Real, V3, gradients, seed};
+use super::real::{D6, Real, V3, gradients, jacobian, seed};
 use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
 use crate::spatial::Vec3;
 
@@ -46,8 +46,8 @@ const MAX_REFINE: usize = 100;
 /// elsewhere and did not wrap). The cylinder part has `wrap_cylinder`'s deviations (exact
 /// helix).
 ///
-/// Gradients: exact, by dual numbers through the line-point root (implicit derivative), the
-/// cylinder placement and the cylinder wrap.
+/// Gradients and the contact points' Jacobians `dt1`, `dt2`: exact, by dual numbers through
+/// the line-point root (implicit derivative), the cylinder placement and the cylinder wrap.
 ///
 /// Outcome: OpenSim's torus reports a plain `wrapped` (never `mandatory`), and no wrap when
 /// the local cylinder does not wrap or finds a point inside it (never `InsideRadius`).
@@ -84,6 +84,8 @@ pub fn wrap_torus(
         length: w.length.v,
         dlength_dp,
         dlength_ds,
+        dt1: jacobian(&w.t1_t),
+        dt2: jacobian(&w.t2_t),
         mandatory: false,
         arc: w.arc,
     })
@@ -92,6 +94,9 @@ pub fn wrap_torus(
 pub(crate) struct TorusWrap<T> {
     pub t1: Vec3,
     pub t2: Vec3,
+    /// t1 and t2 on `T` (constants when `T` carries no derivatives).
+    pub t1_t: V3<T>,
+    pub t2_t: V3<T>,
     pub length: T,
     pub surface_length: f64,
     pub arc: SurfaceArc,
@@ -178,9 +183,25 @@ fn torus_core<T: Real>(
     );
     let vector = |v: Vec3| xc * v.x + yc * v.y + zc * v.z;
     let point = |v: Vec3| Vec3::new(c.0 * k, c.1 * k, 0.0) + vector(v);
+    let (t1, t2) = (point(w.t1), point(w.t2));
+    // The same map on `T`: C + x_c·v.x + y_c·v.y + z_c·v.z, C and the axes moving with ĉ.
+    let point_t = |v: &V3<T>| {
+        V3::new(
+            cx * k - cx * v.x + cy * v.z,
+            cy * k - cy * v.x - cx * v.z,
+            -v.y,
+        )
+    };
+    let (t1_t, t2_t) = if T::HAS_GRAD {
+        (point_t(&w.t1_t), point_t(&w.t2_t))
+    } else {
+        (V3::cst(&t1), V3::cst(&t2))
+    };
     Some(TorusWrap {
-        t1: point(w.t1),
-        t2: point(w.t2),
+        t1,
+        t2,
+        t1_t,
+        t2_t,
         length: w.length,
         surface_length: w.surface_length,
         arc: SurfaceArc {

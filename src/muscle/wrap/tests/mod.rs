@@ -5,6 +5,7 @@
 use crate::spatial::Vec3;
 
 mod api;
+mod contact_jacobians;
 mod ellipsoid;
 mod gradients;
 mod numerics;

@@ -22,7 +22,7 @@
 use crate::dynamics::{Data, Stage};
 use crate::error::Error;
 use crate::model::reduction::NONE;
-use crate::model::{Function, Model, PathPointKind, WrapShape};
+use crate::model::{Function, Model, PathPointKind};
 use crate::spatial::{Force, Vec3};
 use nalgebra::DMatrix;
 
@@ -75,6 +75,8 @@ pub struct PathGeometry {
 pub struct PathSet {
     pub paths: Vec<PathGeometry>,
     max_nodes: usize,
+    /// Some path has two or more wraps, one of them not a shortest path (ellipsoid, torus).
+    needs_chain: bool,
 }
 
 impl PathSet {
@@ -154,7 +156,14 @@ impl PathSet {
                 wraps,
             });
         }
-        Ok(PathSet { paths, max_nodes })
+        let needs_chain = paths
+            .iter()
+            .any(|p| p.wraps.len() >= 2 && p.wraps.iter().any(|w| !geodesic(model, w)));
+        Ok(PathSet {
+            paths,
+            max_nodes,
+            needs_chain,
+        })
     }
 
     pub fn len(&self) -> usize {
@@ -189,6 +198,16 @@ struct Node {
     ground: Vec3,
     /// For a tangent-point pair (on the second point): the surface length from the first.
     surface: f64,
+    /// On a first tangent point: ∂L/∂P, on a second: ∂L/∂S, in ground axes, where
+    /// L = |P − T1| + arc + |T2 − S| is the wrap's length between the path points P and S
+    /// around it (the wrap frame held fixed).
+    grad: Vec3,
+    /// On a tangent point: its sensitivity to the path points P and S around the wrap,
+    /// ∂T/∂P and ∂T/∂S (ground axes, wrap frame held fixed).
+    jac_p: crate::spatial::Mat3,
+    jac_s: crate::spatial::Mat3,
+    /// Net unit tension on the node (moment-arm computation).
+    pull: Vec3,
 }
 
 /// Per-worker scratch: the nodes of the current path and the forces it puts on bodies.
@@ -197,6 +216,8 @@ struct Scratch {
     nodes: Vec<Node>,
     body_force: Vec<Force>,
     touched: Vec<usize>,
+    /// Node derivatives for paths with interacting wraps (see [`chain`]).
+    deriv: Vec<Vec3>,
 }
 
 impl Scratch {
@@ -205,6 +226,11 @@ impl Scratch {
             nodes: Vec::with_capacity(set.max_nodes.max(2)),
             body_force: vec![Force::ZERO; model.bodies.len()],
             touched: Vec::with_capacity(model.bodies.len()),
+            deriv: if set.needs_chain {
+                vec![Vec3::zeros(); chain::scratch_len(set.max_nodes, model.nq())]
+            } else {
+                Vec::new()
+            },
         }
     }
 }
@@ -354,6 +380,10 @@ fn compute_path(
                 body: p.body,
                 ground: data.point_position(p.body, &local),
                 surface: 0.0,
+                grad: Vec3::zeros(),
+                jac_p: crate::spatial::Mat3::zeros(),
+                jac_s: crate::spatial::Mat3::zeros(),
+                pull: Vec3::zeros(),
             });
         }
     }
@@ -361,15 +391,19 @@ fn compute_path(
         apply_wrap_objects(model, data, path, nodes);
     }
     let length = path_length(nodes);
-    moment_arms(
-        model,
-        data,
-        path,
-        nodes,
-        &mut scratch.body_force,
-        &mut scratch.touched,
-        r,
-    );
+    if interacting_non_geodesic_wraps(model, path, nodes) {
+        chain::moment_arms(model, data, path, nodes, &mut scratch.deriv, r);
+    } else {
+        moment_arms(
+            model,
+            data,
+            path,
+            nodes,
+            &mut scratch.body_force,
+            &mut scratch.touched,
+            r,
+        );
+    }
     let speed = if data.stage() >= Stage::Velocity {
         -(0..model.nq())
             .map(|j| r[j] * data.independent_speed(model, j))
@@ -378,6 +412,28 @@ fn compute_path(
         0.0
     };
     (length, speed)
+}
+
+/// True for wrap objects whose path is a shortest path over the surface (sphere, cylinder).
+fn geodesic(model: &Model, w: &WrapDef) -> bool {
+    matches!(
+        model.wrap_objects[w.object].shape,
+        crate::model::WrapShape::Sphere { .. } | crate::model::WrapShape::Cylinder { .. }
+    )
+}
+
+/// Two or more wraps engaged on the current path, one of them not a shortest path: the
+/// tangent points are then not stationary and [`chain`] differentiates the path exactly.
+fn interacting_non_geodesic_wraps(model: &Model, path: &PathGeometry, nodes: &[Node]) -> bool {
+    let mut engaged = 0;
+    let mut non_geodesic = false;
+    for n in nodes {
+        if let NodeKind::Tangent(w, false) = n.kind {
+            engaged += 1;
+            non_geodesic |= !geodesic(model, &path.wraps[w]);
+        }
+    }
+    engaged >= 2 && non_geodesic
 }
 
 /// ℓ = Σ straight segments + the surface length between the two tangent points of a wrap.
@@ -398,49 +454,68 @@ fn moment_arms(
     model: &Model,
     data: &Data,
     path: &PathGeometry,
-    nodes: &[Node],
+    nodes: &mut [Node],
     body_force: &mut [Force],
     touched: &mut Vec<usize>,
     r: &mut [f64],
 ) {
     r.fill(0.0);
     let o = data.reference_point();
-    let unit = |a: &Node, b: &Node| -> Vec3 {
-        if let (NodeKind::Tangent(x, false), NodeKind::Tangent(y, true)) = (a.kind, b.kind) {
-            if x == y {
-                return Vec3::zeros();
+    let mut push = |body: usize, at: &Vec3, f: &Vec3| {
+        if body != 0 {
+            if body_force[body] == Force::ZERO {
+                touched.push(body);
+            }
+            body_force[body].add_assign(&Force {
+                ang: (at - o).cross(f),
+                lin: *f,
+            });
+        }
+    };
+    // A wrap whose neighbours are both path points uses its exact gradients ∂L/∂P, ∂L/∂S;
+    // a wrap next to another wrap's tangent point falls back to holding its tangent points
+    // fixed on the wrap body (exact for shortest paths, OpenSim's own moment-arm rule).
+    let exact = |i: usize, nodes: &[Node]| -> bool {
+        // i: index of a first tangent point
+        i >= 1
+            && i + 2 < nodes.len()
+            && matches!(nodes[i - 1].kind, NodeKind::Point(_))
+            && matches!(nodes[i + 2].kind, NodeKind::Point(_))
+    };
+    for n in nodes.iter_mut() {
+        n.pull = Vec3::zeros();
+    }
+    for i in 0..nodes.len().saturating_sub(1) {
+        let (a, b) = (nodes[i], nodes[i + 1]);
+        match (a.kind, b.kind) {
+            (NodeKind::Tangent(x, false), NodeKind::Tangent(y, true)) if x == y => {} // surface arc
+            (_, NodeKind::Tangent(_, false)) if exact(i + 1, nodes) => {
+                // dL = g_Pᵀ (v_P − v_W(P)): −g_P pulls P; +g_P on the wrap body at P.
+                nodes[i].pull -= b.grad;
+                push(b.body, &a.ground, &b.grad);
+            }
+            (NodeKind::Tangent(_, true), _) if exact(i - 1, nodes) => {
+                nodes[i + 1].pull -= a.grad;
+                push(a.body, &b.ground, &a.grad);
+            }
+            _ => {
+                // The tension pulls each end of a straight segment towards the other.
+                let d = b.ground - a.ground;
+                let len = d.norm();
+                if len > 0.0 {
+                    let u = d / len;
+                    nodes[i].pull += u;
+                    nodes[i + 1].pull -= u;
+                }
             }
         }
-        let d = b.ground - a.ground;
-        let n = d.norm();
-        if n > 0.0 { d / n } else { Vec3::zeros() }
-    };
-    let cols = &model.reduction.columns;
-    for (i, node) in nodes.iter().enumerate() {
-        let before = if i > 0 {
-            unit(&nodes[i - 1], node)
-        } else {
-            Vec3::zeros()
-        };
-        let after = if i + 1 < nodes.len() {
-            unit(node, &nodes[i + 1])
-        } else {
-            Vec3::zeros()
-        };
-        // The path tension pulls node k along û_k and back along û_{k−1}.
-        let f = after - before;
+    }
+    for node in nodes.iter() {
+        let f = node.pull;
         if f == Vec3::zeros() {
             continue;
         }
-        if node.body != 0 {
-            if body_force[node.body] == Force::ZERO {
-                touched.push(node.body);
-            }
-            body_force[node.body].add_assign(&Force {
-                ang: (node.ground - o).cross(&f),
-                lin: f,
-            });
-        }
+        push(node.body, &node.ground, &f);
         // A moving point's own motion in its body: v += R (∂p/∂c) ċ.
         if let NodeKind::Point(pi) = node.kind {
             if let PointKind::Moving { frame, axes } = &path.points[pi].kind {
@@ -461,6 +536,7 @@ fn moment_arms(
             }
         }
     }
+    let cols = &model.reduction.columns;
     // Project each body's force on the reduced columns from the body to ground.
     for &b in touched.iter() {
         let f = body_force[b];
@@ -474,189 +550,6 @@ fn moment_arms(
     touched.clear();
 }
 
-/// The outcome of wrapping one segment over one wrap object.
-enum SegmentWrap {
-    /// The segment stays straight.
-    None,
-    /// A path point lies inside the object (OpenSim's insideRadius).
-    Inside,
-    /// Wrapped: tangent points in the wrap body's frame and in ground, surface length, and
-    /// whether the straight segment intersected the object (a mandatory wrap).
-    Wrapped {
-        t1: Vec3,
-        t2: Vec3,
-        surface: f64,
-        mandatory: bool,
-    },
-}
-
-/// Wraps the segment a → b over the path's wrap `w`, in the wrap object's frame.
-fn wrap_segment(model: &Model, data: &Data, w: &WrapDef, a: &Vec3, b: &Vec3) -> SegmentWrap {
-    use super::wrap::{self, WrapOutcome};
-    let obj = &model.wrap_objects[w.object];
-    let (rot, pos) = data.body_pose(obj.body);
-    // X_GW = X_GB · X_BW
-    let x_bw = &obj.pose_in_body;
-    let r_gw = rot * x_bw.rot;
-    let p_gw = rot * x_bw.pos + pos;
-    let to_wrap = |x: &Vec3| r_gw.transpose() * (x - p_gw);
-    let (p, s) = (to_wrap(a), to_wrap(b));
-    let outcome = match obj.shape {
-        WrapShape::Sphere { radius } => wrap::wrap_sphere(radius, w.quadrant, &p, &s),
-        WrapShape::Cylinder { radius, length } => {
-            wrap::wrap_cylinder(radius, length, w.quadrant, &p, &s)
-        }
-        WrapShape::Ellipsoid { dimensions } => {
-            wrap::wrap_ellipsoid(&dimensions, w.quadrant, w.method, &p, &s)
-        }
-        WrapShape::Torus {
-            inner_radius,
-            outer_radius,
-        } => wrap::wrap_torus(inner_radius, outer_radius, w.quadrant, &p, &s),
-    };
-    match outcome {
-        WrapOutcome::NoWrap => SegmentWrap::None,
-        WrapOutcome::InsideRadius => SegmentWrap::Inside,
-        WrapOutcome::Wrapped(wr) => SegmentWrap::Wrapped {
-            t1: r_gw * wr.t1 + p_gw,
-            t2: r_gw * wr.t2 + p_gw,
-            surface: wr.surface_length,
-            mandatory: wr.mandatory,
-        },
-    }
-}
-
-/// OpenSim's wrapping of a path (GeometryPath::applyWrapObjects): for each wrap object in
-/// order, remove its previous tangent points, then try every segment of the current path
-/// between the first and last active points of its range (except a segment joining two
-/// tangent points of the same object): the first segment whose straight line intersects the
-/// object must wrap; otherwise the wrap that lengthens its segment least is taken. With two or
-/// more wrap objects the sweep repeats (at most 8 times) until the length changes by less
-/// than 0.5 mm; after the first sweep, if the first object did not wrap and the second found
-/// a point inside itself, the two are swapped.
-fn apply_wrap_objects(model: &Model, data: &Data, path: &PathGeometry, nodes: &mut Vec<Node>) {
-    let nw = path.wraps.len();
-    let iterations = if nw < 2 { 1 } else { 8 };
-    let mut order = [0usize; 2];
-    order[0] = 0;
-    order[1] = 1.min(nw - 1);
-    let mut last_length = f64::INFINITY;
-    let mut first_results = [0u8; 2]; // 0 no wrap, 1 inside, 2 wrapped
-    for iteration in 0..iterations {
-        for oi in 0..nw {
-            let wi = if oi < 2 { order[oi] } else { oi };
-            let w = &path.wraps[wi];
-            // Remove this object's tangent points.
-            if let Some(pos) = nodes
-                .iter()
-                .position(|n| n.kind == NodeKind::Tangent(wi, false))
-            {
-                nodes.remove(pos);
-                nodes.remove(pos);
-            }
-            let mut result = 0u8;
-            if model.wrap_objects[w.object].active {
-                // First and last active points of the range, found in the current path.
-                let active = |i: usize| nodes.iter().position(|n| n.kind == NodeKind::Point(i));
-                let Some(start) = (w.start..=w.end).find_map(active) else {
-                    continue;
-                };
-                let Some(end) = (w.start..=w.end).rev().find_map(active) else {
-                    continue;
-                };
-                let mut best: Option<(usize, SegmentWrap)> = None;
-                let mut min_change = f64::INFINITY;
-                for a in start..end {
-                    let (na, nb) = (nodes[a], nodes[a + 1]);
-                    if let (NodeKind::Tangent(x, _), NodeKind::Tangent(y, _)) = (na.kind, nb.kind) {
-                        if x == y {
-                            continue;
-                        }
-                    }
-                    match wrap_segment(model, data, w, &na.ground, &nb.ground) {
-                        SegmentWrap::None => {}
-                        SegmentWrap::Inside => result = result.max(1),
-                        wrapped @ SegmentWrap::Wrapped {
-                            mandatory: true, ..
-                        } => {
-                            result = 2;
-                            best = Some((a, wrapped));
-                            break;
-                        }
-                        SegmentWrap::Wrapped {
-                            t1,
-                            t2,
-                            surface,
-                            mandatory,
-                        } => {
-                            result = 2;
-                            let change =
-                                (t1 - na.ground).norm() + surface + (nb.ground - t2).norm()
-                                    - (nb.ground - na.ground).norm();
-                            if change < min_change {
-                                min_change = change;
-                                best = Some((
-                                    a,
-                                    SegmentWrap::Wrapped {
-                                        t1,
-                                        t2,
-                                        surface,
-                                        mandatory,
-                                    },
-                                ));
-                            }
-                        }
-                    }
-                }
-                if let Some((
-                    a,
-                    SegmentWrap::Wrapped {
-                        t1, t2, surface, ..
-                    },
-                )) = best
-                {
-                    let body = model.wrap_objects[w.object].body;
-                    nodes.insert(
-                        a + 1,
-                        Node {
-                            kind: NodeKind::Tangent(wi, false),
-                            body,
-                            ground: t1,
-                            surface: 0.0,
-                        },
-                    );
-                    nodes.insert(
-                        a + 2,
-                        Node {
-                            kind: NodeKind::Tangent(wi, true),
-                            body,
-                            ground: t2,
-                            surface,
-                        },
-                    );
-                }
-            }
-            if iteration == 0 && oi < 2 {
-                first_results[oi] = result;
-            }
-        }
-        if nw < 2 {
-            break;
-        }
-        let length = path_length(nodes);
-        if (length - last_length).abs() < 0.0005 {
-            break;
-        }
-        last_length = length;
-        if iteration == 0 && first_results[0] == 0 && first_results[1] == 1 {
-            order = [1, 0];
-            if let Some(pos) = nodes
-                .iter()
-                .position(|n| n.kind == NodeKind::Tangent(0, false))
-            {
-                nodes.remove(pos);
-                nodes.remove(pos);
-            }
-        }
-    }
-}
+mod chain;
+mod wrapping;
+use wrapping::apply_wrap_objects;

@@ -1,0 +1,243 @@
+//! OpenSim's wrapping of a path: which segment each wrap object takes, and where its tangent
+//! points go.
+
+use super::{Node, NodeKind, PathGeometry, WrapDef, path_length};
+use crate::dynamics::Data;
+use crate::model::{Model, WrapShape};
+use crate::spatial::{Mat3, Vec3};
+
+/// The outcome of wrapping one segment over one wrap object.
+pub(super) enum SegmentWrap {
+    /// The segment stays straight.
+    None,
+    /// A path point lies inside the object (OpenSim's insideRadius).
+    Inside,
+    /// Wrapped: tangent points in the wrap body's frame and in ground, surface length, and
+    /// whether the straight segment intersected the object (a mandatory wrap).
+    Wrapped {
+        t1: Vec3,
+        t2: Vec3,
+        surface: f64,
+        mandatory: bool,
+        /// ∂L/∂P and ∂L/∂S in ground axes.
+        grad_p: Vec3,
+        grad_s: Vec3,
+        /// ∂T1/∂P, ∂T1/∂S, ∂T2/∂P, ∂T2/∂S in ground axes (wrap frame held fixed).
+        jac: [Mat3; 4],
+    },
+}
+
+/// Wraps the segment a → b over the path's wrap `w`, in the wrap object's frame.
+pub(super) fn wrap_segment(
+    model: &Model,
+    data: &Data,
+    w: &WrapDef,
+    a: &Vec3,
+    b: &Vec3,
+) -> SegmentWrap {
+    use crate::muscle::wrap::{self, WrapOutcome};
+    let obj = &model.wrap_objects[w.object];
+    let (rot, pos) = data.body_pose(obj.body);
+    // X_GW = X_GB · X_BW
+    let x_bw = &obj.pose_in_body;
+    let r_gw = rot * x_bw.rot;
+    let p_gw = rot * x_bw.pos + pos;
+    let to_wrap = |x: &Vec3| r_gw.transpose() * (x - p_gw);
+    let (p, s) = (to_wrap(a), to_wrap(b));
+    let outcome = match obj.shape {
+        WrapShape::Sphere { radius } => wrap::wrap_sphere(radius, w.quadrant, &p, &s),
+        WrapShape::Cylinder { radius, length } => {
+            wrap::wrap_cylinder(radius, length, w.quadrant, &p, &s)
+        }
+        WrapShape::Ellipsoid { dimensions } => {
+            wrap::wrap_ellipsoid(&dimensions, w.quadrant, w.method, &p, &s)
+        }
+        WrapShape::Torus {
+            inner_radius,
+            outer_radius,
+        } => wrap::wrap_torus(inner_radius, outer_radius, w.quadrant, &p, &s),
+    };
+    match outcome {
+        WrapOutcome::NoWrap => SegmentWrap::None,
+        WrapOutcome::InsideRadius => SegmentWrap::Inside,
+        WrapOutcome::Wrapped(wr) => SegmentWrap::Wrapped {
+            t1: r_gw * wr.t1 + p_gw,
+            t2: r_gw * wr.t2 + p_gw,
+            surface: wr.surface_length,
+            mandatory: wr.mandatory,
+            grad_p: r_gw * wr.dlength_dp,
+            grad_s: r_gw * wr.dlength_ds,
+            jac: tangent_jacobians(&wr, &r_gw),
+        },
+    }
+}
+
+/// Sweeps over a path's wrap objects when it has several (OpenSim: 8).
+const MAX_SWEEPS: usize = 100;
+/// Relative length change that ends the sweeps (OpenSim: 0.5 mm absolute).
+const SWEEP_TOLERANCE: f64 = 1e-14;
+
+/// OpenSim's wrapping of a path (GeometryPath::applyWrapObjects): for each wrap object in
+/// order, remove its previous tangent points, then try every segment of the current path
+/// between the first and last active points of its range (except a segment joining two
+/// tangent points of the same object): the first segment whose straight line intersects the
+/// object must wrap; otherwise the wrap that lengthens its segment least is taken. With two or
+/// more wrap objects the sweep repeats; after the first sweep, if the first object did not
+/// wrap and the second found a point inside itself, the two are swapped.
+///
+/// One deliberate difference: OpenSim stops sweeping after 8 sweeps or once the length
+/// changes by less than 0.5 mm; musculo sweeps until the wrapped path is converged (length
+/// change below 1e-14 relative, at most 100 sweeps). The two agree to within OpenSim's
+/// tolerance, and the converged path makes ℓ(q) smooth, so that moment arms are its exact
+/// derivatives.
+pub(super) fn apply_wrap_objects(
+    model: &Model,
+    data: &Data,
+    path: &PathGeometry,
+    nodes: &mut Vec<Node>,
+) {
+    let nw = path.wraps.len();
+    let iterations = if nw < 2 { 1 } else { MAX_SWEEPS };
+    let mut order = [0usize; 2];
+    order[0] = 0;
+    order[1] = 1.min(nw - 1);
+    let mut last_length = f64::INFINITY;
+    let mut first_results = [0u8; 2]; // 0 no wrap, 1 inside, 2 wrapped
+    for iteration in 0..iterations {
+        for oi in 0..nw {
+            let wi = if oi < 2 { order[oi] } else { oi };
+            let w = &path.wraps[wi];
+            // Remove this object's tangent points.
+            if let Some(pos) = nodes
+                .iter()
+                .position(|n| n.kind == NodeKind::Tangent(wi, false))
+            {
+                nodes.remove(pos);
+                nodes.remove(pos);
+            }
+            let mut result = 0u8;
+            if model.wrap_objects[w.object].active {
+                // First and last active points of the range, found in the current path.
+                let active = |i: usize| nodes.iter().position(|n| n.kind == NodeKind::Point(i));
+                let Some(start) = (w.start..=w.end).find_map(active) else {
+                    continue;
+                };
+                let Some(end) = (w.start..=w.end).rev().find_map(active) else {
+                    continue;
+                };
+                let mut best: Option<(usize, SegmentWrap)> = None;
+                let mut min_change = f64::INFINITY;
+                for a in start..end {
+                    let (na, nb) = (nodes[a], nodes[a + 1]);
+                    if let (NodeKind::Tangent(x, _), NodeKind::Tangent(y, _)) = (na.kind, nb.kind) {
+                        if x == y {
+                            continue;
+                        }
+                    }
+                    match wrap_segment(model, data, w, &na.ground, &nb.ground) {
+                        SegmentWrap::None => {}
+                        SegmentWrap::Inside => result = result.max(1),
+                        wrapped @ SegmentWrap::Wrapped {
+                            mandatory: true, ..
+                        } => {
+                            result = 2;
+                            best = Some((a, wrapped));
+                            break;
+                        }
+                        wrapped @ SegmentWrap::Wrapped {
+                            t1, t2, surface, ..
+                        } => {
+                            result = 2;
+                            let change =
+                                (t1 - na.ground).norm() + surface + (nb.ground - t2).norm()
+                                    - (nb.ground - na.ground).norm();
+                            if change < min_change {
+                                min_change = change;
+                                best = Some((a, wrapped));
+                            }
+                        }
+                    }
+                }
+                if let Some((
+                    a,
+                    SegmentWrap::Wrapped {
+                        t1,
+                        t2,
+                        surface,
+                        grad_p,
+                        grad_s,
+                        jac,
+                        ..
+                    },
+                )) = best
+                {
+                    let body = model.wrap_objects[w.object].body;
+                    let node = |kind, ground, surface, grad, jac_p, jac_s| Node {
+                        kind,
+                        body,
+                        ground,
+                        surface,
+                        grad,
+                        jac_p,
+                        jac_s,
+                        pull: Vec3::zeros(),
+                    };
+                    nodes.insert(
+                        a + 1,
+                        node(
+                            NodeKind::Tangent(wi, false),
+                            t1,
+                            0.0,
+                            grad_p,
+                            jac[0],
+                            jac[1],
+                        ),
+                    );
+                    nodes.insert(
+                        a + 2,
+                        node(
+                            NodeKind::Tangent(wi, true),
+                            t2,
+                            surface,
+                            grad_s,
+                            jac[2],
+                            jac[3],
+                        ),
+                    );
+                }
+            }
+            if iteration == 0 && oi < 2 {
+                first_results[oi] = result;
+            }
+        }
+        if nw < 2 {
+            break;
+        }
+        let length = path_length(nodes);
+        if (length - last_length).abs() <= SWEEP_TOLERANCE * (1.0 + length) {
+            break;
+        }
+        last_length = length;
+        if iteration == 0 && first_results[0] == 0 && first_results[1] == 1 {
+            order = [1, 0];
+            if let Some(pos) = nodes
+                .iter()
+                .position(|n| n.kind == NodeKind::Tangent(0, false))
+            {
+                nodes.remove(pos);
+                nodes.remove(pos);
+            }
+        }
+    }
+}
+
+/// ∂T1/∂P, ∂T1/∂S, ∂T2/∂P, ∂T2/∂S in ground axes: R (∂t/∂p) Rᵀ.
+fn tangent_jacobians(wr: &crate::muscle::wrap::Wrapped, r: &Mat3) -> [Mat3; 4] {
+    let g = |m: nalgebra::Matrix3<f64>| r * m * r.transpose();
+    [
+        g(wr.dt1.fixed_columns::<3>(0).into_owned()),
+        g(wr.dt1.fixed_columns::<3>(3).into_owned()),
+        g(wr.dt2.fixed_columns::<3>(0).into_owned()),
+        g(wr.dt2.fixed_columns::<3>(3).into_owned()),
+    ]
+}
