@@ -195,6 +195,54 @@ impl MujocoTwin {
         }
     }
 
+    /// Index of the MuJoCo tendon exported for the named path (muscle or path actuator).
+    pub fn tendon_index(&self, name: &str) -> Option<usize> {
+        let c = CString::new(name).ok()?;
+        // SAFETY: valid model and C string.
+        let i = unsafe {
+            mj::mj_name2id(
+                self.data.model().ffi(),
+                mj::mjtObj::mjOBJ_TENDON as i32,
+                c.as_ptr(),
+            )
+        };
+        usize::try_from(i).ok()
+    }
+
+    /// Tendon lengths and ∂length/∂θ (MuJoCo's ten_length and ten_J after mj_kinematics,
+    /// mj_comPos, mj_tendon) at qpos = θ: `lengths[k]`, `jacobian[(k, d)]` in musculo's
+    /// full-coordinate order, for every MuJoCo tendon k.
+    pub fn tendons(&mut self, theta: &[f64], lengths: &mut [f64], jacobian: &mut DMatrix<f64>) {
+        let zeros = vec![0.0; theta.len()];
+        self.set_state(theta, &zeros);
+        let (m, d) = self.ptrs();
+        // SAFETY: valid model/data; ten_J is stored sparse with the model's row structure.
+        unsafe {
+            mj::mj_kinematics(m, d);
+            mj::mj_comPos(m, d);
+            mj::mj_tendon(m, d);
+            let nt = (*m).ntendon as usize;
+            let mut dof_of = vec![usize::MAX; self.nv];
+            for (k, &a) in self.adr.iter().enumerate() {
+                dof_of[a] = k;
+            }
+            jacobian.fill(0.0);
+            for t in 0..nt.min(lengths.len()) {
+                lengths[t] = *(*d).ten_length.add(t);
+                let adr = *(*m).ten_J_rowadr.add(t) as usize;
+                for i in 0..*(*m).ten_J_rownnz.add(t) as usize {
+                    let col = *(*m).ten_J_colind.add(adr + i) as usize;
+                    jacobian[(t, dof_of[col])] = *(*d).ten_J.add(adr + i);
+                }
+            }
+        }
+    }
+
+    /// Number of MuJoCo tendons.
+    pub fn tendon_count(&self) -> usize {
+        self.data.model().ffi().ntendon as usize
+    }
+
     /// M_full(θ) in musculo's full-coordinate order.
     pub fn mass_matrix(&mut self, theta: &[f64], out: &mut DMatrix<f64>) {
         let zeros = vec![0.0; theta.len()];

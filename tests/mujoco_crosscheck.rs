@@ -239,3 +239,100 @@ fn exported_models_simulate_in_mujoco_with_their_couplings_held() {
         }
     }
 }
+
+/// Tendon lengths and moment arms of the muscles whose paths have only fixed points and no
+/// wrap objects: MuJoCo's spatial tendons through the exported sites compute the same ℓ, and
+/// MuJoCo's ten_J (∂ℓ/∂θ) reduced by Φ gives the moment arms r = −Φᵀ ∂ℓ/∂θ.
+fn tendon_crosscheck(path: &Path, seed: u64) {
+    use musculo::model::PathPointKind;
+    use musculo::muscle::path::{PathData, PathSet, compute_paths};
+    let model = Model::from_osim_file_with(
+        path,
+        &LoadOptions {
+            allow_nonphysical_inertia: true,
+        },
+    )
+    .unwrap();
+    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    let mut twin = MujocoTwin::new(&model).unwrap();
+    let set = PathSet::new(&model).unwrap();
+    let simple: Vec<(usize, usize)> = set
+        .paths
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| {
+            let gp = model.forces[p.force].path.as_ref().unwrap();
+            gp.wraps.is_empty()
+                && gp
+                    .points
+                    .iter()
+                    .all(|pt| matches!(pt.kind, PathPointKind::Fixed))
+        })
+        .map(|(k, p)| (k, twin.tendon_index(&p.name).unwrap()))
+        .collect();
+    assert!(
+        !simple.is_empty(),
+        "{name}: no muscle with fixed points only"
+    );
+    let (n, nf) = (model.nq(), model.n_full());
+    let mut data = Data::new(&model);
+    let mut pd = PathData::new(&model, &set);
+    let mut lengths = vec![0.0; twin.tendon_count()];
+    let mut jac = DMatrix::zeros(twin.tendon_count(), nf);
+    let mut rng = Rng::new(seed);
+    let (mut worst_l, mut worst_r) = (0.0f64, 0.0f64);
+    for _ in 0..STATES {
+        let q = random_q(&model, &mut rng);
+        dynamics::forward_kinematics(&model, &mut data, &q).unwrap();
+        compute_paths(&model, &data, &set, &mut pd).unwrap();
+        let phi = data.phi_matrix(&model);
+        twin.tendons(data.theta(&model), &mut lengths, &mut jac);
+        for &(k, t) in &simple {
+            let e = (pd.length[k] - lengths[t]).abs() / lengths[t];
+            assert!(
+                e <= TOL,
+                "{name}: length of {}: {} vs MuJoCo {}",
+                set.paths[k].name,
+                pd.length[k],
+                lengths[t]
+            );
+            worst_l = worst_l.max(e);
+            let r_mj = -(jac.row(t) * &phi);
+            for j in 0..n {
+                let e = (pd.moment_arms[(j, k)] - r_mj[j]).abs() / r_mj.amax().max(1e-3);
+                assert!(
+                    e <= TOL,
+                    "{name}: moment arm of {} about {}: {} vs MuJoCo {}",
+                    set.paths[k].name,
+                    model.q_names()[j],
+                    pd.moment_arms[(j, k)],
+                    r_mj[j]
+                );
+                worst_r = worst_r.max(e);
+            }
+        }
+    }
+    eprintln!(
+        "{name}: {} fixed-point muscles, {STATES} states: worst relative differences to MuJoCo ten_length {worst_l:.1e}, moment arms {worst_r:.1e}",
+        simple.len()
+    );
+}
+
+#[test]
+fn fixed_point_muscle_lengths_and_moment_arms_match_mujoco_tendons() {
+    for (rel, seed) in [
+        (
+            "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+            31,
+        ),
+        (
+            "opensim-models/Pipelines/Gait10dof18musc/OutputReference/gait10dof18musc.osim",
+            32,
+        ),
+        ("opensim-models/Models/Rajagopal/Rajagopal2016.osim", 33),
+    ] {
+        if let Some(p) = reference_file(rel) {
+            tendon_crosscheck(&p, seed);
+        }
+    }
+}
