@@ -3,6 +3,8 @@
 
 mod common;
 use common::*;
+use musculo::muscle::path::compute_paths;
+use musculo::muscle::{MuscleData, MuscleSet, TendonMode, compute_muscles};
 use musculo::spatial::Vec3;
 use musculo::{Data, Model, dynamics};
 use nalgebra::DMatrix;
@@ -55,6 +57,9 @@ fn check(model: &Model) {
     let mut jc = DMatrix::zeros(6, n);
     let mut jdot = [0.0; 6];
     let mut markers = vec![Vec3::zeros(); model.markers.len()];
+    let muscles = MuscleSet::new(model).unwrap();
+    let mut md = MuscleData::new(model, &muscles);
+    let activation = vec![0.4; muscles.len()];
     let (theta, theta_d) = {
         dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
         (data.theta(model).to_vec(), data.theta_dot(model).to_vec())
@@ -87,6 +92,28 @@ fn check(model: &Model) {
             data.marker_positions(model, &mut markers).unwrap();
             dynamics::rnea_full(model, &mut data, &theta, &theta_d, &theta_dd).unwrap();
             dynamics::crba_full(model, &mut data).unwrap();
+            dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
+            compute_paths(model, &data, &muscles.paths, &mut md.paths).unwrap();
+            compute_muscles(
+                model,
+                &data,
+                &muscles,
+                &activation,
+                TendonMode::AsModel,
+                false,
+                &mut md,
+            )
+            .unwrap();
+            compute_muscles(
+                model,
+                &data,
+                &muscles,
+                &activation,
+                TendonMode::Rigid,
+                false,
+                &mut md,
+            )
+            .unwrap();
         }
     });
     assert_eq!(
@@ -102,6 +129,7 @@ fn per_frame_algorithms_do_not_allocate() {
     for rel in [
         "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
         "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+        "opensim-models/Models/Arm26/arm26.osim",
     ] {
         if let Some(p) = reference_file(rel) {
             check(&Model::from_osim_file(p).unwrap());
