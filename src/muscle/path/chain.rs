@@ -14,14 +14,18 @@
 //!   ∂ℓ/∂q = Σ_w [g_Aᵀ (D_A − D_W(A)) + g_Bᵀ (D_B − D_W(B))]
 //!         + Σ_{point–point segments} ûᵀ (D_b − D_a) − Σ_{wrap–wrap segments} ûᵀ (D_b − D_a).
 
+use super::wrapping::{SegmentWrap, wrap_segment};
 use super::{Node, NodeKind, PathGeometry, PointKind};
 use crate::dynamics::Data;
 use crate::model::Model;
 use crate::model::reduction::NONE;
-use crate::spatial::Vec3;
+use crate::spatial::{Mat3, Vec3};
 
 /// Iterations of the tangent-point sensitivities.
 const MAX_ITERATIONS: usize = 200;
+/// Wraps engaged at once on one path that this module differentiates (more would need a
+/// path with more than 16 wrap objects in contact).
+const MAX_WRAPS: usize = 16;
 
 /// Fills `out` (n columns of 3) with the motion ∂x/∂q of the point of `body` at `x` (ground).
 fn body_point_derivative(model: &Model, data: &Data, body: usize, x: &Vec3, out: &mut [Vec3]) {
@@ -98,20 +102,43 @@ pub(super) fn moment_arms(
             );
         }
     }
+    // Each engaged wrap's contact-point sensitivities ∂T/∂A, ∂T/∂B at the final path (the
+    // wrap evaluated once more between its final neighbours).
+    let mut jacobians = [[Mat3::zeros(); 4]; MAX_WRAPS];
+    let mut engaged = 0;
+    for k in 0..m {
+        if let NodeKind::Tangent(w, false) = nodes[k].kind {
+            if engaged < MAX_WRAPS {
+                if let SegmentWrap::Wrapped { jac, .. } = wrap_segment(
+                    model,
+                    data,
+                    &path.wraps[w],
+                    &nodes[k - 1].ground,
+                    &nodes[k + 2].ground,
+                ) {
+                    jacobians[engaged] = jac;
+                }
+            }
+            engaged += 1;
+        }
+    }
     // The tangent points' sensitivities, iterated to their fixed point.
     let scale = d.iter().fold(1.0f64, |s, v| s.max(v.amax()));
     for _ in 0..MAX_ITERATIONS {
         let mut change = 0.0f64;
+        let mut wrap = 0;
         for k in 0..m {
             let NodeKind::Tangent(_, false) = nodes[k].kind else {
                 continue;
             };
+            let jac = jacobians[wrap.min(MAX_WRAPS - 1)];
+            wrap += 1;
             let (a, b) = (k - 1, k + 2);
-            for t in [k, k + 1] {
+            for (t, jp, js) in [(k, jac[0], jac[1]), (k + 1, jac[2], jac[3])] {
                 for j in 0..n {
                     let da = d[a * n + j] - wa[k * n + j];
                     let db = d[b * n + j] - wb[k * n + j];
-                    let new = fixed[t * n + j] + nodes[t].jac_p * da + nodes[t].jac_s * db;
+                    let new = fixed[t * n + j] + jp * da + js * db;
                     change = change.max((new - d[t * n + j]).amax());
                     d[t * n + j] = new;
                 }

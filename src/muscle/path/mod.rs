@@ -202,10 +202,6 @@ struct Node {
     /// L = |P − T1| + arc + |T2 − S| is the wrap's length between the path points P and S
     /// around it (the wrap frame held fixed).
     grad: Vec3,
-    /// On a tangent point: its sensitivity to the path points P and S around the wrap,
-    /// ∂T/∂P and ∂T/∂S (ground axes, wrap frame held fixed).
-    jac_p: crate::spatial::Mat3,
-    jac_s: crate::spatial::Mat3,
     /// Net unit tension on the node (moment-arm computation).
     pull: Vec3,
 }
@@ -381,8 +377,6 @@ fn compute_path(
                 ground: data.point_position(p.body, &local),
                 surface: 0.0,
                 grad: Vec3::zeros(),
-                jac_p: crate::spatial::Mat3::zeros(),
-                jac_s: crate::spatial::Mat3::zeros(),
                 pull: Vec3::zeros(),
             });
         }
@@ -537,17 +531,54 @@ fn moment_arms(
         }
     }
     let cols = &model.reduction.columns;
-    // Project each body's force on the reduced columns from the body to ground.
+    // Project each body's force on the reduced columns from the body towards ground. The
+    // path's forces are pairs of equal and opposite forces on common lines, so their sum and
+    // moment vanish: the columns of the lowest common ancestor of the touched bodies and of
+    // its ancestors receive nothing, and the walk stops there.
+    let stop = lowest_common_ancestor(model, touched);
     for &b in touched.iter() {
         let f = body_force[b];
         let mut c = cols.body_last[b];
-        while c != NONE {
+        while c != NONE && Some(cols.body[c]) != stop {
             r[cols.q[c]] += data.column_motion(c).dot(&f);
             c = cols.parent[c];
         }
         body_force[b] = Force::ZERO;
     }
     touched.clear();
+}
+
+/// The deepest body that is an ancestor of (or equal to) every body in `bodies`, or None
+/// when only ground is (bodies in separate trees).
+fn lowest_common_ancestor(model: &Model, bodies: &[usize]) -> Option<usize> {
+    let depth = |mut b: usize| {
+        let mut d = 0;
+        while let Some(p) = model.bodies[b].parent {
+            b = p;
+            d += 1;
+        }
+        d
+    };
+    let mut iter = bodies.iter();
+    let mut a = *iter.next()?;
+    for &b0 in iter {
+        let (mut x, mut y) = (a, b0);
+        let (mut dx, mut dy) = (depth(x), depth(y));
+        while dx > dy {
+            x = model.bodies[x].parent.unwrap_or(0);
+            dx -= 1;
+        }
+        while dy > dx {
+            y = model.bodies[y].parent.unwrap_or(0);
+            dy -= 1;
+        }
+        while x != y {
+            x = model.bodies[x].parent.unwrap_or(0);
+            y = model.bodies[y].parent.unwrap_or(0);
+        }
+        a = x;
+    }
+    (a != 0).then_some(a)
 }
 
 mod chain;

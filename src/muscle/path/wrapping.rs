@@ -166,43 +166,23 @@ pub(super) fn apply_wrap_objects(
                         surface,
                         grad_p,
                         grad_s,
-                        jac,
                         ..
                     },
                 )) = best
                 {
                     let body = model.wrap_objects[w.object].body;
-                    let node = |kind, ground, surface, grad, jac_p, jac_s| Node {
+                    let node = |kind, ground, surface, grad| Node {
                         kind,
                         body,
                         ground,
                         surface,
                         grad,
-                        jac_p,
-                        jac_s,
                         pull: Vec3::zeros(),
                     };
-                    nodes.insert(
-                        a + 1,
-                        node(
-                            NodeKind::Tangent(wi, false),
-                            t1,
-                            0.0,
-                            grad_p,
-                            jac[0],
-                            jac[1],
-                        ),
-                    );
+                    nodes.insert(a + 1, node(NodeKind::Tangent(wi, false), t1, 0.0, grad_p));
                     nodes.insert(
                         a + 2,
-                        node(
-                            NodeKind::Tangent(wi, true),
-                            t2,
-                            surface,
-                            grad_s,
-                            jac[2],
-                            jac[3],
-                        ),
+                        node(NodeKind::Tangent(wi, true), t2, surface, grad_s),
                     );
                 }
             }
