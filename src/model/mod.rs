@@ -20,7 +20,7 @@ mod osim;
 pub(crate) mod reduction;
 
 pub use function::{Arity, Function};
-pub use osim::LoadOptions;
+pub use osim::{ForceSetFiles, LoadOptions};
 pub use reduction::Reduction;
 
 use crate::spatial::{Mat3, Transform, Vec3};
@@ -334,8 +334,53 @@ pub struct ForceElement {
     pub kind: String,
     /// Geometry path, for muscles and path actuators.
     pub path: Option<GeometryPath>,
+    /// `<appliesForce>` (OpenSim 4; `false` disables the element).
+    pub applies_force: bool,
+    /// For OpenSim's scalar actuators (muscles included): control bounds, optimal force and
+    /// where the force acts.
+    pub actuator: Option<ScalarActuator>,
     pub raw: RawElement,
     pub line: u32,
+}
+
+/// A scalar actuator: one control x produces the force (or torque) x · `optimal_force`,
+/// x ∈ [`min_control`, `max_control`] (OpenSim's ScalarActuator; for muscles x is the
+/// activation and the force comes from the muscle model).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScalarActuator {
+    pub min_control: f64,
+    pub max_control: f64,
+    pub optimal_force: f64,
+    pub kind: ActuatorKind,
+}
+
+/// Where a scalar actuator's force acts, resolved to the model's bodies and coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ActuatorKind {
+    /// A muscle: tension along its geometry path.
+    Muscle,
+    /// A PathActuator: tension x · F_opt along its geometry path.
+    Path,
+    /// A CoordinateActuator: generalized force on the coordinate (`Model::coordinates`
+    /// index).
+    Coordinate { coordinate: usize },
+    /// A PointActuator: force along the unit `direction` (in ground if `force_is_global`,
+    /// else in the body) at `point` (in ground if `point_is_global`, else in the body).
+    Point {
+        body: usize,
+        point: Vec3,
+        point_is_global: bool,
+        direction: Vec3,
+        force_is_global: bool,
+    },
+    /// A TorqueActuator: torque about the unit `axis` (in ground if `torque_is_global`, else
+    /// in body A) on `body_a`, and its opposite on `body_b`.
+    Torque {
+        body_a: usize,
+        body_b: usize,
+        axis: Vec3,
+        torque_is_global: bool,
+    },
 }
 
 impl ForceElement {
@@ -399,6 +444,45 @@ impl Model {
             source,
         })?;
         osim::parse(&text, &path.display().to_string(), options)
+    }
+
+    /// Reads an `.osim` file and adds the forces of OpenSim force-set files (reserve and
+    /// residual actuators, typically), as the `<force_set_files>` of a tool's setup do. With
+    /// `replace`, the model's own forces are dropped first (`<replace_force_set>`).
+    pub fn from_osim_file_with_force_sets(
+        path: impl AsRef<Path>,
+        options: &LoadOptions,
+        force_set_files: &[impl AsRef<Path>],
+        replace: bool,
+    ) -> crate::Result<Model> {
+        let read = |p: &Path| {
+            std::fs::read_to_string(p).map_err(|source| crate::Error::Io {
+                path: p.to_path_buf(),
+                source,
+            })
+        };
+        let path = path.as_ref();
+        let text = read(path)?;
+        let mut sets = ForceSetFiles {
+            files: Vec::new(),
+            replace,
+        };
+        for f in force_set_files {
+            let f = f.as_ref();
+            sets.files.push((read(f)?, f.display().to_string()));
+        }
+        osim::parse_with_force_sets(&text, &path.display().to_string(), options, &sets)
+    }
+
+    /// Parses OpenSim 4.x XML together with force-set files given as text (see
+    /// [`Model::from_osim_file_with_force_sets`]).
+    pub fn from_osim_str_with_force_sets(
+        xml: &str,
+        source: &str,
+        options: &LoadOptions,
+        force_sets: &ForceSetFiles,
+    ) -> crate::Result<Model> {
+        osim::parse_with_force_sets(xml, source, options, force_sets)
     }
 
     /// Parses OpenSim 4.x XML; `source` names it in error messages.

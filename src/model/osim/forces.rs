@@ -6,8 +6,8 @@ use super::xml::{Ctx, XNode, child, elements, set_members};
 use crate::error::Error;
 use crate::model::frames::{FrameRegistry, resolve_path};
 use crate::model::{
-    Arity, ContactGeometry, ContactShape, ForceElement, Function, GeometryPath, Marker, Model,
-    PathPoint, PathPointKind, PathWrap, WrapObject, WrapShape,
+    ActuatorKind, Arity, ContactGeometry, ContactShape, ForceElement, Function, GeometryPath,
+    Marker, Model, PathPoint, PathPointKind, PathWrap, ScalarActuator, WrapObject, WrapShape,
 };
 use crate::spatial::{Transform, Vec3};
 
@@ -256,13 +256,134 @@ pub(super) fn read_force(
             format!("force element `{kind}` is kept but not applied by musculo's dynamics"),
         );
     }
+    let applies_force = ctx.bool_or(f, "appliesForce", true)?;
+    let actuator = read_scalar_actuator(ctx, f, &kind, is_muscle, model)?;
     Ok(ForceElement {
         name,
         kind,
         path,
+        applies_force,
+        actuator,
         raw: ctx.raw(f),
         line: ctx.line(f),
     })
+}
+
+/// A control bound: a number, `Inf`/`-Inf` allowed.
+fn control_bound(ctx: &Ctx, node: XNode, tag: &str, default: f64) -> Result<f64, Error> {
+    match child(node, tag) {
+        None => Ok(default),
+        Some(c) => {
+            let t = c.text().unwrap_or("").trim();
+            let v: f64 = t
+                .parse()
+                .map_err(|_| ctx.err(c, format!("<{tag}>: `{t}` is not a number")))?;
+            if v.is_nan() {
+                return Err(ctx.err(c, format!("<{tag}> is NaN")));
+            }
+            Ok(v)
+        }
+    }
+}
+
+/// A body named by an actuator property: a body name or a path whose last part is one.
+fn actuator_body(ctx: &Ctx, node: XNode, tag: &str, model: &Model) -> Result<Option<usize>, Error> {
+    let Some(text) = ctx.text(node, tag).filter(|t| !t.is_empty()) else {
+        return Ok(None);
+    };
+    let name = text.rsplit('/').next().unwrap_or(text);
+    model
+        .body_index(name)
+        .map(Some)
+        .ok_or_else(|| ctx.err(node, format!("<{tag}>: unknown body `{text}`")))
+}
+
+fn unit(ctx: &Ctx, node: XNode, tag: &str, v: Vec3) -> Result<Vec3, Error> {
+    let n = v.norm();
+    if !(n > 0.0) {
+        return Err(ctx.err(node, format!("<{tag}> must be a non-zero vector")));
+    }
+    Ok(v / n)
+}
+
+/// The control bounds, optimal force and point of action of OpenSim's scalar actuators.
+/// Control defaults are OpenSim's: muscles [0, 1], except Thelen 2003 and Millard 2012 whose
+/// minimum is their default minimum activation 0.01; other actuators unbounded.
+fn read_scalar_actuator(
+    ctx: &Ctx,
+    f: XNode,
+    kind: &str,
+    is_muscle: bool,
+    model: &Model,
+) -> Result<Option<ScalarActuator>, Error> {
+    let (min_default, max_default) = match kind {
+        _ if !is_muscle => (f64::NEG_INFINITY, f64::INFINITY),
+        "Thelen2003Muscle" | "Millard2012EquilibriumMuscle" => (0.01, 1.0),
+        _ => (0.0, 1.0),
+    };
+    let actuator_kind = if is_muscle {
+        ActuatorKind::Muscle
+    } else {
+        match kind {
+            "PathActuator" => ActuatorKind::Path,
+            "CoordinateActuator" => ActuatorKind::Coordinate {
+                coordinate: coordinate_from_socket(ctx, f, model, "coordinate")?,
+            },
+            "PointActuator" => {
+                let body = actuator_body(ctx, f, "body", model)?
+                    .ok_or_else(|| ctx.err(f, "missing <body>"))?;
+                ActuatorKind::Point {
+                    body,
+                    point: ctx.vec3_or(f, "point", Vec3::zeros())?,
+                    point_is_global: ctx.bool_or(f, "point_is_global", false)?,
+                    direction: unit(
+                        ctx,
+                        f,
+                        "direction",
+                        ctx.vec3_or(f, "direction", Vec3::new(1.0, 0.0, 0.0))?,
+                    )?,
+                    force_is_global: ctx.bool_or(f, "force_is_global", false)?,
+                }
+            }
+            "TorqueActuator" => {
+                let body_a = actuator_body(ctx, f, "bodyA", model)?
+                    .ok_or_else(|| ctx.err(f, "missing <bodyA>"))?;
+                ActuatorKind::Torque {
+                    body_a,
+                    body_b: actuator_body(ctx, f, "bodyB", model)?.unwrap_or(0),
+                    axis: unit(
+                        ctx,
+                        f,
+                        "axis",
+                        ctx.vec3_or(f, "axis", Vec3::new(0.0, 0.0, 1.0))?,
+                    )?,
+                    torque_is_global: ctx.bool_or(f, "torque_is_global", true)?,
+                }
+            }
+            _ => return Ok(None),
+        }
+    };
+    let min_control = control_bound(ctx, f, "min_control", min_default)?;
+    let max_control = control_bound(ctx, f, "max_control", max_default)?;
+    if min_control > max_control {
+        return Err(ctx.err(
+            f,
+            format!("<min_control> {min_control} is greater than <max_control> {max_control}"),
+        ));
+    }
+    let optimal_force = ctx.f64_or(f, "optimal_force", 1.0)?;
+    if !is_muscle && !(optimal_force > 0.0) {
+        return Err(ctx.err(
+            f,
+            format!("<optimal_force> must be positive, found {optimal_force}"),
+        ));
+    }
+    Ok(Some(ScalarActuator {
+        min_control,
+        max_control,
+        optimal_force,
+        kind: actuator_kind,
+    }))
 }
 
 fn read_geometry_path(

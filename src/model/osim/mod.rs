@@ -32,8 +32,19 @@ const MIN_VERSION: u32 = 40000;
 /// The deepest element nesting read; OpenSim files nest about 15 levels.
 const MAX_NESTING: usize = 256;
 
-pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<Model, Error> {
-    let doc = Document::parse_with_options(
+/// Force-set files added to a model as OpenSim's tools do (`<force_set_files>` with
+/// `<replace_force_set>`): each is an `OpenSimDocument` holding one `<ForceSet>`, whose
+/// members are appended to the model's forces (or replace them).
+#[derive(Clone, Debug, Default)]
+pub struct ForceSetFiles {
+    /// (file text, file name for messages), in order.
+    pub files: Vec<(String, String)>,
+    /// Drop the model's own forces (muscles included) before adding these.
+    pub replace: bool,
+}
+
+fn parse_document<'i>(text: &'i str, source: &str) -> Result<Document<'i>, Error> {
+    Document::parse_with_options(
         text,
         ParsingOptions {
             allow_dtd: true,
@@ -61,7 +72,30 @@ pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<M
             column,
             message,
         }
-    })?;
+    })
+}
+
+/// Reads a model file's text, adding the forces of `force_sets`.
+pub(crate) fn parse_with_force_sets(
+    text: &str,
+    source: &str,
+    options: &LoadOptions,
+    force_sets: &ForceSetFiles,
+) -> Result<Model, Error> {
+    parse_inner(text, source, options, Some(force_sets))
+}
+
+pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<Model, Error> {
+    parse_inner(text, source, options, None)
+}
+
+fn parse_inner(
+    text: &str,
+    source: &str,
+    options: &LoadOptions,
+    force_sets: Option<&ForceSetFiles>,
+) -> Result<Model, Error> {
+    let doc = parse_document(text, source)?;
     let mut ctx = Ctx::new(&doc, source);
     // The reader recurses into elements (functions, verbatim copies of forces): refuse
     // nesting far deeper than any model needs instead of overflowing the stack.
@@ -102,7 +136,7 @@ pub(crate) fn parse(text: &str, source: &str, options: &LoadOptions) -> Result<M
         }
     }
     let model_node = model_node.ok_or_else(|| ctx.err(root, "no <Model> element"))?;
-    ModelReader::default().read(&mut ctx, model_node, source, options)
+    ModelReader::default().read(&mut ctx, model_node, source, options, force_sets)
 }
 
 /// A body as read, before topological ordering.
@@ -134,6 +168,7 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         model: XNode<'a, 'i>,
         source: &str,
         options: &LoadOptions,
+        force_sets: Option<&ForceSetFiles>,
     ) -> Result<Model, Error> {
         let name = model.attribute("name").unwrap_or("model").to_string();
         let mut gravity = Vec3::new(0.0, -9.80665, 0.0);
@@ -329,13 +364,57 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 model.contact_geometry.push(g);
             }
         }
-        for &f in &self.force_nodes {
-            let force = forces::read_force(ctx, f, &mut self.frames, &model)?;
-            model.forces.push(force);
+        let replace = force_sets.is_some_and(|f| f.replace);
+        if !replace {
+            for &f in &self.force_nodes {
+                let force = forces::read_force(ctx, f, &mut self.frames, &model)?;
+                model.forces.push(force);
+            }
         }
         model.warnings = std::mem::take(&mut ctx.warnings);
+        for (text, file) in force_sets.map(|f| f.files.as_slice()).unwrap_or(&[]) {
+            self.read_force_set_file(text, file, &mut model)?;
+        }
         model.visual_elements_skipped = ctx.visual;
         Ok(model)
+    }
+
+    /// Appends the members of the `<ForceSet>` of a force-set file. Errors and warnings name
+    /// that file; a name already used by a force of the model is an error.
+    fn read_force_set_file(
+        &mut self,
+        text: &str,
+        file: &str,
+        model: &mut Model,
+    ) -> Result<(), Error> {
+        let doc = parse_document(text, file)?;
+        let mut ctx = Ctx::new(&doc, file);
+        let root = doc.root_element();
+        let set = if root.tag_name().name() == "ForceSet" {
+            Some(root)
+        } else if root.tag_name().name() == "OpenSimDocument" {
+            elements(root).find(|c| c.tag_name().name() == "ForceSet")
+        } else {
+            None
+        };
+        let set = set.ok_or_else(|| {
+            ctx.err(
+                root,
+                "a force-set file must hold a <ForceSet> (inside <OpenSimDocument>)",
+            )
+        })?;
+        for f in set_members(set) {
+            let force = forces::read_force(&mut ctx, f, &mut self.frames, model)?;
+            if model.forces.iter().any(|g| g.name == force.name) {
+                return Err(ctx.err(
+                    f,
+                    format!("a force named \"{}\" is already in the model", force.name),
+                ));
+            }
+            model.forces.push(force);
+        }
+        model.warnings.append(&mut ctx.warnings);
+        Ok(())
     }
 
     fn read_body(

@@ -356,6 +356,8 @@ fn bad_inputs_are_errors_naming_the_argument() {
 
 fn muscle(kind: &str, properties: &[(&str, &str)]) -> ForceElement {
     ForceElement {
+        applies_force: true,
+        actuator: None,
         name: "m".into(),
         kind: kind.into(),
         path: None,

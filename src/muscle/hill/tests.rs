@@ -20,6 +20,8 @@ fn element(kind: &str, props: &[(&str, &str)], objects: Vec<RawElement>) -> Forc
     let mut children: Vec<RawElement> = props.iter().map(|(t, v)| leaf(t, v)).collect();
     children.extend(objects);
     ForceElement {
+        applies_force: true,
+        actuator: None,
         name: "test_muscle".to_string(),
         kind: kind.to_string(),
         path: None,
