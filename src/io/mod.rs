@@ -2,8 +2,12 @@
 //!
 //! * [`storage`]: OpenSim `.sto` / `.mot` tables ([`Table`]).
 //! * [`external_loads`]: OpenSim ExternalLoads `.xml` (forces applied to bodies from data columns).
+//! * [`trc`]: marker trajectories (`.trc`), read and written.
+//! * [`setup`]: OpenSim tool setup files (Inverse Dynamics, Analyze with Static Optimization).
 
 pub mod external_loads;
+pub mod setup;
 pub mod storage;
+pub mod trc;
 
 pub use storage::{Dialect, ReadOptions, RepeatedTime, Table};

@@ -1,5 +1,9 @@
 //! Solvers that turn recorded motion into the quantities of the equations of motion:
 //! kinematics preparation (filtering, differentiation).
+//! External loads over time ([`external_loads`]) and OpenSim's Inverse Dynamics tool
+//! ([`inverse_dynamics`]).
 
+pub mod external_loads;
 pub mod filter;
+pub mod inverse_dynamics;
 pub mod kinematics;

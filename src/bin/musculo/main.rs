@@ -1,6 +1,7 @@
 //! The `musculo` command-line tool: a thin layer over the library.
 
 mod export_mjcf;
+mod id;
 mod inspect;
 mod muscles;
 
@@ -29,6 +30,9 @@ enum Command {
     /// Musculotendon lengths, moment arms and maximum isometric moments along a motion, as
     /// OpenSim-style .sto files.
     Muscles(muscles::Args),
+    /// Inverse dynamics as OpenSim's tool computes it: generalized forces from coordinates
+    /// (filtered and splined like OpenSim) and external loads, written as a .sto file.
+    Id(id::Args),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +41,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => inspect::run(&args),
         Command::ExportMjcf(args) => export_mjcf::run(&args),
         Command::Muscles(args) => muscles::run(&args),
+        Command::Id(args) => id::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,157 @@
+//! `musculo id`: OpenSim's Inverse Dynamics tool — generalized forces from a motion and
+//! its external loads, written as an OpenSim .sto file.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use musculo::io::Table;
+use musculo::io::setup::InverseDynamicsSetup;
+use musculo::model::{LoadOptions, Model};
+use musculo::solve::external_loads::ExternalLoadSet;
+use musculo::solve::inverse_dynamics::{InverseDynamicsOptions, inverse_dynamics};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// OpenSim 4.x model file (.osim). Default: the setup's model_file.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Coordinates over time (.mot or .sto, e.g. an IK result). Default: the setup's
+    /// coordinates_file.
+    #[arg(long)]
+    coordinates: Option<PathBuf>,
+    /// ExternalLoads file (.xml) naming the forces and their data file. Default: the setup's
+    /// external_loads_file (none if neither).
+    #[arg(long)]
+    external_loads: Option<PathBuf>,
+    /// An OpenSim InverseDynamicsTool setup file; its settings apply unless a flag overrides
+    /// them (paths in it are relative to its directory).
+    #[arg(long)]
+    setup: Option<PathBuf>,
+    /// Low-pass cutoff (Hz) for the coordinates; a negative value means no filtering.
+    /// Default: the setup's lowpass_cutoff_frequency_for_coordinates, else no filtering.
+    #[arg(long, allow_negative_numbers = true, value_name = "HZ")]
+    lowpass: Option<f64>,
+    /// Time range START END (s). Default: the setup's time_range, else the whole motion.
+    #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
+    time_range: Option<Vec<f64>>,
+    /// Output .sto file. Default: the setup's results_directory/output_gen_force_file.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
+    #[arg(long)]
+    allow_nonphysical_inertia: bool,
+}
+
+fn missing(argument: &'static str, what: &str) -> musculo::Error {
+    musculo::Error::InvalidArgument {
+        argument,
+        message: format!("no {what}: give {argument} or a --setup file that names one"),
+    }
+}
+
+pub fn run(args: &Args) -> Result<(), musculo::Error> {
+    let setup = args
+        .setup
+        .as_deref()
+        .map(InverseDynamicsSetup::read)
+        .transpose()?;
+    if let Some(s) = &setup {
+        for w in &s.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    let model_path = args
+        .model
+        .clone()
+        .or_else(|| setup.as_ref()?.model_file.clone())
+        .ok_or_else(|| missing("--model", "model file"))?;
+    let coordinates_path = args
+        .coordinates
+        .clone()
+        .or_else(|| setup.as_ref()?.coordinates_file.clone())
+        .ok_or_else(|| missing("--coordinates", "coordinates file"))?;
+    let loads_path = args
+        .external_loads
+        .clone()
+        .or_else(|| setup.as_ref()?.external_loads_file.clone());
+    let output = args
+        .output
+        .clone()
+        .or_else(|| setup.as_ref()?.output_path())
+        .ok_or_else(|| missing("--output", "output file"))?;
+    let mut options = setup
+        .as_ref()
+        .map(InverseDynamicsOptions::from_setup)
+        .unwrap_or_default();
+    if let Some(hz) = args.lowpass {
+        options.lowpass_hz = (hz >= 0.0).then_some(hz);
+    }
+    if let Some(r) = &args.time_range {
+        options.time_range = Some([r[0], r[1]]);
+    }
+
+    let model = Model::from_osim_file_with(
+        &model_path,
+        &LoadOptions {
+            allow_nonphysical_inertia: args.allow_nonphysical_inertia,
+        },
+    )?;
+    let coordinates = Table::read(&coordinates_path)?;
+    let loads = loads_path
+        .as_deref()
+        .map(|p| ExternalLoadSet::read(&model, p))
+        .transpose()?;
+
+    let bar = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} frames")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message("inverse dynamics");
+    let result = inverse_dynamics(
+        &model,
+        &coordinates,
+        &coordinates_path.display().to_string(),
+        loads.as_ref(),
+        &options,
+        &mut |done, total| {
+            if done == 1 {
+                bar.set_length(total as u64);
+            }
+            // Redrawing every frame would cost more than the frame.
+            if done % 64 == 0 || done == total {
+                bar.set_position(done as u64);
+            }
+        },
+    );
+    bar.finish_and_clear();
+    let out = result?;
+    for w in &out.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(dir) = output.parent()
+        && !dir.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(dir).map_err(|source| musculo::Error::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    }
+    out.table.write(&output)?;
+    let t = &out.table;
+    eprintln!(
+        "wrote {}: {} rows ({:.6} – {:.6} s) × {} generalized forces{}{}",
+        output.display(),
+        t.n_rows(),
+        t.time[0],
+        t.time[t.n_rows() - 1],
+        t.n_columns(),
+        match options.lowpass_hz {
+            Some(hz) => format!(", coordinates low-pass filtered at {hz} Hz"),
+            None => String::new(),
+        },
+        match &loads {
+            Some(l) => format!(", {} external force(s)", l.forces.len()),
+            None => String::new(),
+        }
+    );
+    Ok(())
+}

@@ -1,0 +1,832 @@
+//! Marker trajectories in the `.trc` format (Motion Analysis / Vicon exports, OpenSim's
+//! `TRCFileAdapter`).
+//!
+//! # Layout
+//!
+//! ```text
+//! PathFileType  4  (X/Y/Z)  walk.trc
+//! DataRate  CameraRate  NumFrames  NumMarkers  Units  OrigDataRate  OrigDataStartFrame  OrigNumFrames
+//! 60.00     60.00       151        41          mm     60.00         1                   151
+//! Frame#  Time  R.ASIS        L.ASIS        …
+//!               X1  Y1  Z1    X2  Y2  Z2    …
+//!
+//! 1       0.000 617.2 1055.3 170.8  639.6 …
+//! ```
+//!
+//! Fields are tab-separated (a line without tabs is split at whitespace). Blank label fields
+//! are padding and are skipped, as OpenSim does. A marker whose three fields in a row are not
+//! all present (empty fields, which Vicon and Motion Analysis write for occluded markers, or
+//! `NaN`) is missing in that frame: its position is NaN and [`Trc::missing`] reports, per
+//! marker, how many frames are missing and the gaps. Missing markers are data, not errors.
+//! Trailing empty fields beyond the last marker are ignored.
+//!
+//! Positions are converted from the file's `Units` (`mm`, `cm` or `m`, any case) to metres.
+//! The header keys are read by name; `DataRate`, `NumFrames`, `NumMarkers` and `Units` are
+//! required, the others default as OpenSim's writer defaults them (rates to `DataRate`,
+//! `OrigDataStartFrame` to 1, `OrigNumFrames` to the frame count).
+//!
+//! # Errors
+//!
+//! Bad content is an [`Error::Model`] naming the file, the 1-based line and the element —
+//! `marker "R.ASIS" (column Y1)`, `column "Time"`, `column "Frame#"`, `header "NumMarkers"` —
+//! with the row index (from 0) in the message: a value that is not a number, a row with too
+//! few or too many values, time that does not increase, duplicate marker names, a label count
+//! that contradicts `NumMarkers`, a frame count that contradicts `NumFrames`, unknown units.
+//!
+//! # Writing
+//!
+//! [`Trc::write`] produces the layout above exactly as OpenSim's `TRCFileAdapter` writes it
+//! (so OpenSim's GUI and readers open it): the eight header keys in OpenSim's order, every
+//! field followed by a tab, a blank line before the data, missing markers as empty fields,
+//! numbers in the shortest form that reads back to the same value in the file's units,
+//! through a temporary file renamed into place. (Reading divides by 1000 or 100 and writing
+//! multiplies, so a round trip through millimetres may move a position's last bit; in metres
+//! it is exact.)
+
+use crate::error::Error;
+use crate::spatial::Vec3;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Length unit of a `.trc` file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LengthUnit {
+    Millimetres,
+    Centimetres,
+    Metres,
+}
+
+impl LengthUnit {
+    /// How many units make a metre.
+    pub fn per_metre(self) -> f64 {
+        match self {
+            LengthUnit::Millimetres => 1000.0,
+            LengthUnit::Centimetres => 100.0,
+            LengthUnit::Metres => 1.0,
+        }
+    }
+
+    /// The `Units` header value.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Millimetres => "mm",
+            LengthUnit::Centimetres => "cm",
+            LengthUnit::Metres => "m",
+        }
+    }
+
+    fn parse(text: &str) -> Option<LengthUnit> {
+        match text.to_ascii_lowercase().as_str() {
+            "mm" => Some(LengthUnit::Millimetres),
+            "cm" => Some(LengthUnit::Centimetres),
+            "m" => Some(LengthUnit::Metres),
+            _ => None,
+        }
+    }
+}
+
+/// The frames in which one marker is missing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MissingMarker {
+    /// Index into [`Trc::markers`].
+    pub marker: usize,
+    pub name: String,
+    /// Number of frames missing.
+    pub frames: usize,
+    /// Runs of consecutive missing frames, as [first, last] frame indices (from 0).
+    pub gaps: Vec<[usize; 2]>,
+}
+
+/// A marker trajectory file: frames × markers × 3, in metres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Trc {
+    /// The file name in the first header line (may be empty).
+    pub path_file_name: String,
+    pub data_rate: f64,
+    pub camera_rate: f64,
+    /// The unit of the file (positions here are always in metres).
+    pub units: LengthUnit,
+    pub orig_data_rate: f64,
+    pub orig_data_start_frame: i64,
+    pub orig_num_frames: usize,
+    pub markers: Vec<String>,
+    /// The `Frame#` column.
+    pub frame_numbers: Vec<i64>,
+    /// The `Time` column (s), strictly increasing.
+    pub time: Vec<f64>,
+    /// Row-major positions in ground, metres: marker `m` of frame `f` is
+    /// `positions[f * markers.len() + m]`; NaN where missing.
+    pub positions: Vec<Vec3>,
+}
+
+impl Trc {
+    /// A trajectory built in memory: `positions` in metres, frames × markers, NaN where a
+    /// marker is missing; frame numbers 1, 2, …; units millimetres.
+    pub fn new(
+        markers: Vec<String>,
+        time: Vec<f64>,
+        positions: Vec<Vec3>,
+        data_rate: f64,
+    ) -> crate::Result<Trc> {
+        let n = time.len();
+        let trc = Trc {
+            path_file_name: String::new(),
+            data_rate,
+            camera_rate: data_rate,
+            units: LengthUnit::Millimetres,
+            orig_data_rate: data_rate,
+            orig_data_start_frame: 1,
+            orig_num_frames: n,
+            markers,
+            frame_numbers: (1..=n as i64).collect(),
+            time,
+            positions,
+        };
+        trc.validate()?;
+        Ok(trc)
+    }
+
+    pub fn n_frames(&self) -> usize {
+        self.time.len()
+    }
+
+    pub fn n_markers(&self) -> usize {
+        self.markers.len()
+    }
+
+    /// The markers of frame `f` (metres; NaN where missing).
+    pub fn frame(&self, f: usize) -> &[Vec3] {
+        let m = self.markers.len();
+        &self.positions[f * m..(f + 1) * m]
+    }
+
+    /// Position of marker `m` in frame `f` (metres; NaN where missing).
+    pub fn position(&self, f: usize, m: usize) -> Vec3 {
+        self.positions[f * self.markers.len() + m]
+    }
+
+    pub fn marker_index(&self, name: &str) -> Option<usize> {
+        self.markers.iter().position(|m| m == name)
+    }
+
+    /// Per marker with at least one missing frame: the count and the gaps, in marker order.
+    pub fn missing(&self) -> Vec<MissingMarker> {
+        let nm = self.markers.len();
+        let mut out = Vec::new();
+        for m in 0..nm {
+            let mut gaps: Vec<[usize; 2]> = Vec::new();
+            for f in 0..self.n_frames() {
+                if self.positions[f * nm + m].iter().any(|v| v.is_nan()) {
+                    match gaps.last_mut() {
+                        Some(g) if g[1] + 1 == f => g[1] = f,
+                        _ => gaps.push([f, f]),
+                    }
+                }
+            }
+            if !gaps.is_empty() {
+                out.push(MissingMarker {
+                    marker: m,
+                    name: self.markers[m].clone(),
+                    frames: gaps.iter().map(|g| g[1] - g[0] + 1).sum(),
+                    gaps,
+                });
+            }
+        }
+        out
+    }
+
+    /// Checks what the writer needs: sizes, unique names without tabs, finite increasing
+    /// times, positive rates, positions finite or NaN (missing).
+    pub fn validate(&self) -> crate::Result<()> {
+        let bad = |m: String| Err(Error::invalid("trc", m));
+        let (n, nm) = (self.time.len(), self.markers.len());
+        if self.positions.len() != n * nm || self.frame_numbers.len() != n {
+            return bad(format!(
+                "{} positions and {} frame numbers for {n} frames × {nm} markers",
+                self.positions.len(),
+                self.frame_numbers.len()
+            ));
+        }
+        for (i, name) in self.markers.iter().enumerate() {
+            if name.is_empty() || name.trim() != name || name.contains(['\t', '\n', '\r']) {
+                return bad(format!(
+                    "marker {i} name `{name}` is empty or has tabs or surrounding blanks"
+                ));
+            }
+            if let Some(j) = self.markers[..i].iter().position(|o| o == name) {
+                return bad(format!(
+                    "marker \"{name}\": duplicate name (markers {j} and {i})"
+                ));
+            }
+        }
+        for r in 0..n {
+            if !self.time[r].is_finite() || (r > 0 && self.time[r] <= self.time[r - 1]) {
+                return bad(format!(
+                    "column \"Time\": row {r}: {} does not increase",
+                    self.time[r]
+                ));
+            }
+        }
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| p.iter().any(|v| v.is_infinite()))
+        {
+            return bad(format!(
+                "marker \"{}\": row {}: infinite position",
+                self.markers[i % nm],
+                i / nm
+            ));
+        }
+        if !(self.data_rate > 0.0 && self.camera_rate > 0.0 && self.orig_data_rate > 0.0) {
+            return bad("rates must be positive".into());
+        }
+        if self.path_file_name.contains(['\n', '\r']) {
+            return bad("the path file name must be one line".into());
+        }
+        Ok(())
+    }
+
+    /// Reads a `.trc` file.
+    pub fn read(path: &Path) -> crate::Result<Trc> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Trc::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses `.trc` text; `source` names it in errors.
+    pub fn parse(text: &str, source: &str) -> crate::Result<Trc> {
+        let err = |line: usize, element: String, message: String| Error::Model {
+            file: source.to_string(),
+            line: u32::try_from(line).unwrap_or(u32::MAX),
+            element,
+            message,
+        };
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| (i + 1, l.trim_end_matches('\r')));
+
+        // Line 1: PathFileType 4 (X/Y/Z) name
+        let (l1, first) = lines
+            .next()
+            .ok_or_else(|| err(1, "header".into(), "the file is empty".into()))?;
+        let mut words = first.split_whitespace();
+        if words.next() != Some("PathFileType") {
+            return Err(err(
+                l1,
+                "header".into(),
+                "the first line must start with `PathFileType`".into(),
+            ));
+        }
+        let path_file_name = words.skip(2).collect::<Vec<_>>().join(" ");
+
+        // Lines 2–3: keys and values.
+        let (lk, keys) = lines
+            .next()
+            .ok_or_else(|| err(l1, "header".into(), "no header keys line".into()))?;
+        let (lv, vals) = lines
+            .next()
+            .ok_or_else(|| err(lk, "header".into(), "no header values line".into()))?;
+        let keys: Vec<&str> = fields(keys).into_iter().filter(|k| !k.is_empty()).collect();
+        let vals: Vec<&str> = fields(vals).into_iter().filter(|k| !k.is_empty()).collect();
+        if keys.len() != vals.len() {
+            return Err(err(
+                lv,
+                "header".into(),
+                format!(
+                    "{} header keys (line {lk}) but {} values",
+                    keys.len(),
+                    vals.len()
+                ),
+            ));
+        }
+        let value = |key: &str| keys.iter().position(|k| *k == key).map(|i| vals[i]);
+        let header_err = |key: &str, message: String| err(lv, format!("header \"{key}\""), message);
+        let number = |key: &str| -> crate::Result<Option<f64>> {
+            value(key)
+                .map(|v| {
+                    v.parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite())
+                        .ok_or_else(|| header_err(key, format!("`{v}` is not a number")))
+                })
+                .transpose()
+        };
+        let count = |key: &str| -> crate::Result<Option<usize>> {
+            value(key)
+                .map(|v| {
+                    v.parse::<usize>()
+                        .map_err(|_| header_err(key, format!("`{v}` is not a count")))
+                })
+                .transpose()
+        };
+        let required = |key: &str| header_err(key, "missing from the header".into());
+        let data_rate = number("DataRate")?.ok_or_else(|| required("DataRate"))?;
+        if data_rate <= 0.0 {
+            return Err(header_err(
+                "DataRate",
+                format!("{data_rate} is not a positive rate"),
+            ));
+        }
+        let camera_rate = number("CameraRate")?.unwrap_or(data_rate);
+        let orig_data_rate = number("OrigDataRate")?.unwrap_or(data_rate);
+        let num_frames = count("NumFrames")?.ok_or_else(|| required("NumFrames"))?;
+        let num_markers = count("NumMarkers")?.ok_or_else(|| required("NumMarkers"))?;
+        let units_text = value("Units").ok_or_else(|| required("Units"))?;
+        let units = LengthUnit::parse(units_text).ok_or_else(|| {
+            header_err(
+                "Units",
+                format!("unknown unit `{units_text}` (mm, cm or m)"),
+            )
+        })?;
+        let orig_data_start_frame = match value("OrigDataStartFrame") {
+            Some(v) => v.parse::<i64>().map_err(|_| {
+                header_err("OrigDataStartFrame", format!("`{v}` is not an integer"))
+            })?,
+            None => 1,
+        };
+        let orig_num_frames = count("OrigNumFrames")?;
+
+        // Line 4: Frame# Time marker names.
+        let (ll, label_line) = lines
+            .next()
+            .ok_or_else(|| err(lv, "header".into(), "no marker names line".into()))?;
+        let labels: Vec<&str> = fields(label_line)
+            .into_iter()
+            .filter(|k| !k.is_empty())
+            .collect();
+        if labels.first() != Some(&"Frame#") || labels.get(1) != Some(&"Time") {
+            return Err(err(
+                ll,
+                "header".into(),
+                "the marker names line must start with `Frame#` and `Time`".into(),
+            ));
+        }
+        let markers: Vec<String> = labels[2..].iter().map(|s| s.to_string()).collect();
+        if markers.len() != num_markers {
+            return Err(err(
+                ll,
+                "header \"NumMarkers\"".into(),
+                format!(
+                    "NumMarkers (line {lv}) is {num_markers}, but line {ll} names {} markers",
+                    markers.len()
+                ),
+            ));
+        }
+        for (i, name) in markers.iter().enumerate() {
+            if let Some(j) = markers[..i].iter().position(|o| o == name) {
+                return Err(err(
+                    ll,
+                    format!("marker \"{name}\""),
+                    format!(
+                        "duplicate marker name (markers {} and {}, from 1)",
+                        j + 1,
+                        i + 1
+                    ),
+                ));
+            }
+        }
+
+        // Line 5: X1 Y1 Z1 …
+        let (lx, xyz_line) = lines
+            .next()
+            .ok_or_else(|| err(ll, "header".into(), "no X1 Y1 Z1 line".into()))?;
+        let xyz: Vec<&str> = fields(xyz_line)
+            .into_iter()
+            .filter(|k| !k.is_empty())
+            .collect();
+        if xyz.len() != 3 * num_markers {
+            return Err(err(
+                lx,
+                "header".into(),
+                format!(
+                    "{} coordinate labels for {num_markers} markers (3 each)",
+                    xyz.len()
+                ),
+            ));
+        }
+        for (k, label) in xyz.iter().enumerate() {
+            let axis = ["X", "Y", "Z"][k % 3];
+            if !label.starts_with(axis) {
+                return Err(err(
+                    lx,
+                    format!("marker \"{}\" (column {label})", markers[k / 3]),
+                    format!("expected a label starting with {axis}"),
+                ));
+            }
+        }
+
+        // Data rows.
+        let nm = markers.len();
+        let expected = 2 + 3 * nm;
+        let per_metre = units.per_metre();
+        let column_name = |c: usize| -> String {
+            match c {
+                0 => "column \"Frame#\"".into(),
+                1 => "column \"Time\"".into(),
+                c if c < expected => {
+                    format!(
+                        "marker \"{}\" (column {})",
+                        markers[(c - 2) / 3],
+                        xyz[c - 2]
+                    )
+                }
+                c => format!("column {} (beyond the last marker)", c + 1),
+            }
+        };
+        let mut frame_numbers = Vec::with_capacity(num_frames);
+        let mut time: Vec<f64> = Vec::with_capacity(num_frames);
+        let mut positions = Vec::with_capacity(num_frames * nm);
+        let mut previous_line = 0;
+        for (line, raw) in lines {
+            if raw.trim().is_empty() {
+                continue;
+            }
+            let row = time.len();
+            let mut f = fields(raw);
+            while f.len() > expected && f.last().is_some_and(|s| s.is_empty()) {
+                f.pop();
+            }
+            if f.len() != expected {
+                let c = f.len().min(expected);
+                return Err(err(
+                    line,
+                    column_name(c),
+                    format!(
+                        "row {row} has {} values, expected {expected} (Frame#, Time and 3 for \
+                         each of {nm} markers)",
+                        f.len()
+                    ),
+                ));
+            }
+            let frame = f[0].parse::<i64>().map_err(|_| {
+                err(
+                    line,
+                    column_name(0),
+                    format!("row {row}: `{}` is not a frame number", f[0]),
+                )
+            })?;
+            let t = f[1]
+                .parse::<f64>()
+                .ok()
+                .filter(|t| t.is_finite())
+                .ok_or_else(|| {
+                    err(
+                        line,
+                        column_name(1),
+                        format!("row {row}: `{}` is not a finite time", f[1]),
+                    )
+                })?;
+            if let Some(&t_prev) = time.last()
+                && t <= t_prev
+            {
+                return Err(err(
+                    line,
+                    column_name(1),
+                    format!(
+                        "row {row}: time {t} does not exceed the previous row's {t_prev} (line \
+                         {previous_line}); time must increase strictly"
+                    ),
+                ));
+            }
+            frame_numbers.push(frame);
+            time.push(t);
+            for m in 0..nm {
+                let c = 2 + 3 * m;
+                let parts = [f[c], f[c + 1], f[c + 2]];
+                let missing = parts
+                    .iter()
+                    .any(|s| s.is_empty() || s.eq_ignore_ascii_case("nan"));
+                if missing {
+                    positions.push(Vec3::repeat(f64::NAN));
+                    continue;
+                }
+                let mut p = Vec3::zeros();
+                for k in 0..3 {
+                    p[k] = parts[k]
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|v| v.is_finite())
+                        .ok_or_else(|| {
+                            err(
+                                line,
+                                column_name(c + k),
+                                format!("row {row}: `{}` is not a number", parts[k]),
+                            )
+                        })?
+                        / per_metre;
+                }
+                positions.push(p);
+            }
+            previous_line = line;
+        }
+        if time.len() != num_frames {
+            return Err(err(
+                lv,
+                "header \"NumFrames\"".into(),
+                format!(
+                    "NumFrames is {num_frames}, but the file has {} data rows",
+                    time.len()
+                ),
+            ));
+        }
+        Ok(Trc {
+            path_file_name,
+            data_rate,
+            camera_rate,
+            units,
+            orig_data_rate,
+            orig_data_start_frame,
+            orig_num_frames: orig_num_frames.unwrap_or(num_frames),
+            markers,
+            frame_numbers,
+            time,
+            positions,
+        })
+    }
+
+    /// The file text [`Trc::write`] writes (module documentation), with `file_name` in the
+    /// first line when `path_file_name` is empty.
+    pub fn to_file_string(&self, file_name: &str) -> crate::Result<String> {
+        use std::fmt::Write as _;
+        self.validate()?;
+        let nm = self.markers.len();
+        let mut s = String::with_capacity(16 * (3 * nm + 2) * (self.n_frames() + 5));
+        let name = if self.path_file_name.is_empty() {
+            file_name
+        } else {
+            &self.path_file_name
+        };
+        let _ = writeln!(s, "PathFileType\t4\t(X/Y/Z)\t{name}");
+        let _ = writeln!(
+            s,
+            "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t\
+             OrigDataStartFrame\tOrigNumFrames"
+        );
+        let _ = writeln!(
+            s,
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            self.data_rate,
+            self.camera_rate,
+            self.n_frames(),
+            nm,
+            self.units.symbol(),
+            self.orig_data_rate,
+            self.orig_data_start_frame,
+            self.orig_num_frames
+        );
+        s.push_str("Frame#\tTime\t");
+        for m in &self.markers {
+            let _ = write!(s, "{m}\t\t\t");
+        }
+        s.push_str("\n\t\t");
+        for i in 1..=nm {
+            let _ = write!(s, "X{i}\tY{i}\tZ{i}\t");
+        }
+        s.push_str("\n\n");
+        let per_metre = self.units.per_metre();
+        for f in 0..self.n_frames() {
+            let _ = write!(s, "{}\t{}\t", self.frame_numbers[f], self.time[f]);
+            for p in self.frame(f) {
+                if p.iter().any(|v| v.is_nan()) {
+                    s.push_str("\t\t\t");
+                } else {
+                    let _ = write!(
+                        s,
+                        "{}\t{}\t{}\t",
+                        p.x * per_metre,
+                        p.y * per_metre,
+                        p.z * per_metre
+                    );
+                }
+            }
+            s.push('\n');
+        }
+        Ok(s)
+    }
+
+    /// Writes the file (module documentation) through a temporary file beside `path`.
+    pub fn write(&self, path: &Path) -> crate::Result<()> {
+        let file_name = path
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let text = self.to_file_string(&file_name)?;
+        let io_err = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        if file_name.is_empty() {
+            return Err(io_err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a file path",
+            )));
+        }
+        static WRITES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let serial = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let temp: PathBuf =
+            path.with_file_name(format!(".{file_name}.{}-{serial}.tmp", std::process::id()));
+        let result = (|| {
+            let mut file = std::fs::File::create(&temp)?;
+            file.write_all(text.as_bytes())?;
+            file.sync_all()?;
+            std::fs::rename(&temp, path)
+        })();
+        if let Err(source) = result {
+            let _ = std::fs::remove_file(&temp);
+            return Err(io_err(source));
+        }
+        Ok(())
+    }
+}
+
+/// The fields of a line: tab-separated when it has a tab, else whitespace-separated; each
+/// trimmed.
+fn fields(line: &str) -> Vec<&str> {
+    if line.contains('\t') {
+        line.split('\t').map(str::trim).collect()
+    } else {
+        line.split_whitespace().collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TRC: &str = "PathFileType\t4\t(X/Y/Z)\tt.trc\n\
+DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n\
+100\t100\t3\t2\tmm\t100\t1\t3\n\
+Frame#\tTime\tA\t\t\tB\t\t\n\
+\t\tX1\tY1\tZ1\tX2\tY2\tZ2\n\
+\n\
+1\t0\t1\t2\t3\t4\t5\t6\n\
+2\t0.01\t\t\t\t40\t50\t60\n\
+3\t0.02\t7\t8\t9\t\t\t\t\n";
+
+    #[test]
+    fn reads_values_in_metres_and_reports_missing_markers() {
+        let t = Trc::parse(TRC, "t.trc").unwrap();
+        assert_eq!(t.markers, vec!["A", "B"]);
+        assert_eq!(t.time, vec![0.0, 0.01, 0.02]);
+        assert_eq!(t.position(0, 1), Vec3::new(0.004, 0.005, 0.006));
+        assert!(t.position(1, 0).x.is_nan());
+        assert!(t.position(2, 1).z.is_nan());
+        let missing = t.missing();
+        assert_eq!(missing.len(), 2);
+        assert_eq!((missing[0].name.as_str(), missing[0].frames), ("A", 1));
+        assert_eq!(missing[0].gaps, vec![[1, 1]]);
+        assert_eq!(missing[1].gaps, vec![[2, 2]]);
+    }
+
+    #[test]
+    fn writes_what_it_reads() {
+        let t = Trc::parse(TRC, "t.trc").unwrap();
+        let text = t.to_file_string("t.trc").unwrap();
+        let back = Trc::parse(&text, "back.trc").unwrap();
+        assert_eq!(back.markers, t.markers);
+        assert_eq!(back.time, t.time);
+        for (a, b) in back.positions.iter().zip(&t.positions) {
+            for k in 0..3 {
+                // Unit conversion both ways may move the last bit.
+                let same = (a[k] - b[k]).abs() <= 2.0 * f64::EPSILON * b[k].abs();
+                assert!(same || (a[k].is_nan() && b[k].is_nan()), "{a} vs {b}");
+            }
+        }
+        // OpenSim's layout: every field followed by a tab, a blank line before the data.
+        assert!(
+            text.contains("Frame#\tTime\tA\t\t\tB\t\t\t\n\t\tX1\tY1\tZ1\tX2\tY2\tZ2\t\n\n1\t0\t")
+        );
+    }
+
+    #[test]
+    fn bad_content_names_file_line_marker_and_row() {
+        let e = Trc::parse(&TRC.replace("40\t50", "40\tx50"), "t.trc")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("t.trc:8") && e.contains("marker \"B\" (column Y2)") && e.contains("row 1"),
+            "{e}"
+        );
+        let e = Trc::parse(&TRC.replace("\tB\t", "\tA\t"), "t.trc")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("t.trc:4") && e.contains("duplicate"), "{e}");
+        let e = Trc::parse(
+            &TRC.replace("1\t0\t1\t2\t3\t4\t5\t6", "1\t0\t1\t2\t3\t4\t5"),
+            "t.trc",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("t.trc:7") && e.contains("row 0 has 7 values, expected 8"),
+            "{e}"
+        );
+        let e = Trc::parse(&TRC.replace("\tmm\t", "\tinch\t"), "t.trc")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("header \"Units\""), "{e}");
+        let e = Trc::parse(&TRC.replace("\t3\t2\tmm", "\t4\t2\tmm"), "t.trc")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("NumFrames is 4"), "{e}");
+    }
+
+    /// The reference file, or None (skipped) unless reference data is required.
+    fn reference(rel: &str) -> Option<std::path::PathBuf> {
+        let p = crate::reference::file(rel);
+        if p.is_none() {
+            assert!(
+                !crate::reference::required(),
+                "reference data not found: {rel}"
+            );
+            eprintln!("skipped: reference data not found ({rel})");
+        }
+        p
+    }
+
+    #[test]
+    fn reference_files_read_with_the_values_they_hold() {
+        // (file, frames, markers, rate, [(row, marker, x y z in the file's mm)])
+        type Spot = (usize, &'static str, [f64; 3]);
+        let cases: [(&str, usize, usize, f64, [Spot; 2]); 3] = [
+            (
+                "opensim-models/Pipelines/Gait2392_Simbody/subject01_walk1.trc",
+                151,
+                41,
+                60.0,
+                [
+                    (0, "R.ASIS", [617.247620, 1055.275020, 170.781980]),
+                    (150, "L.ASIS", [621.185490, 1036.777470, -89.615940]),
+                ],
+            ),
+            (
+                "opensim-models/Pipelines/Gait10dof18musc/ExperimentalData/subject01_walk.trc",
+                151,
+                41,
+                60.0,
+                [
+                    (0, "V.Sacral", [430.869840, 1051.264650, 29.966750]),
+                    (150, "R.ASIS", [597.613650, 1045.068850, 169.864320]),
+                ],
+            ),
+            (
+                "opensim-models/Tutorials/Computed_Muscle_Control/InverseKinematics/arm26_elbow_flex.trc",
+                121,
+                3,
+                120.0,
+                [
+                    (0, "r_acromion", [-13.05452443, 839.50547557, 169.5054756]),
+                    (
+                        120,
+                        "r_radius_styloid",
+                        [231.0167559, 500.5158582, 230.9769121],
+                    ),
+                ],
+            ),
+        ];
+        for (rel, frames, markers, rate, spots) in cases {
+            let Some(path) = reference(rel) else { continue };
+            let t = Trc::read(&path).unwrap();
+            assert_eq!(
+                (t.n_frames(), t.n_markers(), t.data_rate),
+                (frames, markers, rate),
+                "{rel}"
+            );
+            assert_eq!(t.units, LengthUnit::Millimetres);
+            assert!(
+                t.missing().is_empty(),
+                "{rel}: no marker is missing in these files"
+            );
+            for (row, name, mm) in spots {
+                let p = t.position(row, t.marker_index(name).unwrap());
+                for k in 0..3 {
+                    assert_eq!(p[k], mm[k] / 1000.0, "{rel} row {row} {name}");
+                }
+            }
+            assert!(
+                (t.time[frames - 1] - (frames - 1) as f64 / rate).abs() < 1e-6,
+                "{rel}"
+            );
+            // Round trip through the writer, in the file's units and in metres.
+            let back = Trc::parse(&t.to_file_string("x.trc").unwrap(), "x.trc").unwrap();
+            assert_eq!(
+                (back.markers.clone(), back.time.clone()),
+                (t.markers.clone(), t.time.clone())
+            );
+            for (a, b) in back.positions.iter().zip(&t.positions) {
+                assert!(
+                    (a - b).amax() <= 2.0 * f64::EPSILON * b.amax(),
+                    "{rel}: {a} vs {b}"
+                );
+            }
+            let mut metres = t.clone();
+            metres.units = LengthUnit::Metres;
+            let back = Trc::parse(&metres.to_file_string("x.trc").unwrap(), "x.trc").unwrap();
+            assert_eq!(back.positions, t.positions, "{rel}: exact in metres");
+        }
+    }
+}
