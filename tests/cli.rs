@@ -114,3 +114,184 @@ fn inspect_reports_a_missing_file_and_a_bad_model_without_panicking() {
     assert!(!err.contains("panicked"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A fresh directory under the system temp dir, removed when dropped.
+struct TempDir(std::path::PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> TempDir {
+        let p = std::env::temp_dir().join(format!("musculo-cli-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+#[test]
+fn so_runs_opensims_setup_and_writes_activation_and_force_files() {
+    let dir = "opensim-models/Tutorials/Estimating_Joint_Reaction_Loads";
+    let (Some(setup), Some(model)) = (
+        reference_file(&format!("{dir}/setup_static_optimization.xml")),
+        reference_file(&format!("{dir}/subject01_simbody_adjusted_StaticOp.osim")),
+    ) else {
+        return;
+    };
+    let tmp = TempDir::new("so");
+    let prefix = tmp.0.join("walk");
+    let (ok, _, err) = musculo(&[
+        "so",
+        "--setup",
+        setup.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--allow-nonphysical-inertia",
+        "-o",
+        prefix.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("151 frames") && err.contains("98 actuators (92 muscles)"),
+        "{err}"
+    );
+    let act = musculo::io::Table::read(&tmp.0.join("walk_activation.sto")).unwrap();
+    let force = musculo::io::Table::read(&tmp.0.join("walk_force.sto")).unwrap();
+    assert_eq!((act.n_rows(), act.n_columns()), (151, 98));
+    assert_eq!(act.labels[0], "glut_med1_r");
+    assert_eq!(act.labels[97], "MZ");
+    // Actuator forces, then the external loads as OpenSim records them.
+    assert_eq!(force.n_columns(), 98 + 18);
+    assert_eq!(force.labels[98], "calcn_r_right_foot_Fx");
+    assert_eq!(force.labels[115], "calcn_l_left_foot_Tz");
+}
+
+#[test]
+fn so_reports_infeasible_frames_and_goes_on() {
+    // The demo leg with weak, bounded reserves: standing still needs more hip and knee moment
+    // than they give, so every frame is infeasible; the run still writes its files.
+    let tmp = TempDir::new("so-infeasible");
+    let mut reserves = String::from(
+        "<?xml version=\"1.0\"?>\n<OpenSimDocument Version=\"40000\"><ForceSet name=\"r\"><objects>\n",
+    );
+    for c in [
+        "pelvis_tilt",
+        "pelvis_tx",
+        "pelvis_ty",
+        "hip_flexion",
+        "knee_angle",
+        "ankle_angle",
+    ] {
+        let weak = if c.starts_with("pelvis") { 1000.0 } else { 0.1 };
+        reserves += &format!(
+            "<CoordinateActuator name=\"res_{c}\"><coordinate>{c}</coordinate><optimal_force>{weak}</optimal_force>\
+             <min_control>-1</min_control><max_control>1</max_control></CoordinateActuator>\n"
+        );
+    }
+    reserves += "</objects></ForceSet></OpenSimDocument>\n";
+    let reserves_path = tmp.0.join("reserves.xml");
+    std::fs::write(&reserves_path, reserves).unwrap();
+    let model_path = tmp.0.join("demo.osim");
+    std::fs::write(&model_path, musculo::DEMO_MODEL_OSIM).unwrap();
+    let labels: Vec<String> = [
+        "pelvis_tilt",
+        "pelvis_tx",
+        "pelvis_ty",
+        "hip_flexion",
+        "knee_angle",
+        "ankle_angle",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let time: Vec<f64> = (0..11).map(|i| i as f64 * 0.01).collect();
+    let values: Vec<f64> = time
+        .iter()
+        .flat_map(|_| [0.0, 0.0, 0.93, 40.0, -60.0, 10.0])
+        .collect();
+    let mut motion = musculo::io::Table::new("still", labels, time, values).unwrap();
+    motion.in_degrees = Some(true);
+    let motion_path = tmp.0.join("still.mot");
+    motion.write(&motion_path).unwrap();
+    let prefix = tmp.0.join("out");
+    let (ok, _, err) = musculo(&[
+        "so",
+        "--model",
+        model_path.to_str().unwrap(),
+        "--coordinates",
+        motion_path.to_str().unwrap(),
+        "--actuators",
+        reserves_path.to_str().unwrap(),
+        "-o",
+        prefix.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("time 0.000000 s: infeasible") && err.contains("hip_flexion"),
+        "{err}"
+    );
+    assert!(err.contains("11 frame(s) not solved exactly"), "{err}");
+    assert!(tmp.0.join("out_activation.sto").exists());
+
+    // An actuator file naming an unknown body: a clear error, no output.
+    std::fs::write(
+        &reserves_path,
+        "<OpenSimDocument Version=\"40000\"><ForceSet name=\"r\"><objects>\
+         <PointActuator name=\"p\"><body>tibia</body></PointActuator></objects></ForceSet></OpenSimDocument>",
+    )
+    .unwrap();
+    let (ok, _, err) = musculo(&[
+        "so",
+        "--model",
+        model_path.to_str().unwrap(),
+        "--coordinates",
+        motion_path.to_str().unwrap(),
+        "--actuators",
+        reserves_path.to_str().unwrap(),
+        "-o",
+        tmp.0.join("bad").to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("reserves.xml:1") && err.contains("unknown body `tibia`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn id_runs_opensims_setup() {
+    let Some(setup) = reference_file(
+        "opensim-models/Pipelines/Gait10dof18musc/OutputReference/ID/walk_Setup_ID.xml",
+    ) else {
+        return;
+    };
+    let tmp = TempDir::new("id");
+    let out = tmp.0.join("id.sto");
+    let (ok, _, err) = musculo(&[
+        "id",
+        "--setup",
+        setup.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let t = musculo::io::Table::read(&out).unwrap();
+    assert_eq!(t.n_rows(), 151, "{err}");
+    assert!(t.column_index("knee_angle_r_moment").is_some());
+    assert!(t.column_index("pelvis_tx_force").is_some());
+    // A missing model file is an error naming it.
+    let (ok, _, err) = musculo(&[
+        "id",
+        "--setup",
+        setup.to_str().unwrap(),
+        "--model",
+        "/nonexistent/model.osim",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("/nonexistent/model.osim"), "{err}");
+}

@@ -136,3 +136,54 @@ fn per_frame_algorithms_do_not_allocate() {
         }
     }
 }
+
+#[test]
+fn static_optimization_frames_do_not_allocate() {
+    use musculo::model::LoadOptions;
+    use musculo::solve::static_optimization::{SoFrame, SoWorkspace, StaticOptimization};
+    let dir = "opensim-models/Tutorials/Estimating_Joint_Reaction_Loads";
+    let (Some(model), Some(reserves)) = (
+        reference_file(&format!("{dir}/subject01_simbody_adjusted_StaticOp.osim")),
+        reference_file(&format!("{dir}/gait2392_SO_weak_Residual_Actuators.xml")),
+    ) else {
+        return;
+    };
+    let model = Model::from_osim_file_with_force_sets(
+        model,
+        &LoadOptions {
+            allow_nonphysical_inertia: true,
+        },
+        &[reserves],
+        false,
+    )
+    .unwrap();
+    let so = StaticOptimization::new(&model, Default::default()).unwrap();
+    let n = model.nq();
+    let mut rng = Rng::new(9);
+    let mut data = Data::new(&model);
+    let mut ws = SoWorkspace::new(&model, &so);
+    let mut frame = SoFrame::new(&so, &model);
+    let states: Vec<_> = (0..5)
+        .map(|_| {
+            let q = random_q(&model, &mut rng);
+            let qd = random_vec(n, 0.5, &mut rng);
+            let tau = random_vec(n, 20.0, &mut rng);
+            (q, qd, tau)
+        })
+        .collect();
+    // Warm up once (first solve), then count.
+    dynamics::forward_kinematics_velocity(&model, &mut data, &states[0].0, &states[0].1).unwrap();
+    so.solve_frame(&model, &data, &states[0].2, &mut ws, &mut frame)
+        .unwrap();
+    let count = allocations_during(|| {
+        for (q, qd, tau) in &states {
+            dynamics::forward_kinematics_velocity(&model, &mut data, q, qd).unwrap();
+            so.solve_frame(&model, &data, tau, &mut ws, &mut frame)
+                .unwrap();
+        }
+    });
+    assert_eq!(
+        count, 0,
+        "{count} allocations in static-optimization frames"
+    );
+}

@@ -215,6 +215,44 @@ impl ExternalLoadSet {
         }
     }
 
+    /// The labels OpenSim's force reporter gives the values of [`ExternalLoadSet::record`]:
+    /// per force `<applied_to_body>_<name>_` followed by `Fx Fy Fz` (with a force), `px py pz`
+    /// (with a point) and `Tx Ty Tz` (with a torque).
+    pub fn record_labels(&self, model: &Model) -> Vec<String> {
+        let mut labels = Vec::new();
+        for f in &self.forces {
+            let prefix = format!("{}_{}_", model.bodies[f.applied_to_body].name, f.name);
+            let mut push = |present: bool, names: [&str; 3]| {
+                if present {
+                    labels.extend(names.iter().map(|n| format!("{prefix}{n}")));
+                }
+            };
+            push(f.force.is_some(), ["Fx", "Fy", "Fz"]);
+            push(f.force.is_some() && f.point.is_some(), ["px", "py", "pz"]);
+            push(f.torque.is_some(), ["Tx", "Ty", "Tz"]);
+        }
+        labels
+    }
+
+    /// Appends to `out` the values OpenSim's force reporter records for every force at time
+    /// `t` (labels from [`ExternalLoadSet::record_labels`]): the force and the torque in
+    /// ground, the point in the frame of the body the force is applied to.
+    pub fn record(&self, data: &Data, t: f64, out: &mut Vec<f64>) {
+        for (i, f) in self.forces.iter().enumerate() {
+            let w = self.wrench(data, i, t);
+            if f.force.is_some() {
+                out.extend(w.force_in_ground.iter());
+                if f.point.is_some() {
+                    let (rot, origin) = data.body_pose(f.applied_to_body);
+                    out.extend((rot.transpose() * (w.point_in_ground - origin)).iter());
+                }
+            }
+            if f.torque.is_some() {
+                out.extend(w.torque_in_ground.iter());
+            }
+        }
+    }
+
     /// Adds to `out` (length `model.nq()`) the generalized forces Q = Σ Jᵀ w of all forces at
     /// time `t`, for the pose in `data` (forward kinematics computed for the current q). They
     /// enter the equations of motion as M q̈ + bias = τ + Q. Allocates nothing.

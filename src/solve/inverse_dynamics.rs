@@ -143,13 +143,17 @@ pub fn generalized_force_label(model: &Model, c: usize) -> String {
 }
 
 /// Prepares the independent coordinates of `model` from `table` (read from `source`, named in
-/// errors) as OpenSim's ID tool does (module documentation, steps 1–3). `warnings` receives
-/// the degrees/radians suspicion.
+/// errors) as OpenSim's ID tool does (module documentation, steps 1–3), which is also how its
+/// Analyze tool prepares them for static optimization. `differentiation` picks q̈: the ID
+/// tool's S'' ([`Differentiation::SecondDerivative`]) or the Analyze tool's derivative of a
+/// second spline through the speeds ([`Differentiation::SplineOfSpeeds`]). `warnings`
+/// receives the degrees/radians suspicion.
 pub fn prepare_coordinates(
     model: &Model,
     table: &Table,
     source: &str,
     lowpass_hz: Option<f64>,
+    differentiation: Differentiation,
     warnings: &mut Vec<String>,
 ) -> crate::Result<PreparedCoordinates> {
     let err = |element: String, message: String| Error::Model {
@@ -253,7 +257,7 @@ pub fn prepare_coordinates(
         source,
         &KinematicsOptions {
             lowpass_hz: None,
-            differentiation: Differentiation::SecondDerivative,
+            differentiation,
         },
     )?;
     Ok(PreparedCoordinates {
@@ -311,31 +315,21 @@ fn find_index(time: &[f64], t: f64) -> usize {
     time.partition_point(|&x| x <= t).saturating_sub(1)
 }
 
-/// Inverse dynamics of the motion in `coordinates` (read from `source`) with the external
-/// loads `loads`, as OpenSim's Inverse Dynamics tool computes it (module documentation).
-/// `progress(done, total)` is called after every row. One `Data` is used; nothing is
-/// allocated per row beyond the output table.
-pub fn inverse_dynamics(
-    model: &Model,
-    coordinates: &Table,
+/// The prepared rows OpenSim's tools compute for `time_range` (None: the recorded span):
+/// from the last row at or before its start to the last row at or before its end
+/// (`Storage::findIndex`), with warnings when rows come from the filter's padding or lie
+/// beyond the external-load data.
+pub fn rows_in_range(
+    prepared: &PreparedCoordinates,
+    time_range: Option<[f64; 2]>,
     source: &str,
     loads: Option<&ExternalLoadSet>,
-    options: &InverseDynamicsOptions,
-    progress: &mut dyn FnMut(usize, usize),
-) -> crate::Result<InverseDynamicsOutput> {
-    let mut warnings = Vec::new();
-    model_warnings(model, options, &mut warnings);
-    let prepared = prepare_coordinates(
-        model,
-        coordinates,
-        source,
-        options.lowpass_hz,
-        &mut warnings,
-    )?;
+    warnings: &mut Vec<String>,
+) -> crate::Result<(usize, usize)> {
     let time = &prepared.time;
     let (first, last) = (time[0], time[time.len() - 1]);
     let [rec0, rec1] = prepared.recorded_span;
-    let [start, end] = options.time_range.unwrap_or([rec0, rec1]);
+    let [start, end] = time_range.unwrap_or([rec0, rec1]);
     if start.is_nan() || end.is_nan() || start > end {
         return Err(Error::invalid(
             "time_range",
@@ -374,6 +368,33 @@ pub fn inverse_dynamics(
         }
     }
 
+    Ok((i0, i1))
+}
+
+/// Inverse dynamics of the motion in `coordinates` (read from `source`) with the external
+/// loads `loads`, as OpenSim's Inverse Dynamics tool computes it (module documentation).
+/// `progress(done, total)` is called after every row. One `Data` is used; nothing is
+/// allocated per row beyond the output table.
+pub fn inverse_dynamics(
+    model: &Model,
+    coordinates: &Table,
+    source: &str,
+    loads: Option<&ExternalLoadSet>,
+    options: &InverseDynamicsOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> crate::Result<InverseDynamicsOutput> {
+    let mut warnings = Vec::new();
+    model_warnings(model, options, &mut warnings);
+    let prepared = prepare_coordinates(
+        model,
+        coordinates,
+        source,
+        options.lowpass_hz,
+        Differentiation::SecondDerivative,
+        &mut warnings,
+    )?;
+    let (i0, i1) = rows_in_range(&prepared, options.time_range, source, loads, &mut warnings)?;
+    let time = &prepared.time;
     let n = model.nq();
     let rows = i1 - i0 + 1;
     let mut data = Data::new(model);

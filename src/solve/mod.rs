@@ -7,3 +7,5 @@ pub mod external_loads;
 pub mod filter;
 pub mod inverse_dynamics;
 pub mod kinematics;
+pub mod qp;
+pub mod static_optimization;

@@ -1,7 +1,7 @@
 //! `musculo id`: OpenSim's Inverse Dynamics tool — generalized forces from a motion and
 //! its external loads, written as an OpenSim .sto file.
 
-use indicatif::{ProgressBar, ProgressStyle};
+use crate::tool::{FrameProgress, create_parent_dir, missing};
 use musculo::io::Table;
 use musculo::io::setup::InverseDynamicsSetup;
 use musculo::model::{LoadOptions, Model};
@@ -39,13 +39,6 @@ pub struct Args {
     /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
     #[arg(long)]
     allow_nonphysical_inertia: bool,
-}
-
-fn missing(argument: &'static str, what: &str) -> musculo::Error {
-    musculo::Error::InvalidArgument {
-        argument,
-        message: format!("no {what}: give {argument} or a --setup file that names one"),
-    }
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
@@ -101,40 +94,21 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         .map(|p| ExternalLoadSet::read(&model, p))
         .transpose()?;
 
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} frames")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    bar.set_message("inverse dynamics");
+    let progress = FrameProgress::new("inverse dynamics");
     let result = inverse_dynamics(
         &model,
         &coordinates,
         &coordinates_path.display().to_string(),
         loads.as_ref(),
         &options,
-        &mut |done, total| {
-            if done == 1 {
-                bar.set_length(total as u64);
-            }
-            // Redrawing every frame would cost more than the frame.
-            if done % 64 == 0 || done == total {
-                bar.set_position(done as u64);
-            }
-        },
+        &mut |done, total| progress.update(done, total),
     );
-    bar.finish_and_clear();
+    progress.finish();
     let out = result?;
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(dir) = output.parent()
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).map_err(|source| musculo::Error::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
-    }
+    create_parent_dir(&output)?;
     out.table.write(&output)?;
     let t = &out.table;
     eprintln!(

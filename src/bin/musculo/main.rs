@@ -4,6 +4,8 @@ mod export_mjcf;
 mod id;
 mod inspect;
 mod muscles;
+mod so;
+mod tool;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -33,6 +35,10 @@ enum Command {
     /// Inverse dynamics as OpenSim's tool computes it: generalized forces from coordinates
     /// (filtered and splined like OpenSim) and external loads, written as a .sto file.
     Id(id::Args),
+    /// Static optimization as OpenSim's tool computes it: per frame, the muscle activations
+    /// and reserve/residual actuator controls of least Σ xᵖ that produce the inverse-dynamics
+    /// generalized forces; writes PREFIX_activation.sto and PREFIX_force.sto.
+    So(so::Args),
 }
 
 fn main() -> ExitCode {
@@ -42,6 +48,7 @@ fn main() -> ExitCode {
         Command::ExportMjcf(args) => export_mjcf::run(&args),
         Command::Muscles(args) => muscles::run(&args),
         Command::Id(args) => id::run(&args),
+        Command::So(args) => so::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,225 @@
+//! `musculo so`: OpenSim's static optimization (Analyze tool with a StaticOptimization
+//! analysis) — muscle activations and actuator forces per frame, written as OpenSim's
+//! `_activation.sto` and `_force.sto`.
+
+use crate::tool::{FrameProgress, create_parent_dir, missing};
+use musculo::io::Table;
+use musculo::io::setup::AnalyzeSetup;
+use musculo::model::{LoadOptions, Model};
+use musculo::solve::external_loads::ExternalLoadSet;
+use musculo::solve::static_optimization::{
+    SoRunOptions, SoStatus, StaticOptimization, StaticOptimizationOptions, run_static_optimization,
+};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// OpenSim 4.x model file (.osim). Default: the setup's model_file.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Coordinates over time (.mot or .sto, e.g. an IK result). Default: the setup's
+    /// coordinates_file.
+    #[arg(long)]
+    coordinates: Option<PathBuf>,
+    /// ExternalLoads file (.xml) naming the forces and their data file. Default: the setup's
+    /// external_loads_file (none if neither).
+    #[arg(long)]
+    external_loads: Option<PathBuf>,
+    /// Force-set file(s) (.xml) with reserve and residual actuators, added to the model's
+    /// forces. Default: the setup's force_set_files.
+    #[arg(long, num_args = 1..)]
+    actuators: Vec<PathBuf>,
+    /// An OpenSim AnalyzeTool setup file with a StaticOptimization analysis; its settings
+    /// apply unless a flag overrides them (paths in it are relative to its directory).
+    #[arg(long)]
+    setup: Option<PathBuf>,
+    /// Low-pass cutoff (Hz) for the coordinates; a negative value means no filtering.
+    /// Default: the setup's lowpass_cutoff_frequency_for_coordinates, else no filtering.
+    #[arg(long, allow_negative_numbers = true, value_name = "HZ")]
+    lowpass: Option<f64>,
+    /// Time range START END (s). Default: the setup's initial_time and final_time, else the
+    /// whole motion.
+    #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
+    time_range: Option<Vec<f64>>,
+    /// Solve every k-th frame (and the first and last). Default: the setup's step_interval,
+    /// else 1.
+    #[arg(long, value_name = "K")]
+    step_interval: Option<usize>,
+    /// Exponent p of the objective Σ|x|^p. Default: the setup's activation_exponent, else 2.
+    #[arg(long, value_name = "P")]
+    activation_exponent: Option<f64>,
+    /// Muscle force = activation × F_max instead of the force–length–velocity relations
+    /// (OpenSim's use_muscle_physiology = false).
+    #[arg(long)]
+    no_muscle_physiology: bool,
+    /// Also apply each muscle's passive fiber force (OpenSim does not).
+    #[arg(long)]
+    passive_fiber_force: bool,
+    /// Output prefix: writes PREFIX_activation.sto and PREFIX_force.sto. Default: the
+    /// setup's results_directory/<name>_StaticOptimization.
+    #[arg(short, long, value_name = "PREFIX")]
+    output: Option<PathBuf>,
+    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
+    #[arg(long)]
+    allow_nonphysical_inertia: bool,
+}
+
+/// `prefix` + `suffix` as a path (`out/run` + `_force.sto`).
+fn with_suffix(prefix: &Path, suffix: &str) -> PathBuf {
+    let mut s = prefix.as_os_str().to_os_string();
+    s.push(suffix);
+    PathBuf::from(s)
+}
+
+pub fn run(args: &Args) -> Result<(), musculo::Error> {
+    let setup = args.setup.as_deref().map(AnalyzeSetup::read).transpose()?;
+    if let Some(s) = &setup {
+        for w in &s.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    let so_setup = setup.as_ref().and_then(|s| s.static_optimization.clone());
+    if let (Some(path), Some(s)) = (&args.setup, &setup)
+        && s.static_optimization.is_none()
+    {
+        eprintln!(
+            "warning: {}: no StaticOptimization analysis; using its defaults",
+            path.display()
+        );
+    }
+    let model_path = args
+        .model
+        .clone()
+        .or_else(|| setup.as_ref()?.model_file.clone())
+        .ok_or_else(|| missing("--model", "model file"))?;
+    let coordinates_path = args
+        .coordinates
+        .clone()
+        .or_else(|| setup.as_ref()?.coordinates_file.clone())
+        .ok_or_else(|| missing("--coordinates", "coordinates file"))?;
+    let loads_path = args
+        .external_loads
+        .clone()
+        .or_else(|| setup.as_ref()?.external_loads_file.clone());
+    let (force_sets, replace) = if args.actuators.is_empty() {
+        setup
+            .as_ref()
+            .map(|s| (s.force_set_files.clone(), s.replace_force_set))
+            .unwrap_or_default()
+    } else {
+        (args.actuators.clone(), false)
+    };
+    let prefix = args
+        .output
+        .clone()
+        .or_else(|| {
+            let s = setup.as_ref()?;
+            let dir = s.results_directory.clone()?;
+            let analysis = so_setup.as_ref().map_or("StaticOptimization", |a| &a.name);
+            Some(dir.join(format!("{}_{analysis}", s.name)))
+        })
+        .ok_or_else(|| missing("--output", "output prefix"))?;
+
+    let defaults = so_setup.clone().unwrap_or_default();
+    let options = StaticOptimizationOptions {
+        activation_exponent: args
+            .activation_exponent
+            .unwrap_or(defaults.activation_exponent),
+        use_muscle_physiology: defaults.use_muscle_physiology && !args.no_muscle_physiology,
+        passive_fiber_force: args.passive_fiber_force,
+        ..Default::default()
+    };
+    let mut run_options = SoRunOptions {
+        lowpass_hz: setup.as_ref().and_then(|s| s.lowpass_cutoff_hz),
+        time_range: setup
+            .as_ref()
+            .and_then(|s| match (s.initial_time, s.final_time) {
+                (Some(a), Some(b)) => Some([a, b]),
+                _ => None,
+            }),
+        step_interval: args.step_interval.unwrap_or(defaults.step_interval),
+    };
+    if let Some(hz) = args.lowpass {
+        run_options.lowpass_hz = (hz >= 0.0).then_some(hz);
+    }
+    if let Some(r) = &args.time_range {
+        run_options.time_range = Some([r[0], r[1]]);
+    }
+
+    let model = Model::from_osim_file_with_force_sets(
+        &model_path,
+        &LoadOptions {
+            allow_nonphysical_inertia: args.allow_nonphysical_inertia,
+        },
+        &force_sets,
+        replace,
+    )?;
+    let so = StaticOptimization::new(&model, options)?;
+    let coordinates = Table::read(&coordinates_path)?;
+    let loads = loads_path
+        .as_deref()
+        .map(|p| ExternalLoadSet::read(&model, p))
+        .transpose()?;
+
+    let progress = FrameProgress::new("static optimization");
+    let start = Instant::now();
+    let result = run_static_optimization(
+        &model,
+        &so,
+        &coordinates,
+        &coordinates_path.display().to_string(),
+        loads.as_ref(),
+        &run_options,
+        &mut |done, total| progress.update(done, total),
+    );
+    progress.finish();
+    let out = result?;
+    let seconds = start.elapsed().as_secs_f64();
+    for w in &out.warnings {
+        eprintln!("warning: {w}");
+    }
+    for p in &out.problems {
+        let what = match p.status {
+            SoStatus::Infeasible => "infeasible (the actuators cannot produce τ)",
+            SoStatus::NotConverged => "not converged",
+            SoStatus::Solved => "solved",
+        };
+        let list = p
+            .unbalanced
+            .iter()
+            .map(|(c, r)| format!("{c} {r:+.4}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        eprintln!(
+            "warning: time {:.6} s: {what}; unbalanced τ − Σ r F x: {}",
+            p.time,
+            if list.is_empty() {
+                "none above tolerance".into()
+            } else {
+                list
+            }
+        );
+    }
+    create_parent_dir(&prefix)?;
+    let activation_path = with_suffix(&prefix, "_activation.sto");
+    let force_path = with_suffix(&prefix, "_force.sto");
+    out.activation.write(&activation_path)?;
+    out.force.write(&force_path)?;
+    let rows = out.activation.n_rows();
+    eprintln!(
+        "wrote {} and {}: {} frames ({:.6} – {:.6} s) × {} actuators ({} muscles); {} frame(s) \
+         not solved exactly; {:.3} s ({:.0} frames/s)",
+        activation_path.display(),
+        force_path.display(),
+        rows,
+        out.activation.time[0],
+        out.activation.time[rows - 1],
+        so.actuators.len(),
+        so.muscles.len(),
+        out.problems.len(),
+        seconds,
+        rows as f64 / seconds
+    );
+    Ok(())
+}

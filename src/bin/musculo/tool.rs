@@ -1,0 +1,57 @@
+//! Pieces shared by the commands that run OpenSim-style tools (`id`, `so`): the error for a
+//! missing input, the frame progress bar, and the output folder.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::Path;
+
+/// The error for an input given neither as a flag nor by the setup file.
+pub fn missing(argument: &'static str, what: &str) -> musculo::Error {
+    musculo::Error::InvalidArgument {
+        argument,
+        message: format!("no {what}: give {argument} or a --setup file that names one"),
+    }
+}
+
+/// A progress bar over frames, and the `progress(done, total)` callback the library's
+/// whole-motion functions take.
+pub struct FrameProgress {
+    bar: ProgressBar,
+}
+
+impl FrameProgress {
+    pub fn new(message: &'static str) -> FrameProgress {
+        let bar = ProgressBar::new(0).with_style(
+            ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} frames")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.set_message(message);
+        FrameProgress { bar }
+    }
+
+    pub fn update(&self, done: usize, total: usize) {
+        if done == 1 {
+            self.bar.set_length(total as u64);
+        }
+        // Redrawing every frame would cost more than the frame.
+        if done.is_multiple_of(64) || done == total {
+            self.bar.set_position(done as u64);
+        }
+    }
+
+    pub fn finish(self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// Creates the folder that will hold `file`.
+pub fn create_parent_dir(file: &Path) -> Result<(), musculo::Error> {
+    if let Some(dir) = file.parent()
+        && !dir.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(dir).map_err(|source| musculo::Error::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    }
+    Ok(())
+}
