@@ -12,6 +12,7 @@
 //!   coordinates: for a CustomJoint the TransformAxis function, for the other joint types
 //!   the coordinate itself. θ = φ(q), Φ = ∂φ/∂q.
 
+pub mod builder;
 mod frames;
 pub mod function;
 pub mod mjcf;

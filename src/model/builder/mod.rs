@@ -1,0 +1,833 @@
+//! The default full-body model, built from the parameter tables in `data/model/` into
+//! OpenSim 4.x XML (`musculo model build`). The output is a pure function of the tables: the
+//! same tables give the same bytes, which a test checks against `models/`.
+//!
+//! Geometry (joint frames, landmarks, markers, contact spheres, the knee's spline-driven
+//! translations) comes from public models in their own size and is scaled uniformly by
+//! s = H / H_source to the reference subject's height H. Segment masses, centres of mass and
+//! inertias come from a published segment table (de Leva 1996): for a body made of segment
+//! shares kᵢ,
+//!
+//!   mᵢ = kᵢ pᵢ M,   cᵢ = s (a + γᵢ (b − a)),   Iᵢ = mᵢ R diag((r_S L)², (r_L L)², (r_T L)²) Rᵀ
+//!
+//! with M the body mass, pᵢ the segment's mass fraction, a and b its proximal and distal
+//! landmarks in the body frame, L = s‖b − a‖, γ the centre-of-mass fraction, r_S, r_T, r_L the
+//! radii of gyration about the sagittal (antero-posterior), transverse (medio-lateral) and
+//! longitudinal axes, and R = [e_S e_L e_T] the body-frame directions of those axes (e_L along
+//! b − a, e_T the body z axis made orthogonal to it, e_S = e_L × e_T). Shares of one body are
+//! combined about their common centre of mass (parallel-axis theorem).
+
+pub mod tables;
+
+use crate::spatial::{Mat3, Vec3};
+use std::collections::BTreeMap;
+use std::fmt::Write;
+pub use tables::{ModelTables, TableError};
+
+/// The tables are inconsistent (each message names the table and the row's key).
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error(transparent)]
+    Table(#[from] TableError),
+    #[error("{table}: {message}")]
+    Inconsistent {
+        table: &'static str,
+        message: String,
+    },
+}
+
+fn inconsistent(table: &'static str, message: impl Into<String>) -> BuildError {
+    BuildError::Inconsistent {
+        table,
+        message: message.into(),
+    }
+}
+
+/// Mass properties of one body in its own frame.
+#[derive(Clone, Debug)]
+pub struct MassProperties {
+    pub mass: f64,
+    pub com: Vec3,
+    /// About the centre of mass, body axes.
+    pub inertia: Mat3,
+}
+
+/// The reference subject's mass and height from `reference_subject.csv`.
+pub fn reference_subject(tables: &ModelTables) -> Result<(f64, f64), BuildError> {
+    let get = |q: &str| {
+        tables
+            .subject
+            .iter()
+            .find(|r| r.quantity == q)
+            .map(|r| r.value)
+            .ok_or_else(|| inconsistent("reference_subject.csv", format!("no `{q}` row")))
+    };
+    let (mass, height) = (get("mass")?, get("height")?);
+    if !(mass > 0.0 && height > 0.0 && mass.is_finite() && height.is_finite()) {
+        return Err(inconsistent(
+            "reference_subject.csv",
+            format!("mass {mass} kg and height {height} m must be positive"),
+        ));
+    }
+    Ok((mass, height))
+}
+
+fn scale_for(
+    height: f64,
+    source_height: f64,
+    table: &'static str,
+    key: &str,
+) -> Result<f64, BuildError> {
+    if source_height > 0.0 && source_height.is_finite() {
+        Ok(height / source_height)
+    } else {
+        Err(inconsistent(
+            table,
+            format!("{key}: source_height {source_height} must be positive"),
+        ))
+    }
+}
+
+/// Every body's mass properties, in the order bodies first appear in `bodies.csv`.
+pub fn mass_properties(tables: &ModelTables) -> Result<Vec<(String, MassProperties)>, BuildError> {
+    let (total_mass, height) = reference_subject(tables)?;
+    let mut out: Vec<(String, Vec<MassProperties>)> = Vec::new();
+    for row in &tables.bodies {
+        let seg = (tables.segments.iter().find(|s| s.segment == row.segment)).ok_or_else(|| {
+            inconsistent(
+                "bodies.csv",
+                format!("{}: unknown segment `{}`", row.body, row.segment),
+            )
+        })?;
+        let s = scale_for(height, row.source_height, "bodies.csv", &row.body)?;
+        let a = Vec3::new(row.proximal_x, row.proximal_y, row.proximal_z) * s;
+        let b = Vec3::new(row.distal_x, row.distal_y, row.distal_z) * s;
+        let length = (b - a).norm();
+        if !(length > 0.0) || !(row.share > 0.0 && row.share <= 1.0) {
+            return Err(inconsistent(
+                "bodies.csv",
+                format!(
+                    "{}/{}: needs distinct landmarks and a share in (0, 1]",
+                    row.body, row.segment
+                ),
+            ));
+        }
+        // mᵢ = kᵢ pᵢ M, cᵢ = a + γ (b − a)
+        let mass = row.share * seg.mass_percent / 100.0 * total_mass;
+        let com = a + (b - a) * (seg.com_percent / 100.0);
+        // R = [e_S e_L e_T]: e_L along b − a, e_T = z made orthogonal to e_L, e_S = e_L × e_T
+        let e_l = (b - a) / length;
+        let z = Vec3::z();
+        let e_t = (z - e_l * z.dot(&e_l)).normalize();
+        let e_s = e_l.cross(&e_t);
+        let rot = Mat3::from_columns(&[e_s, e_l, e_t]);
+        let radius = |percent: f64| percent / 100.0 * length;
+        let local = Mat3::from_diagonal(&Vec3::new(
+            mass * radius(seg.r_sagittal_percent).powi(2),
+            mass * radius(seg.r_longitudinal_percent).powi(2),
+            mass * radius(seg.r_transverse_percent).powi(2),
+        ));
+        let part = MassProperties {
+            mass,
+            com,
+            inertia: rot * local * rot.transpose(),
+        };
+        match out.iter_mut().find(|(name, _)| *name == row.body) {
+            Some((_, parts)) => parts.push(part),
+            None => out.push((row.body.clone(), vec![part])),
+        }
+    }
+    Ok(out
+        .into_iter()
+        .map(|(name, parts)| (name, combine(&parts)))
+        .collect())
+}
+
+/// Σ about the common centre of mass: I = Σ Iᵢ + mᵢ (‖dᵢ‖² 1 − dᵢ dᵢᵀ), dᵢ = cᵢ − c.
+fn combine(parts: &[MassProperties]) -> MassProperties {
+    let mass: f64 = parts.iter().map(|p| p.mass).sum();
+    let com = parts
+        .iter()
+        .fold(Vec3::zeros(), |acc, p| acc + p.com * p.mass)
+        / mass;
+    let inertia = parts.iter().fold(Mat3::zeros(), |acc, p| {
+        let d = p.com - com;
+        acc + p.inertia + (Mat3::identity() * d.norm_squared() - d * d.transpose()) * p.mass
+    });
+    MassProperties { mass, com, inertia }
+}
+
+fn v3(x: f64, y: f64, z: f64) -> String {
+    format!("{x} {y} {z}")
+}
+
+/// Builds the model file's text from the tables.
+pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
+    let (total_mass, height) = reference_subject(tables)?;
+    let bodies = mass_properties(tables)?;
+    let known_body = |name: &str| name == "ground" || bodies.iter().any(|(b, _)| b == name);
+    let mut x = String::new();
+    let w = &mut x;
+    // writing into a String cannot fail
+    let _ = writeln!(w, "<?xml version=\"1.0\" encoding=\"UTF-8\" ?>");
+    let _ = writeln!(w, "<OpenSimDocument Version=\"40000\">");
+    let _ = writeln!(w, "\t<Model name=\"musculo_fullbody\">");
+    let mut sources: Vec<&str> = tables.subject.iter().map(|r| r.source.as_str()).collect();
+    sources.extend(tables.segments.iter().map(|r| r.source.as_str()));
+    sources.extend(tables.joints.iter().map(|r| r.source.as_str()));
+    sources.sort_unstable();
+    sources.dedup();
+    let _ = writeln!(
+        w,
+        "\t\t<credits>Generated by musculo model build from data/model (reference subject {total_mass} kg, {height} m). Sources: {}</credits>",
+        xml_escape(&sources.join("; "))
+    );
+    let _ = writeln!(w, "\t\t<gravity>0 -9.8066499999999994 0</gravity>");
+    let _ = writeln!(w, "\t\t<length_units>meters</length_units>");
+    let _ = writeln!(w, "\t\t<force_units>N</force_units>");
+    let _ = writeln!(w, "\t\t<Ground name=\"ground\" />");
+
+    // bodies
+    let _ = writeln!(w, "\t\t<BodySet name=\"bodyset\">\n\t\t\t<objects>");
+    for (name, p) in &bodies {
+        let i = &p.inertia;
+        let _ = writeln!(w, "\t\t\t\t<Body name=\"{name}\">");
+        let _ = writeln!(w, "\t\t\t\t\t<mass>{}</mass>", p.mass);
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<mass_center>{}</mass_center>",
+            v3(p.com.x, p.com.y, p.com.z)
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<inertia>{} {} {} {} {} {}</inertia>",
+            i[(0, 0)],
+            i[(1, 1)],
+            i[(2, 2)],
+            i[(0, 1)],
+            i[(0, 2)],
+            i[(1, 2)]
+        );
+        let _ = writeln!(w, "\t\t\t\t</Body>");
+    }
+    let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</BodySet>");
+
+    // joints
+    let splines = spline_knots(tables)?;
+    let _ = writeln!(w, "\t\t<JointSet name=\"jointset\">\n\t\t\t<objects>");
+    for j in &tables.joints {
+        if !known_body(&j.parent) || !known_body(&j.child) {
+            return Err(inconsistent(
+                "joints.csv",
+                format!(
+                    "{}: parent `{}` or child `{}` is not a body",
+                    j.joint, j.parent, j.child
+                ),
+            ));
+        }
+        let s = scale_for(height, j.source_height, "joints.csv", &j.joint)?;
+        let tag = match j.kind.as_str() {
+            "custom" => "CustomJoint",
+            "weld" => "WeldJoint",
+            other => {
+                return Err(inconsistent(
+                    "joints.csv",
+                    format!("{}: kind `{other}` (expected custom or weld)", j.joint),
+                ));
+            }
+        };
+        let (pf, cf) = (
+            format!("{}_offset", j.parent),
+            format!("{}_offset", j.child),
+        );
+        let _ = writeln!(w, "\t\t\t\t<{tag} name=\"{}\">", j.joint);
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<socket_parent_frame>{pf}</socket_parent_frame>"
+        );
+        let _ = writeln!(w, "\t\t\t\t\t<socket_child_frame>{cf}</socket_child_frame>");
+        let axes: Vec<_> = tables.axes.iter().filter(|a| a.joint == j.joint).collect();
+        if tag == "CustomJoint" {
+            write_coordinates(w, &j.joint, &axes)?;
+        } else if !axes.is_empty() {
+            return Err(inconsistent(
+                "coordinates.csv",
+                format!("{}: a weld joint has no axes", j.joint),
+            ));
+        }
+        let _ = writeln!(w, "\t\t\t\t\t<frames>");
+        for (frame, body, loc, ori) in [
+            (
+                &pf,
+                &j.parent,
+                [j.parent_x, j.parent_y, j.parent_z],
+                [j.parent_rx, j.parent_ry, j.parent_rz],
+            ),
+            (
+                &cf,
+                &j.child,
+                [j.child_x, j.child_y, j.child_z],
+                [j.child_rx, j.child_ry, j.child_rz],
+            ),
+        ] {
+            let path = if body == "ground" {
+                "/ground".to_string()
+            } else {
+                format!("/bodyset/{body}")
+            };
+            let _ = writeln!(w, "\t\t\t\t\t\t<PhysicalOffsetFrame name=\"{frame}\">");
+            let _ = writeln!(w, "\t\t\t\t\t\t\t<socket_parent>{path}</socket_parent>");
+            let _ = writeln!(
+                w,
+                "\t\t\t\t\t\t\t<translation>{}</translation>",
+                v3(loc[0] * s, loc[1] * s, loc[2] * s)
+            );
+            let _ = writeln!(
+                w,
+                "\t\t\t\t\t\t\t<orientation>{}</orientation>",
+                v3(ori[0], ori[1], ori[2])
+            );
+            let _ = writeln!(w, "\t\t\t\t\t\t</PhysicalOffsetFrame>");
+        }
+        let _ = writeln!(w, "\t\t\t\t\t</frames>");
+        if tag == "CustomJoint" {
+            write_spatial_transform(w, &j.joint, &axes, &splines, s)?;
+        }
+        let _ = writeln!(w, "\t\t\t\t</{tag}>");
+    }
+    let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</JointSet>");
+
+    // coupler constraints
+    let coordinates: Vec<&str> = (tables.axes.iter())
+        .filter(|a| !a.coordinate.is_empty())
+        .map(|a| a.coordinate.as_str())
+        .collect();
+    let _ = writeln!(
+        w,
+        "\t\t<ConstraintSet name=\"constraintset\">\n\t\t\t<objects>"
+    );
+    for c in &tables.couplers {
+        for name in [&c.dependent, &c.independent] {
+            if !coordinates.contains(&name.as_str()) {
+                return Err(inconsistent(
+                    "couplers.csv",
+                    format!("{}: unknown coordinate `{name}`", c.name),
+                ));
+            }
+        }
+        let _ = writeln!(
+            w,
+            "\t\t\t\t<CoordinateCouplerConstraint name=\"{}\">",
+            c.name
+        );
+        let _ = writeln!(w, "\t\t\t\t\t<isEnforced>true</isEnforced>");
+        let _ = writeln!(w, "\t\t\t\t\t<coupled_coordinates_function>");
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t<LinearFunction name=\"function\">\n\t\t\t\t\t\t\t<coefficients>{} 0</coefficients>\n\t\t\t\t\t\t</LinearFunction>",
+            c.ratio
+        );
+        let _ = writeln!(w, "\t\t\t\t\t</coupled_coordinates_function>");
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<independent_coordinate_names>{}</independent_coordinate_names>",
+            c.independent
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<dependent_coordinate_name>{}</dependent_coordinate_name>",
+            c.dependent
+        );
+        let _ = writeln!(w, "\t\t\t\t</CoordinateCouplerConstraint>");
+    }
+    let _ = writeln!(
+        w,
+        "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ConstraintSet>"
+    );
+
+    // contact spheres and markers
+    let _ = writeln!(
+        w,
+        "\t\t<ContactGeometrySet name=\"contactgeometryset\">\n\t\t\t<objects>"
+    );
+    for c in &tables.contacts {
+        if !known_body(&c.body) {
+            return Err(inconsistent(
+                "contacts.csv",
+                format!("{}: unknown body `{}`", c.contact, c.body),
+            ));
+        }
+        let s = scale_for(height, c.source_height, "contacts.csv", &c.contact)?;
+        let _ = writeln!(w, "\t\t\t\t<ContactSphere name=\"{}\">", c.contact);
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<socket_frame>/bodyset/{}</socket_frame>",
+            c.body
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<location>{}</location>",
+            v3(c.x * s, c.y * s, c.z * s)
+        );
+        let _ = writeln!(w, "\t\t\t\t\t<orientation>0 0 0</orientation>");
+        let _ = writeln!(w, "\t\t\t\t\t<radius>{}</radius>", c.radius * s);
+        let _ = writeln!(w, "\t\t\t\t</ContactSphere>");
+    }
+    let _ = writeln!(
+        w,
+        "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ContactGeometrySet>"
+    );
+    let _ = writeln!(w, "\t\t<MarkerSet name=\"markerset\">\n\t\t\t<objects>");
+    for m in &tables.markers {
+        if !known_body(&m.body) {
+            return Err(inconsistent(
+                "markers.csv",
+                format!("{}: unknown body `{}`", m.marker, m.body),
+            ));
+        }
+        let s = scale_for(height, m.source_height, "markers.csv", &m.marker)?;
+        let _ = writeln!(w, "\t\t\t\t<Marker name=\"{}\">", m.marker);
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<socket_parent_frame>/bodyset/{}</socket_parent_frame>",
+            m.body
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<location>{}</location>",
+            v3(m.x * s, m.y * s, m.z * s)
+        );
+        let _ = writeln!(w, "\t\t\t\t\t<fixed>false</fixed>");
+        let _ = writeln!(w, "\t\t\t\t</Marker>");
+    }
+    let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</MarkerSet>");
+    let _ = writeln!(w, "\t</Model>\n</OpenSimDocument>");
+    Ok(x)
+}
+
+fn spline_knots(tables: &ModelTables) -> Result<BTreeMap<&str, (Vec<f64>, Vec<f64>)>, BuildError> {
+    let mut map: BTreeMap<&str, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    for k in &tables.splines {
+        let e = map.entry(k.spline.as_str()).or_default();
+        if e.0.last().is_some_and(|&last| !(k.x > last)) {
+            return Err(inconsistent(
+                "joint_splines.csv",
+                format!("{}: knots must increase in x", k.spline),
+            ));
+        }
+        e.0.push(k.x);
+        e.1.push(k.y);
+    }
+    Ok(map)
+}
+
+fn write_coordinates(
+    w: &mut String,
+    joint: &str,
+    axes: &[&tables::AxisRow],
+) -> Result<(), BuildError> {
+    let _ = writeln!(w, "\t\t\t\t\t<coordinates>");
+    let mut seen: Vec<&str> = Vec::new();
+    for a in axes.iter().filter(|a| !a.coordinate.is_empty()) {
+        if seen.contains(&a.coordinate.as_str()) {
+            continue;
+        }
+        seen.push(&a.coordinate);
+        let (Some(default), Some(min), Some(max)) = (a.default_value, a.range_min, a.range_max)
+        else {
+            return Err(inconsistent(
+                "coordinates.csv",
+                format!(
+                    "{joint}/{}: the first row of a coordinate needs default_value, range_min, range_max",
+                    a.coordinate
+                ),
+            ));
+        };
+        if !(min < max && default >= min && default <= max) {
+            return Err(inconsistent(
+                "coordinates.csv",
+                format!(
+                    "{joint}/{}: default {default} outside range [{min}, {max}]",
+                    a.coordinate
+                ),
+            ));
+        }
+        let _ = writeln!(w, "\t\t\t\t\t\t<Coordinate name=\"{}\">", a.coordinate);
+        let _ = writeln!(w, "\t\t\t\t\t\t\t<default_value>{default}</default_value>");
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t<default_speed_value>0</default_speed_value>"
+        );
+        let _ = writeln!(w, "\t\t\t\t\t\t\t<range>{min} {max}</range>");
+        let _ = writeln!(w, "\t\t\t\t\t\t\t<clamped>false</clamped>");
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t<locked>{}</locked>",
+            a.locked.unwrap_or(false)
+        );
+        let _ = writeln!(w, "\t\t\t\t\t\t</Coordinate>");
+    }
+    let _ = writeln!(w, "\t\t\t\t\t</coordinates>");
+    Ok(())
+}
+
+const SLOTS: [&str; 6] = [
+    "rotation1",
+    "rotation2",
+    "rotation3",
+    "translation1",
+    "translation2",
+    "translation3",
+];
+
+fn write_spatial_transform(
+    w: &mut String,
+    joint: &str,
+    axes: &[&tables::AxisRow],
+    splines: &BTreeMap<&str, (Vec<f64>, Vec<f64>)>,
+    scale: f64,
+) -> Result<(), BuildError> {
+    for a in axes {
+        if !SLOTS.contains(&a.slot.as_str()) {
+            return Err(inconsistent(
+                "coordinates.csv",
+                format!("{joint}: unknown slot `{}`", a.slot),
+            ));
+        }
+    }
+    let _ = writeln!(w, "\t\t\t\t\t<SpatialTransform>");
+    // Unlisted slots are fixed (constant 0) but OpenSim still needs each triple of axes to be
+    // independent: an unlisted axis is the unit vector, of x, y, z made orthogonal to the
+    // triple's listed axes, that keeps the largest part.
+    let mut chosen: [Vec<Vec3>; 2] = [Vec::new(), Vec::new()];
+    for a in axes {
+        let k = SLOTS.iter().position(|s| *s == a.slot).unwrap_or(0);
+        chosen[k / 3].push(Vec3::new(a.axis_x, a.axis_y, a.axis_z).normalize());
+    }
+    let mut completion = |group: usize| -> Vec3 {
+        let mut best = Vec3::zeros();
+        for candidate in [Vec3::x(), Vec3::y(), Vec3::z()] {
+            let mut v = candidate;
+            for u in &chosen[group] {
+                v -= u * u.dot(&v) / u.norm_squared();
+            }
+            if v.norm() > best.norm() + 1e-12 {
+                best = v;
+            }
+        }
+        let axis = best.normalize();
+        chosen[group].push(axis);
+        axis
+    };
+    for (k, slot) in SLOTS.iter().enumerate() {
+        let rows: Vec<_> = axes.iter().filter(|a| a.slot == *slot).collect();
+        if rows.len() > 1 {
+            return Err(inconsistent(
+                "coordinates.csv",
+                format!("{joint}: slot {slot} given twice"),
+            ));
+        }
+        let translation = k >= 3;
+        let _ = writeln!(w, "\t\t\t\t\t\t<TransformAxis name=\"{slot}\">");
+        match rows.first() {
+            Some(a) => {
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t<coordinates>{}</coordinates>",
+                    a.coordinate
+                );
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t<axis>{}</axis>",
+                    v3(a.axis_x, a.axis_y, a.axis_z)
+                );
+                write_function(w, joint, a, splines, if translation { scale } else { 1.0 })?;
+            }
+            None => {
+                let d = completion(k / 3);
+                let d = [d.x, d.y, d.z];
+                let _ = writeln!(w, "\t\t\t\t\t\t\t<coordinates></coordinates>");
+                let _ = writeln!(w, "\t\t\t\t\t\t\t<axis>{}</axis>", v3(d[0], d[1], d[2]));
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t<Constant name=\"function\">\n\t\t\t\t\t\t\t\t<value>0</value>\n\t\t\t\t\t\t\t</Constant>"
+                );
+            }
+        }
+        let _ = writeln!(w, "\t\t\t\t\t\t</TransformAxis>");
+    }
+    let _ = writeln!(w, "\t\t\t\t\t</SpatialTransform>");
+    Ok(())
+}
+
+fn write_function(
+    w: &mut String,
+    joint: &str,
+    a: &tables::AxisRow,
+    splines: &BTreeMap<&str, (Vec<f64>, Vec<f64>)>,
+    scale: f64,
+) -> Result<(), BuildError> {
+    let f = a.function.as_str();
+    if a.coordinate.is_empty() {
+        return Err(inconsistent(
+            "coordinates.csv",
+            format!("{joint}/{}: an axis row needs a coordinate", a.slot),
+        ));
+    }
+    if f == "identity" || f.starts_with("linear:") {
+        let k = match f.strip_prefix("linear:") {
+            Some(k) => k.parse::<f64>().map_err(|_| {
+                inconsistent(
+                    "coordinates.csv",
+                    format!("{joint}/{}: bad slope in `{f}`", a.slot),
+                )
+            })?,
+            None => 1.0,
+        } * scale;
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t<LinearFunction name=\"function\">\n\t\t\t\t\t\t\t\t<coefficients>{k} 0</coefficients>\n\t\t\t\t\t\t\t</LinearFunction>"
+        );
+        Ok(())
+    } else if let Some(name) = f.strip_prefix("spline:") {
+        let (xs, ys) = splines.get(name).ok_or_else(|| {
+            inconsistent(
+                "coordinates.csv",
+                format!("{joint}/{}: unknown spline `{name}`", a.slot),
+            )
+        })?;
+        let join = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let ys: Vec<f64> = ys.iter().map(|y| y * scale).collect();
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t<SimmSpline name=\"function\">\n\t\t\t\t\t\t\t\t<x>{}</x>\n\t\t\t\t\t\t\t\t<y>{}</y>\n\t\t\t\t\t\t\t</SimmSpline>",
+            join(xs),
+            join(&ys)
+        );
+        Ok(())
+    } else {
+        Err(inconsistent(
+            "coordinates.csv",
+            format!(
+                "{joint}/{}: function `{f}` (expected identity, linear:K, spline:NAME)",
+                a.slot
+            ),
+        ))
+    }
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tables::*;
+    use super::*;
+    use crate::model::Model;
+
+    const SRC: &str = "test";
+
+    fn subject(mass: f64, height: f64) -> Vec<SubjectRow> {
+        [("mass", mass), ("height", height)]
+            .map(|(quantity, value)| SubjectRow {
+                quantity: quantity.into(),
+                value,
+                source: SRC.into(),
+            })
+            .to_vec()
+    }
+
+    fn segment(name: &str, mass_percent: f64, com_percent: f64, r: [f64; 3]) -> SegmentRow {
+        SegmentRow {
+            segment: name.into(),
+            mass_percent,
+            com_percent,
+            r_sagittal_percent: r[0],
+            r_transverse_percent: r[1],
+            r_longitudinal_percent: r[2],
+            source: SRC.into(),
+        }
+    }
+
+    fn body(name: &str, segment: &str, share: f64, a: [f64; 3], b: [f64; 3]) -> BodyRow {
+        BodyRow {
+            body: name.into(),
+            segment: segment.into(),
+            share,
+            proximal_x: a[0],
+            proximal_y: a[1],
+            proximal_z: a[2],
+            distal_x: b[0],
+            distal_y: b[1],
+            distal_z: b[2],
+            source_height: 1.8,
+            source: SRC.into(),
+        }
+    }
+
+    /// A pendulum: ground → link by a hinge about z, one marker, one contact sphere.
+    fn pendulum(height: f64) -> ModelTables {
+        ModelTables {
+            subject: subject(80.0, height),
+            segments: vec![
+                segment("thigh", 10.0, 40.0, [30.0, 25.0, 20.0]),
+                segment("foot", 5.0, 50.0, [25.0, 25.0, 10.0]),
+            ],
+            bodies: vec![body(
+                "link",
+                "thigh",
+                1.0,
+                [0.0, 0.0, 0.0],
+                [0.0, -0.5, 0.0],
+            )],
+            joints: vec![JointRow {
+                joint: "hinge".into(),
+                kind: "custom".into(),
+                parent: "ground".into(),
+                child: "link".into(),
+                parent_x: 0.0,
+                parent_y: 1.0,
+                parent_z: 0.0,
+                parent_rx: 0.0,
+                parent_ry: 0.0,
+                parent_rz: 0.0,
+                child_x: 0.0,
+                child_y: 0.0,
+                child_z: 0.0,
+                child_rx: 0.0,
+                child_ry: 0.0,
+                child_rz: 0.0,
+                source_height: 1.8,
+                source: SRC.into(),
+            }],
+            axes: vec![AxisRow {
+                joint: "hinge".into(),
+                slot: "rotation1".into(),
+                coordinate: "swing".into(),
+                axis_x: 0.0,
+                axis_y: 0.0,
+                axis_z: 1.0,
+                function: "identity".into(),
+                default_value: Some(0.0),
+                range_min: Some(-1.0),
+                range_max: Some(1.0),
+                locked: Some(false),
+                source: SRC.into(),
+            }],
+            splines: vec![],
+            couplers: vec![],
+            markers: vec![MarkerRow {
+                marker: "tip".into(),
+                body: "link".into(),
+                x: 0.0,
+                y: -0.5,
+                z: 0.0,
+                source_height: 1.8,
+                source: SRC.into(),
+            }],
+            contacts: vec![ContactRow {
+                contact: "ball".into(),
+                body: "link".into(),
+                x: 0.0,
+                y: -0.5,
+                z: 0.0,
+                radius: 0.02,
+                source_height: 1.8,
+                source: SRC.into(),
+            }],
+        }
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-12 * (1.0 + b.abs())
+    }
+
+    #[test]
+    fn segment_table_gives_mass_com_and_inertia_by_hand() {
+        // m = 10 % of 80 kg; L = 0.5 m; c = 0.4 L below the origin;
+        // I_x = m (0.3 L)², I_y = m (0.2 L)², I_z = m (0.25 L)² (e_S = x, e_L = −y, e_T = z)
+        let xml = build_osim(&pendulum(1.8)).expect("builds");
+        let model = Model::from_osim_str(&xml, "pendulum").expect("parses");
+        let link = model
+            .bodies
+            .iter()
+            .find(|b| b.name == "link")
+            .expect("link");
+        let (m, l) = (8.0, 0.5);
+        assert!(close(link.mass, m));
+        assert!(close(link.com_in_body.y, -0.2) && link.com_in_body.x == 0.0);
+        let i = link.inertia_about_com;
+        assert!(close(i[(0, 0)], m * (0.3 * l) * (0.3 * l)), "{i}");
+        assert!(close(i[(1, 1)], m * (0.2 * l) * (0.2 * l)), "{i}");
+        assert!(close(i[(2, 2)], m * (0.25 * l) * (0.25 * l)), "{i}");
+    }
+
+    #[test]
+    fn geometry_scales_with_height_and_inertia_with_its_square() {
+        let full = mass_properties(&pendulum(1.8)).unwrap().remove(0).1;
+        let half = mass_properties(&pendulum(0.9)).unwrap().remove(0).1;
+        assert!(close(half.mass, full.mass));
+        assert!(close(half.com.y, 0.5 * full.com.y));
+        assert!(close(half.inertia[(0, 0)], 0.25 * full.inertia[(0, 0)]));
+        let xml = build_osim(&pendulum(0.9)).unwrap();
+        assert!(
+            xml.contains("<translation>0 0.5 0</translation>"),
+            "joint location scaled"
+        );
+        assert!(
+            xml.contains("<radius>0.01</radius>"),
+            "contact radius scaled"
+        );
+    }
+
+    #[test]
+    fn shares_of_one_body_combine_about_their_common_centre() {
+        // two point-like halves (tiny radii) 0.4 m apart: I_z ≈ Σ mᵢ dᵢ² = 2 · (m/2)(0.2)²
+        let mut t = pendulum(1.8);
+        t.segments.push(segment("dot", 10.0, 50.0, [0.0, 0.0, 0.0]));
+        t.bodies = vec![
+            body("link", "dot", 0.5, [0.0, -0.01, 0.0], [0.0, 0.01, 0.0]),
+            body("link", "dot", 0.5, [0.4, -0.01, 0.0], [0.4, 0.01, 0.0]),
+        ];
+        let p = mass_properties(&t).unwrap().remove(0).1;
+        assert!(close(p.mass, 8.0) && close(p.com.x, 0.2));
+        assert!(
+            close(p.inertia[(2, 2)], 8.0 * 0.2 * 0.2) && close(p.inertia[(1, 1)], 8.0 * 0.2 * 0.2)
+        );
+        assert!(p.inertia[(0, 0)].abs() < 1e-15);
+    }
+
+    #[test]
+    fn inconsistent_tables_are_errors_naming_the_row() {
+        let mut t = pendulum(1.8);
+        t.bodies[0].segment = "wing".into();
+        let e = build_osim(&t).unwrap_err().to_string();
+        assert!(e.contains("bodies.csv") && e.contains("wing"), "{e}");
+        let mut t = pendulum(1.8);
+        t.axes[0].range_min = Some(2.0);
+        let e = build_osim(&t).unwrap_err().to_string();
+        assert!(e.contains("coordinates.csv") && e.contains("swing"), "{e}");
+        let mut t = pendulum(1.8);
+        t.markers[0].body = "nowhere".into();
+        assert!(build_osim(&t).unwrap_err().to_string().contains("nowhere"));
+    }
+
+    #[test]
+    fn unlisted_rotation_axes_complete_an_independent_basis() {
+        let mut t = pendulum(1.8);
+        t.axes[0].axis_x = 0.6;
+        t.axes[0].axis_y = 0.0;
+        t.axes[0].axis_z = 0.8;
+        let xml = build_osim(&t).unwrap();
+        // parses (OpenSim's and our reader reject dependent rotation axes)
+        Model::from_osim_str(&xml, "tilted").expect("independent axes");
+    }
+}

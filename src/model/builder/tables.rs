@@ -1,0 +1,236 @@
+//! The default model's parameter tables (`data/model/*.csv`): one record type per file, read
+//! with the column names as headers. Every record carries the publication of its figures in
+//! `source`; the reader refuses a row without one.
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A table could not be read: the file, and the row (1-based, header = row 1) when known.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    #[error("{path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("{path}, row {row}: {message}")]
+    Row {
+        path: PathBuf,
+        row: usize,
+        message: String,
+    },
+}
+
+/// The reference subject the tables describe (`reference_subject.csv`: quantity,value,source).
+#[derive(Clone, Debug, Deserialize)]
+pub struct SubjectRow {
+    pub quantity: String,
+    pub value: f64,
+    pub source: String,
+}
+
+/// One segment of a published segment-parameter table (`segments.csv`), in percent of body
+/// mass and of the segment length between its two landmarks.
+#[derive(Clone, Debug, Deserialize)]
+pub struct SegmentRow {
+    pub segment: String,
+    pub mass_percent: f64,
+    /// Centre of mass from the proximal landmark, % of the segment length.
+    pub com_percent: f64,
+    /// Radii of gyration about the sagittal (antero-posterior), transverse (medio-lateral) and
+    /// longitudinal axes, % of the segment length.
+    pub r_sagittal_percent: f64,
+    pub r_transverse_percent: f64,
+    pub r_longitudinal_percent: f64,
+    pub source: String,
+}
+
+/// A model body made of a share of one published segment (`bodies.csv`); a body may have
+/// several rows (e.g. the torso: upper trunk and head). The landmarks are in the body frame
+/// of the source model, in metres, before scaling to the reference height.
+#[derive(Clone, Debug, Deserialize)]
+pub struct BodyRow {
+    pub body: String,
+    pub segment: String,
+    pub share: f64,
+    pub proximal_x: f64,
+    pub proximal_y: f64,
+    pub proximal_z: f64,
+    pub distal_x: f64,
+    pub distal_y: f64,
+    pub distal_z: f64,
+    /// Standing height of the source model's geometry (the landmarks scale by H / this).
+    pub source_height: f64,
+    pub source: String,
+}
+
+/// A joint (`joints.csv`): parent and child frames (location and xyz body-fixed orientation
+/// of the joint frame in each body), in the source model's geometry.
+#[derive(Clone, Debug, Deserialize)]
+pub struct JointRow {
+    pub joint: String,
+    /// `custom` (its axes in coordinates.csv) or `weld`.
+    pub kind: String,
+    pub parent: String,
+    pub child: String,
+    pub parent_x: f64,
+    pub parent_y: f64,
+    pub parent_z: f64,
+    pub parent_rx: f64,
+    pub parent_ry: f64,
+    pub parent_rz: f64,
+    pub child_x: f64,
+    pub child_y: f64,
+    pub child_z: f64,
+    pub child_rx: f64,
+    pub child_ry: f64,
+    pub child_rz: f64,
+    pub source_height: f64,
+    pub source: String,
+}
+
+/// One transform axis of a custom joint (`coordinates.csv`). `coordinate` empty: the axis
+/// is fixed (constant 0). `function`: `identity`, `linear:K` (the axis moves K × the
+/// coordinate) or `spline:NAME` (joint_splines.csv; a translation's values scale with the
+/// geometry).
+#[derive(Clone, Debug, Deserialize)]
+pub struct AxisRow {
+    pub joint: String,
+    /// rotation1..3, translation1..3.
+    pub slot: String,
+    pub coordinate: String,
+    pub axis_x: f64,
+    pub axis_y: f64,
+    pub axis_z: f64,
+    pub function: String,
+    /// Coordinate properties (on the row that introduces the coordinate; radians or metres).
+    pub default_value: Option<f64>,
+    pub range_min: Option<f64>,
+    pub range_max: Option<f64>,
+    pub locked: Option<bool>,
+    pub source: String,
+}
+
+/// A knot of a joint spline (`joint_splines.csv`).
+#[derive(Clone, Debug, Deserialize)]
+pub struct SplineKnotRow {
+    pub spline: String,
+    pub x: f64,
+    pub y: f64,
+    pub source: String,
+}
+
+/// A coordinate coupled to another (`couplers.csv`): dependent = ratio × independent.
+#[derive(Clone, Debug, Deserialize)]
+pub struct CouplerRow {
+    pub name: String,
+    pub dependent: String,
+    pub independent: String,
+    pub ratio: f64,
+    pub source: String,
+}
+
+/// A marker (`markers.csv`), in the body frame of the source geometry.
+#[derive(Clone, Debug, Deserialize)]
+pub struct MarkerRow {
+    pub marker: String,
+    pub body: String,
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub source_height: f64,
+    pub source: String,
+}
+
+/// A ground-contact sphere (`contacts.csv`).
+#[derive(Clone, Debug, Deserialize)]
+pub struct ContactRow {
+    pub contact: String,
+    pub body: String,
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub radius: f64,
+    pub source_height: f64,
+    pub source: String,
+}
+
+/// Every table of the default model.
+#[derive(Clone, Debug)]
+pub struct ModelTables {
+    pub subject: Vec<SubjectRow>,
+    pub segments: Vec<SegmentRow>,
+    pub bodies: Vec<BodyRow>,
+    pub joints: Vec<JointRow>,
+    pub axes: Vec<AxisRow>,
+    pub splines: Vec<SplineKnotRow>,
+    pub couplers: Vec<CouplerRow>,
+    pub markers: Vec<MarkerRow>,
+    pub contacts: Vec<ContactRow>,
+}
+
+/// Rows that carry a `source`.
+trait Sourced {
+    fn source(&self) -> &str;
+}
+
+macro_rules! sourced {
+    ($($t:ty),*) => {$(impl Sourced for $t { fn source(&self) -> &str { &self.source } })*};
+}
+sourced!(
+    SubjectRow,
+    SegmentRow,
+    BodyRow,
+    JointRow,
+    AxisRow,
+    SplineKnotRow,
+    CouplerRow,
+    MarkerRow,
+    ContactRow
+);
+
+fn read<T: for<'de> Deserialize<'de> + Sourced>(
+    dir: &Path,
+    file: &str,
+) -> Result<Vec<T>, TableError> {
+    let path = dir.join(file);
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(&path)
+        .map_err(|e| TableError::Io {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+    let mut rows = Vec::new();
+    for (i, record) in reader.deserialize::<T>().enumerate() {
+        let row = i + 2;
+        let record = record.map_err(|e| TableError::Row {
+            path: path.clone(),
+            row,
+            message: e.to_string(),
+        })?;
+        if record.source().trim().is_empty() {
+            return Err(TableError::Row {
+                path: path.clone(),
+                row,
+                message: "the `source` column is empty; every figure needs its publication".into(),
+            });
+        }
+        rows.push(record);
+    }
+    Ok(rows)
+}
+
+impl ModelTables {
+    /// Reads every table from `dir` (normally `data/model`).
+    pub fn read(dir: &Path) -> Result<Self, TableError> {
+        Ok(ModelTables {
+            subject: read(dir, "reference_subject.csv")?,
+            segments: read(dir, "segments.csv")?,
+            bodies: read(dir, "bodies.csv")?,
+            joints: read(dir, "joints.csv")?,
+            axes: read(dir, "coordinates.csv")?,
+            splines: read(dir, "joint_splines.csv")?,
+            couplers: read(dir, "couplers.csv")?,
+            markers: read(dir, "markers.csv")?,
+            contacts: read(dir, "contacts.csv")?,
+        })
+    }
+}
