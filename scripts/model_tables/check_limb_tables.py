@@ -5,7 +5,11 @@
   numbers finite; moving points have x, y and z functions; wraps name existing objects;
   left/right counts symmetric and left = right mirrored (z -> -z) for every row;
   gait2392-derived rows reproduce gait2392_thelen2003muscle.osim exactly (when its path
-  is given), including gait2392's own left leg (which checks the mirroring convention).
+  is given), including gait2392's own left leg (which checks the mirroring convention);
+  muscle counts per group and side are exactly EXPECT (57 per side, 114 in all), gait2392's
+  psoas is absent (the lumbar psoas fascicles replace it), the gait2392 muscles not taken are
+  exactly NOT_TAKEN, and, when lumbar_muscles.csv is present, limb + lumbar = 324 muscles
+  with no shared name.
 
 usage: check_limb_tables.py [data/model] [--gait2392 PATH]
 """
@@ -15,6 +19,11 @@ from collections import Counter, defaultdict
 BODIES = {'pelvis', 'torso', 'lumbar1', 'lumbar2', 'lumbar3', 'lumbar4', 'lumbar5'} | {
     b + s for b in ('femur', 'tibia', 'calcn', 'toes', 'humerus', 'ulna', 'radius') for s in ('_r', '_l')}
 ERR = []
+EXPECT = {'hip': 20, 'knee': 10, 'ankle': 8, 'toes': 4, 'shoulder': 8, 'elbow': 7}   # per side
+EXPECT_TOTAL = 114
+EXPECT_WITH_LUMBAR = 324   # 210 lumbar fascicles + 114 limb muscles
+NOT_TAKEN = {b + s for b in ('ercspn', 'intobl', 'extobl', 'psoas') for s in ('_r', '_l')}
+REQUIRED = {'iliacus_r', 'iliacus_l', 'BRD_r', 'BRD_l'}
 
 
 def err(msg):
@@ -144,6 +153,24 @@ def main():
     cnt = Counter((m['group'], m['side']) for m in M)
     if any(cnt[(g, 'r')] != cnt[(g, 'l')] for g, _ in cnt):
         err('left/right group counts differ')
+    got = {(g, s): cnt[(g, s)] for g in set(EXPECT) | {g for g, _ in cnt} for s in ('r', 'l')}
+    for (g, s), c in sorted(got.items()):
+        if c != EXPECT.get(g, 0):
+            err('group %s side %s: %d muscles, expected %d' % (g, s, c, EXPECT.get(g, 0)))
+    if len(M) != EXPECT_TOTAL:
+        err('%d limb muscles, expected %d' % (len(M), EXPECT_TOTAL))
+    if names & NOT_TAKEN:
+        err('muscles that must not be in the limb tables: %s' % ' '.join(sorted(names & NOT_TAKEN)))
+    if REQUIRED - names:
+        err('missing muscles: %s' % ' '.join(sorted(REQUIRED - names)))
+    lum = os.path.join(d, 'lumbar_muscles.csv')
+    if os.path.exists(lum):
+        LN = {m['name'] for m in rd(d, 'lumbar_muscles.csv')}
+        if names & LN:
+            err('names in both limb and lumbar tables: %s' % ' '.join(sorted(names & LN)))
+        if len(names | LN) != EXPECT_WITH_LUMBAR:
+            err('limb + lumbar = %d muscles, expected %d' % (len(names | LN), EXPECT_WITH_LUMBAR))
+        print('limb %d + lumbar %d = %d muscles' % (len(names), len(LN), len(names | LN)))
     # gait2392 reproduction
     if g2392:
         sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -180,6 +207,8 @@ def main():
                         if len(got) != len(xs) or any(not close(a, b) or not close(c, e) for (a, c), b, e in zip(got, xs, ys)):
                             err('%s[%s].%s: function differs from gait2392' % (m['name'], p['index'], ax))
         dropped = sorted(set(src) - names)
+        if set(dropped) != NOT_TAKEN:
+            err('gait2392 muscles not taken: %s, expected %s' % (' '.join(dropped), ' '.join(sorted(NOT_TAKEN))))
         print('gait2392 rows re-composed: %d muscles; not taken: %s' % (n, ' '.join(dropped)))
     print('muscles by group and side:')
     for g in sorted({g for g, _ in cnt}):

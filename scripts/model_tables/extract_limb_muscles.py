@@ -24,23 +24,28 @@ from register_arm_frames import read_vtp_points, icp, euler_xyz_body  # noqa: E4
 G2392_SRC = 'gait2392 (Delp et al. 1990; OpenSim gait2392_thelen2003muscle.osim)'
 MOBL_SRC = 'MoBL-ARMS 4.1 (Saul et al. 2015; Holzbaur et al. 2005)'
 
-DROP_LEG = {'ercspn', 'intobl', 'extobl'}
+# ercspn/intobl/extobl: replaced by the lumbar fascicles (data/model/lumbar_*.csv);
+# psoas: replaced by the 11 lumbar psoas major fascicles per side, which are extended to the
+# femur along gait2392's psoas path (README_lumbar.md).  iliacus is kept.
+DROP_LEG = {'ercspn', 'intobl', 'extobl', 'psoas'}
 HIP = {'glut_med1', 'glut_med2', 'glut_med3', 'glut_min1', 'glut_min2', 'glut_min3',
        'add_long', 'add_brev', 'add_mag1', 'add_mag2', 'add_mag3', 'tfl', 'pect',
-       'glut_max1', 'glut_max2', 'glut_max3', 'iliacus', 'psoas', 'quad_fem', 'gem', 'peri'}
+       'glut_max1', 'glut_max2', 'glut_max3', 'iliacus', 'quad_fem', 'gem', 'peri'}
 KNEE = {'semimem', 'semiten', 'bifemlh', 'bifemsh', 'sar', 'grac', 'rect_fem',
         'vas_med', 'vas_int', 'vas_lat'}
 ANKLE = {'med_gas', 'lat_gas', 'soleus', 'tib_post', 'tib_ant', 'per_brev', 'per_long',
          'per_tert'}
 TOES = {'flex_dig', 'flex_hal', 'ext_dig', 'ext_hal'}
 
-# 14 arm muscles (see README): the six arm26 muscles + deltoid (3), pectoralis major
-# clavicular head, rotator cuff (supraspinatus, infraspinatus, subscapularis), teres major.
+# 15 arm muscles (see README): the six arm26 muscles + deltoid (3), pectoralis major
+# clavicular head, rotator cuff (supraspinatus, infraspinatus, subscapularis), teres major,
+# brachioradialis (BRD: humerus -> radius, 3 fixed points, wrap Elbow_BIC_BRD shared with BIC).
 ARM = [('DELT1', 'shoulder'), ('DELT2', 'shoulder'), ('DELT3', 'shoulder'),
        ('PECM1', 'shoulder'), ('SUPSP', 'shoulder'), ('INFSP', 'shoulder'),
        ('SUBSC', 'shoulder'), ('TMAJ', 'shoulder'),
        ('BIClong', 'elbow'), ('BICshort', 'elbow'), ('TRIlong', 'elbow'),
-       ('TRIlat', 'elbow'), ('TRImed', 'elbow'), ('BRA', 'elbow')]
+       ('TRIlat', 'elbow'), ('TRImed', 'elbow'), ('BRA', 'elbow'),
+       ('BRD', 'elbow')]
 # MoBL coordinate -> Rajagopal (right side) coordinate, for points that stay coordinate-dependent
 MOBL_COORD = {'elbow_flexion': 'elbow_flex', 'pro_sup': 'pro_sup'}
 # MoBL shoulder coordinates have no counterpart in the torso->humerus ball joint: points
@@ -348,6 +353,9 @@ def arms(T, mobl, maps, dq, notes):
         newidx = {}
         i = 0
         for k, p in enumerate(r['points'], 1):
+            # hand -> radius lumping (hand re-expressed in radius at wrist angles 0) is not
+            # implemented: no muscle of this set has a point on MoBL's hand/carpal bodies.
+            assert p['body'] in maps, (mname, k, p['body'])
             m = maps[p['body']]
             if p['tag'] == 'ConditionalPathPoint' and p['coord'] in FROZEN_AT:
                 notes.append('%s: dropped conditional point %d (%s on %s, range %s)' % (
