@@ -112,20 +112,59 @@ pub fn mass_properties(tables: &ModelTables) -> Result<Vec<(String, MassProperti
                 ),
             ));
         }
-        // mᵢ = kᵢ pᵢ M, cᵢ = a + γ (b − a)
+        let (u0, u1) = (row.slice_start, row.slice_end);
+        if !(0.0 <= u0 && u0 < u1 && u1 <= 1.0) {
+            return Err(inconsistent(
+                "bodies.csv",
+                format!(
+                    "{}/{}: slice [{u0}, {u1}] must lie in [0, 1]",
+                    row.body, row.segment
+                ),
+            ));
+        }
+        let whole = u0 == 0.0 && u1 == 1.0;
+        // mᵢ = kᵢ pᵢ M; cᵢ = a + γ (b − a), or the middle of a slice [u₀, u₁] of the segment
         let mass = row.share * seg.mass_percent / 100.0 * total_mass;
-        let com = a + (b - a) * (seg.com_percent / 100.0);
+        let along = if whole {
+            seg.com_percent / 100.0
+        } else {
+            0.5 * (u0 + u1)
+        };
+        let com = a + (b - a) * along;
         // R = [e_S e_L e_T]: e_L along b − a, e_T = z made orthogonal to e_L, e_S = e_L × e_T
         let e_l = (b - a) / length;
         let z = Vec3::z();
         let e_t = (z - e_l * z.dot(&e_l)).normalize();
         let e_s = e_l.cross(&e_t);
         let rot = Mat3::from_columns(&[e_s, e_l, e_t]);
-        let radius = |percent: f64| percent / 100.0 * length;
+        // A slice of a segment taken as uniform along its length: about the slice's own centre,
+        // (r L)² − L²/12 + (Δu L)²/12 about the two cross axes, so that the slices recombine
+        // to the whole segment's m (r L)²; the longitudinal moment is unchanged by slicing.
+        let cross = |percent: f64| {
+            let r2 = (percent / 100.0 * length).powi(2);
+            if whole {
+                r2
+            } else {
+                r2 - length * length / 12.0 + ((u1 - u0) * length).powi(2) / 12.0
+            }
+        };
+        let (i_s, i_t) = (
+            cross(seg.r_sagittal_percent),
+            cross(seg.r_transverse_percent),
+        );
+        if !(i_s >= 0.0 && i_t >= 0.0) {
+            return Err(inconsistent(
+                "bodies.csv",
+                format!(
+                    "{}/{}: the segment's radii of gyration are too small to slice",
+                    row.body, row.segment
+                ),
+            ));
+        }
         let local = Mat3::from_diagonal(&Vec3::new(
-            mass * radius(seg.r_sagittal_percent).powi(2),
-            mass * radius(seg.r_longitudinal_percent).powi(2),
-            mass * radius(seg.r_transverse_percent).powi(2),
+            mass * i_s,
+            mass * (seg.r_longitudinal_percent / 100.0 * length).powi(2),
+            mass * i_t,
         ));
         let part = MassProperties {
             mass,
@@ -187,6 +226,11 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
     let _ = writeln!(w, "\t\t<force_units>N</force_units>");
     let _ = writeln!(w, "\t\t<Ground name=\"ground\" />");
 
+    let scales = body_scales(tables, height)?;
+    let coordinate_joint: BTreeMap<&str, &str> = (tables.axes.iter())
+        .filter(|a| !a.coordinate.is_empty())
+        .map(|a| (a.coordinate.as_str(), a.joint.as_str()))
+        .collect();
     // bodies
     let _ = writeln!(w, "\t\t<BodySet name=\"bodyset\">\n\t\t\t<objects>");
     for (name, p) in &bodies {
@@ -208,6 +252,7 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
             i[(0, 2)],
             i[(1, 2)]
         );
+        write_wrap_objects(w, tables, name, scales[name.as_str()])?;
         let _ = writeln!(w, "\t\t\t\t</Body>");
     }
     let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</BodySet>");
@@ -345,6 +390,8 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
         "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ConstraintSet>"
     );
 
+    write_force_set(w, tables, &scales, &coordinate_joint)?;
+
     // contact spheres and markers
     let _ = writeln!(
         w,
@@ -403,6 +450,324 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
     let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</MarkerSet>");
     let _ = writeln!(w, "\t</Model>\n</OpenSimDocument>");
     Ok(x)
+}
+
+/// The geometry scale s = H / H_source of every body (its rows must agree).
+fn body_scales(tables: &ModelTables, height: f64) -> Result<BTreeMap<&str, f64>, BuildError> {
+    let mut scales: BTreeMap<&str, f64> = BTreeMap::new();
+    for row in &tables.bodies {
+        let s = scale_for(height, row.source_height, "bodies.csv", &row.body)?;
+        if let Some(&old) = scales.get(row.body.as_str()) {
+            if old != s {
+                return Err(inconsistent(
+                    "bodies.csv",
+                    format!("{}: rows with different source heights", row.body),
+                ));
+            }
+        }
+        scales.insert(&row.body, s);
+    }
+    Ok(scales)
+}
+
+fn write_wrap_objects(
+    w: &mut String,
+    tables: &ModelTables,
+    body: &str,
+    s: f64,
+) -> Result<(), BuildError> {
+    let objects: Vec<_> = tables
+        .wrap_objects
+        .iter()
+        .filter(|o| o.body == body)
+        .collect();
+    if objects.is_empty() {
+        return Ok(());
+    }
+    let need = |v: Option<f64>, what: &str, name: &str| {
+        v.filter(|v| *v > 0.0 && v.is_finite()).ok_or_else(|| {
+            inconsistent(
+                "wrap_objects.csv",
+                format!("{name}: `{what}` must be positive"),
+            )
+        })
+    };
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<WrapObjectSet name=\"wrapobjectset\">\n\t\t\t\t\t\t<objects>"
+    );
+    for o in objects {
+        let tag = match o.kind.as_str() {
+            "cylinder" => "WrapCylinder",
+            "sphere" => "WrapSphere",
+            "ellipsoid" => "WrapEllipsoid",
+            "torus" => "WrapTorus",
+            other => {
+                return Err(inconsistent(
+                    "wrap_objects.csv",
+                    format!("{}: type `{other}`", o.name),
+                ));
+            }
+        };
+        let _ = writeln!(w, "\t\t\t\t\t\t\t<{tag} name=\"{}\">", o.name);
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t\t<xyz_body_rotation>{}</xyz_body_rotation>",
+            v3(o.rot_x, o.rot_y, o.rot_z)
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t\t<translation>{}</translation>",
+            v3(o.tx * s, o.ty * s, o.tz * s)
+        );
+        let _ = writeln!(w, "\t\t\t\t\t\t\t\t<quadrant>{}</quadrant>", o.quadrant);
+        match tag {
+            "WrapCylinder" => {
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<radius>{}</radius>",
+                    need(o.radius, "radius", &o.name)? * s
+                );
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<length>{}</length>",
+                    need(o.length, "length", &o.name)? * s
+                );
+            }
+            "WrapSphere" => {
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<radius>{}</radius>",
+                    need(o.radius, "radius", &o.name)? * s
+                );
+            }
+            "WrapEllipsoid" => {
+                let d = [
+                    need(o.dim_x, "dim_x", &o.name)?,
+                    need(o.dim_y, "dim_y", &o.name)?,
+                    need(o.dim_z, "dim_z", &o.name)?,
+                ];
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<dimensions>{}</dimensions>",
+                    v3(d[0] * s, d[1] * s, d[2] * s)
+                );
+            }
+            _ => {
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<inner_radius>{}</inner_radius>",
+                    need(o.radius, "radius", &o.name)? * s
+                );
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<outer_radius>{}</outer_radius>",
+                    need(o.dim_x, "dim_x", &o.name)? * s
+                );
+            }
+        }
+        let _ = writeln!(w, "\t\t\t\t\t\t\t</{tag}>");
+    }
+    let _ = writeln!(w, "\t\t\t\t\t\t</objects>\n\t\t\t\t\t</WrapObjectSet>");
+    Ok(())
+}
+
+/// The muscles as Thelen2003Muscle with their geometry paths; lengths (points, spline values,
+/// optimal fiber and tendon slack lengths) scale with the geometry of the bodies they span.
+fn write_force_set(
+    w: &mut String,
+    tables: &ModelTables,
+    scales: &BTreeMap<&str, f64>,
+    coordinate_joint: &BTreeMap<&str, &str>,
+) -> Result<(), BuildError> {
+    const T: &str = "path_points.csv";
+    let coordinate_path = |name: &str, muscle: &str| {
+        coordinate_joint
+            .get(name)
+            .map(|joint| format!("/jointset/{joint}/{name}"))
+            .ok_or_else(|| inconsistent(T, format!("{muscle}: unknown coordinate `{name}`")))
+    };
+    let mut names: Vec<&str> = Vec::new();
+    let _ = writeln!(w, "\t\t<ForceSet name=\"forceset\">\n\t\t\t<objects>");
+    for m in &tables.muscles {
+        if names.contains(&m.name.as_str()) {
+            return Err(inconsistent(
+                "muscles.csv",
+                format!("{}: listed twice", m.name),
+            ));
+        }
+        names.push(&m.name);
+        let mut points: Vec<_> = tables
+            .path_points
+            .iter()
+            .filter(|p| p.muscle == m.name)
+            .collect();
+        points.sort_by_key(|p| p.index);
+        if points.len() < 2 {
+            return Err(inconsistent(
+                T,
+                format!("{}: a path needs at least two points", m.name),
+            ));
+        }
+        let mut scale = None;
+        for p in &points {
+            let s = *scales.get(p.body.as_str()).ok_or_else(|| {
+                inconsistent(
+                    T,
+                    format!("{} point {}: unknown body `{}`", m.name, p.index, p.body),
+                )
+            })?;
+            if scale.is_some_and(|old| old != s) {
+                return Err(inconsistent(
+                    T,
+                    format!("{}: spans bodies of different geometry scales", m.name),
+                ));
+            }
+            scale = Some(s);
+        }
+        let s = scale.unwrap_or(1.0);
+        let _ = writeln!(w, "\t\t\t\t<Thelen2003Muscle name=\"{}\">", m.name);
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<GeometryPath name=\"path\">\n\t\t\t\t\t\t<PathPointSet>\n\t\t\t\t\t\t\t<objects>"
+        );
+        for p in &points {
+            let pname = format!("{}-P{}", m.name, p.index);
+            let frame = format!(
+                "<socket_parent_frame>/bodyset/{}</socket_parent_frame>",
+                p.body
+            );
+            let location = || match (p.x, p.y, p.z) {
+                (Some(x), Some(y), Some(z)) => Ok(v3(x * s, y * s, z * s)),
+                _ => Err(inconsistent(T, format!("{pname}: needs x, y, z"))),
+            };
+            match p.kind.as_str() {
+                "fixed" => {
+                    let _ = writeln!(
+                        w,
+                        "\t\t\t\t\t\t\t\t<PathPoint name=\"{pname}\">{frame}<location>{}</location></PathPoint>",
+                        location()?
+                    );
+                }
+                "conditional" => {
+                    let (Some(lo), Some(hi)) = (p.range_min, p.range_max) else {
+                        return Err(inconsistent(
+                            T,
+                            format!("{pname}: a conditional point needs its range"),
+                        ));
+                    };
+                    let _ = writeln!(
+                        w,
+                        "\t\t\t\t\t\t\t\t<ConditionalPathPoint name=\"{pname}\">{frame}<location>{}</location><socket_coordinate>{}</socket_coordinate><range>{lo} {hi}</range></ConditionalPathPoint>",
+                        location()?,
+                        coordinate_path(&p.coordinate, &m.name)?
+                    );
+                }
+                "moving" => {
+                    let _ = writeln!(
+                        w,
+                        "\t\t\t\t\t\t\t\t<MovingPathPoint name=\"{pname}\">{frame}"
+                    );
+                    for axis in ["x", "y", "z"] {
+                        let knots: Vec<_> = (tables.moving_knots.iter())
+                            .filter(|k| k.muscle == m.name && k.index == p.index && k.axis == axis)
+                            .collect();
+                        let Some(first) = knots.first() else {
+                            return Err(inconsistent(
+                                "moving_point_functions.csv",
+                                format!("{pname}: no {axis} function"),
+                            ));
+                        };
+                        if knots.windows(2).any(|k| !(k[1].knot > k[0].knot)) {
+                            return Err(inconsistent(
+                                "moving_point_functions.csv",
+                                format!("{pname} {axis}: knots must increase"),
+                            ));
+                        }
+                        let tag = match first.function.as_str() {
+                            "SimmSpline" | "NaturalCubicSpline" => first.function.as_str(),
+                            other => {
+                                return Err(inconsistent(
+                                    "moving_point_functions.csv",
+                                    format!("{pname} {axis}: function `{other}`"),
+                                ));
+                            }
+                        };
+                        let xs: Vec<String> = knots.iter().map(|k| format!("{}", k.knot)).collect();
+                        let ys: Vec<String> =
+                            knots.iter().map(|k| format!("{}", k.value * s)).collect();
+                        let _ = writeln!(
+                            w,
+                            "\t\t\t\t\t\t\t\t\t<socket_{axis}_coordinate>{}</socket_{axis}_coordinate><{axis}_location><{tag} name=\"function\"><x>{}</x><y>{}</y></{tag}></{axis}_location>",
+                            coordinate_path(&first.coordinate, &m.name)?,
+                            xs.join(" "),
+                            ys.join(" ")
+                        );
+                    }
+                    let _ = writeln!(w, "\t\t\t\t\t\t\t\t</MovingPathPoint>");
+                }
+                other => {
+                    return Err(inconsistent(
+                        T,
+                        format!("{pname}: type `{other}` (fixed, conditional or moving)"),
+                    ));
+                }
+            }
+        }
+        let _ = writeln!(w, "\t\t\t\t\t\t\t</objects>\n\t\t\t\t\t\t</PathPointSet>");
+        let mut wraps: Vec<_> = tables
+            .muscle_wraps
+            .iter()
+            .filter(|r| r.muscle == m.name)
+            .collect();
+        wraps.sort_by_key(|r| r.order);
+        if !wraps.is_empty() {
+            let _ = writeln!(w, "\t\t\t\t\t\t<PathWrapSet>\n\t\t\t\t\t\t\t<objects>");
+            for r in wraps {
+                if !tables.wrap_objects.iter().any(|o| o.name == r.wrap_object) {
+                    return Err(inconsistent(
+                        "muscle_wraps.csv",
+                        format!("{}: unknown wrap object `{}`", m.name, r.wrap_object),
+                    ));
+                }
+                let _ = writeln!(
+                    w,
+                    "\t\t\t\t\t\t\t\t<PathWrap name=\"{}-wrap{}\"><wrap_object>{}</wrap_object><method>{}</method><range>{} {}</range></PathWrap>",
+                    m.name, r.order, r.wrap_object, r.method, r.range_start, r.range_end
+                );
+            }
+            let _ = writeln!(w, "\t\t\t\t\t\t\t</objects>\n\t\t\t\t\t\t</PathWrapSet>");
+        }
+        let _ = writeln!(w, "\t\t\t\t\t</GeometryPath>");
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<max_isometric_force>{}</max_isometric_force>",
+            m.max_isometric_force
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<optimal_fiber_length>{}</optimal_fiber_length>",
+            m.optimal_fiber_length * s
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<tendon_slack_length>{}</tendon_slack_length>",
+            m.tendon_slack_length * s
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<pennation_angle_at_optimal>{}</pennation_angle_at_optimal>",
+            m.pennation_angle
+        );
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t<max_contraction_velocity>{}</max_contraction_velocity>",
+            m.max_contraction_velocity
+        );
+        let _ = writeln!(w, "\t\t\t\t</Thelen2003Muscle>");
+    }
+    let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ForceSet>");
+    Ok(())
 }
 
 fn spline_knots(tables: &ModelTables) -> Result<BTreeMap<&str, (Vec<f64>, Vec<f64>)>, BuildError> {
@@ -668,6 +1033,8 @@ mod tests {
             distal_x: b[0],
             distal_y: b[1],
             distal_z: b[2],
+            slice_start: 0.0,
+            slice_end: 1.0,
             source_height: 1.8,
             source: SRC.into(),
         }
@@ -743,6 +1110,11 @@ mod tests {
                 source_height: 1.8,
                 source: SRC.into(),
             }],
+            muscles: vec![],
+            path_points: vec![],
+            moving_knots: vec![],
+            wrap_objects: vec![],
+            muscle_wraps: vec![],
         }
     }
 
@@ -803,6 +1175,38 @@ mod tests {
             close(p.inertia[(2, 2)], 8.0 * 0.2 * 0.2) && close(p.inertia[(1, 1)], 8.0 * 0.2 * 0.2)
         );
         assert!(p.inertia[(0, 0)].abs() < 1e-15);
+    }
+
+    #[test]
+    fn slices_of_a_segment_recombine_to_the_whole_segment() {
+        // five slices on one body: mass, centre (middle of the segment for uniform slices)
+        // and the three moments equal the whole segment's m (r L)² about that centre
+        // (de Leva's middle-trunk radii; a slender segment's could not be sliced uniformly)
+        let mut t = pendulum(1.8);
+        t.segments
+            .push(segment("trunk", 10.0, 45.0, [48.2, 38.3, 46.8]));
+        t.bodies = (0..5)
+            .map(|k| {
+                let mut b = body("link", "trunk", 0.2, [0.0, 0.0, 0.0], [0.0, -0.5, 0.0]);
+                (b.slice_start, b.slice_end) = (k as f64 * 0.2, (k + 1) as f64 * 0.2);
+                b
+            })
+            .collect();
+        let p = mass_properties(&t).unwrap().remove(0).1;
+        let (m, l) = (8.0, 0.5);
+        let i = p.inertia;
+        assert!(close(p.mass, m) && close(p.com.y, -0.25));
+        assert!(close(i[(0, 0)], m * (0.482 * l) * (0.482 * l)), "{i}");
+        assert!(close(i[(1, 1)], m * (0.468 * l) * (0.468 * l)), "{i}");
+        assert!(close(i[(2, 2)], m * (0.383 * l) * (0.383 * l)), "{i}");
+        // a slender segment cannot be sliced into uniform parts: an error, not a bad inertia
+        t.bodies[0].segment = "thigh".into();
+        assert!(
+            mass_properties(&t)
+                .unwrap_err()
+                .to_string()
+                .contains("too small to slice")
+        );
     }
 
     #[test]

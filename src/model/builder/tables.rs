@@ -56,6 +56,10 @@ pub struct BodyRow {
     pub distal_x: f64,
     pub distal_y: f64,
     pub distal_z: f64,
+    /// The part of the segment, as fractions of its length from the proximal landmark, that
+    /// this body takes (0 and 1 for a whole segment; `share` is then the mass fraction).
+    pub slice_start: f64,
+    pub slice_end: f64,
     /// Standing height of the source model's geometry (the landmarks scale by H / this).
     pub source_height: f64,
     pub source: String,
@@ -152,6 +156,87 @@ pub struct ContactRow {
     pub source: String,
 }
 
+/// A musculotendon unit (`muscles.csv`), Thelen 2003 parameters; lengths in the source
+/// geometry (they scale with it).
+#[derive(Clone, Debug, Deserialize)]
+pub struct MuscleRow {
+    pub name: String,
+    pub group: String,
+    pub side: String,
+    pub max_isometric_force: f64,
+    pub optimal_fiber_length: f64,
+    pub tendon_slack_length: f64,
+    pub pennation_angle: f64,
+    pub max_contraction_velocity: f64,
+    pub source: String,
+}
+
+/// A path point (`path_points.csv`), in order of `index` per muscle: `fixed`, `conditional`
+/// (active while `coordinate` is in [range_min, range_max]) or `moving` (its location in
+/// moving_point_functions.csv).
+#[derive(Clone, Debug, Deserialize)]
+pub struct PathPointRow {
+    pub muscle: String,
+    pub index: u32,
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub body: String,
+    pub x: Option<f64>,
+    pub y: Option<f64>,
+    pub z: Option<f64>,
+    pub coordinate: String,
+    pub range_min: Option<f64>,
+    pub range_max: Option<f64>,
+    pub source: String,
+}
+
+/// A knot of a moving path point's coordinate function (`moving_point_functions.csv`; the
+/// source is the muscle's).
+#[derive(Clone, Debug, Deserialize)]
+pub struct MovingKnotRow {
+    pub muscle: String,
+    pub index: u32,
+    pub axis: String,
+    pub function: String,
+    pub coordinate: String,
+    pub knot: f64,
+    pub value: f64,
+}
+
+/// A wrap surface (`wrap_objects.csv`): cylinder (radius, length), sphere (radius), ellipsoid
+/// (dim_x..z), torus (radius = inner, dim_x = outer radius).
+#[derive(Clone, Debug, Deserialize)]
+pub struct WrapObjectRow {
+    pub name: String,
+    pub body: String,
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub rot_x: f64,
+    pub rot_y: f64,
+    pub rot_z: f64,
+    pub tx: f64,
+    pub ty: f64,
+    pub tz: f64,
+    pub radius: Option<f64>,
+    pub length: Option<f64>,
+    pub dim_x: Option<f64>,
+    pub dim_y: Option<f64>,
+    pub dim_z: Option<f64>,
+    pub quadrant: String,
+    pub source: String,
+}
+
+/// A muscle's use of a wrap surface (`muscle_wraps.csv`; the source is the muscle's).
+#[derive(Clone, Debug, Deserialize)]
+pub struct MuscleWrapRow {
+    pub muscle: String,
+    pub order: u32,
+    pub wrap_object: String,
+    pub method: String,
+    pub range_start: i64,
+    pub range_end: i64,
+}
+
 /// Every table of the default model.
 #[derive(Clone, Debug)]
 pub struct ModelTables {
@@ -164,6 +249,11 @@ pub struct ModelTables {
     pub couplers: Vec<CouplerRow>,
     pub markers: Vec<MarkerRow>,
     pub contacts: Vec<ContactRow>,
+    pub muscles: Vec<MuscleRow>,
+    pub path_points: Vec<PathPointRow>,
+    pub moving_knots: Vec<MovingKnotRow>,
+    pub wrap_objects: Vec<WrapObjectRow>,
+    pub muscle_wraps: Vec<MuscleWrapRow>,
 }
 
 /// Rows that carry a `source`.
@@ -183,8 +273,29 @@ sourced!(
     SplineKnotRow,
     CouplerRow,
     MarkerRow,
-    ContactRow
+    ContactRow,
+    MuscleRow,
+    PathPointRow,
+    WrapObjectRow
 );
+
+// Rows whose figures are those of the muscle they belong to.
+macro_rules! inherited {
+    ($($t:ty),*) => {$(impl Sourced for $t { fn source(&self) -> &str { "inherited from the muscle" } })*};
+}
+inherited!(MovingKnotRow, MuscleWrapRow);
+
+/// The rows of several files with the same columns, one after the other.
+fn read_all<T: for<'de> Deserialize<'de> + Sourced>(
+    dir: &Path,
+    files: &[&str],
+) -> Result<Vec<T>, TableError> {
+    let mut rows = Vec::new();
+    for file in files {
+        rows.extend(read(dir, file)?);
+    }
+    Ok(rows)
+}
 
 fn read<T: for<'de> Deserialize<'de> + Sourced>(
     dir: &Path,
@@ -231,6 +342,11 @@ impl ModelTables {
             couplers: read(dir, "couplers.csv")?,
             markers: read(dir, "markers.csv")?,
             contacts: read(dir, "contacts.csv")?,
+            muscles: read_all(dir, &["muscles.csv", "lumbar_muscles.csv"])?,
+            path_points: read_all(dir, &["path_points.csv", "lumbar_path_points.csv"])?,
+            moving_knots: read(dir, "moving_point_functions.csv")?,
+            wrap_objects: read_all(dir, &["wrap_objects.csv", "lumbar_wrap_objects.csv"])?,
+            muscle_wraps: read_all(dir, &["muscle_wraps.csv", "lumbar_muscle_wraps.csv"])?,
         })
     }
 }
