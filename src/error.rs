@@ -55,6 +55,10 @@ pub enum Error {
         algorithm: &'static str,
         needs: &'static str,
     },
+
+    /// The default model's parameter tables are unreadable or inconsistent.
+    #[error(transparent)]
+    ModelBuild(#[from] crate::model::builder::BuildError),
 }
 
 impl Error {

@@ -20,7 +20,7 @@ G = ET.parse(os.path.join(REF, "opensim-models/Models/Gait2392_Simbody/gait2392_
 R = ET.parse(os.path.join(REF, "opensim-models/Models/Rajagopal/Rajagopal2016.osim")).getroot()
 SG = "Delp et al. 1990 IEEE TBME 37:757-767 via OpenSim gait2392_thelen2003muscle.osim"
 SR = "Rajagopal et al. 2016 IEEE TBME 63:2068-2079 (arms: Holzbaur et al. 2005) via OpenSim Rajagopal2016.osim"
-HG, HR = 1.80, 1.70  # standing heights the two models' geometry represents
+HG = HR = 1.80  # one geometry: Rajagopal2016 sits its upper body on gait2392's pelvis and torso frames
 
 def joint(root, name):
     for j in root.iter():
@@ -114,7 +114,11 @@ for s in "rl":
         add_joint(jn, parent, child, p, ch, HR, SR + " (PinJoint: rotation about the joint frames' z)")
         add_axis(jn, "rotation1", cn, (0, 0, 1), "identity", c[cn], src=SR)
 
-w = lambda rows, f: [print(",".join(fmt(v) if isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) else str(v) for v in r), file=f) for r in rows]
+import csv as _csv
+def w(rows, f):
+    writer = _csv.writer(f, lineterminator="\n")
+    for r in rows:
+        writer.writerow([fmt(v) if isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) else str(v) for v in r])
 out = os.path.join(os.path.dirname(__file__), "../../data/model")
 with open(os.path.join(out, "joints.csv"), "w") as f:
     print("joint,kind,parent,child,parent_x,parent_y,parent_z,parent_rx,parent_ry,parent_rz,child_x,child_y,child_z,child_rx,child_ry,child_rz,source_height,source", file=f)
@@ -126,3 +130,147 @@ with open(os.path.join(out, "joint_splines.csv"), "w") as f:
     print("spline,x,y,source", file=f)
     w(splines, f)
 print(len(joints), "joints,", len(axes), "axes,", len(splines), "knots")
+
+# ---------------------------------------------------------------------------------------
+# Lumbar chain (data/model/lumbar_joints.csv, Christophy et al. 2012): L5/S1 carries the three
+# independent coordinates (its axes turn by the L5/S1 share of each); the four joints above it
+# have their own coordinates, coupled to the independent ones by their shares; T12/L1 is welded.
+import csv
+SC = "Christophy et al. 2012 Biomech Model Mechanobiol 11:19-34 (Lumbar_C_210 joints and couplers)"
+lumbar = list(csv.DictReader(open(os.path.join(out, "lumbar_joints.csv"))))
+HALF_PI = 1.5707963300000001
+names = {"extension": ("lumbar_extension", "FE"), "bending": ("lumbar_bending", "LB"), "rotation": ("lumbar_rotation", "AR")}
+couplers = []
+origin = {"pelvis": np.zeros(3)}
+for row in lumbar:
+    pl = [float(row[f"parent_{a}"]) for a in "xyz"]; cl = [float(row[f"child_{a}"]) for a in "xyz"]
+    pr = [float(row[f"parent_rot_{a}"]) for a in "xyz"]; cr = [float(row[f"child_rot_{a}"]) for a in "xyz"]
+    assert pr == [0, 0, 0] and cr == [0, 0, 0], "the lumbar frames are parallel at the default pose"
+    origin[row["child"]] = origin[row["parent"]] + np.array(pl) - np.array(cl)
+    name = row["name"]
+    if row["ratio_extension"] in ("0.0", "0") and row["ratio_bending"] in ("0.0", "0"):
+        joints.append([name, "weld", row["parent"], row["child"], *pl, *pr, *cl, *cr, HG, SC])
+        continue
+    joints.append([name, "custom", row["parent"], row["child"], *pl, *pr, *cl, *cr, HG, SC])
+    level = name.split("_IVDjnt")[0]
+    for slot, axis_text, (dof, suffix) in zip(["rotation1", "rotation2", "rotation3"], [row["axis1"], row["axis2"], row["axis3"]], [names["extension"], names["bending"], names["rotation"]]):
+        axis = [float(v) for v in axis_text.split()]
+        ratio = float(row["ratio_" + {"FE": "extension", "LB": "bending", "AR": "rotation"}[suffix]])
+        src = SC + ("; axial-rotation shares normalised to 1 (Millard 2024), see README_lumbar.md" if suffix == "AR" else "")
+        if level == "L5_S1":
+            add_axis(name, slot, dof, axis, f"linear:{ratio!r}", (0.0, [-HALF_PI, HALF_PI]), src=src)
+        else:
+            coord = f"{level}_{suffix}"
+            add_axis(name, slot, coord, axis, "identity", (0.0, sorted([-HALF_PI * ratio, HALF_PI * ratio])), src=src)
+            couplers.append([f"{coord}_con", coord, dof, ratio, src])
+
+# ---------------------------------------------------------------------------------------
+# Segment landmarks (de Leva 1996 endpoints) in each body's frame, source geometry (1.80 m).
+SL = 1.80 / 1.741  # de Leva's male sample: mean stature 1.741 m
+SD = "de Leva 1996 J Biomech 29:1223-1230 Table 4 (males); landmarks: "
+midh = np.array([-0.0707, -0.0661, 0.0])  # hip centres' midpoint in the pelvis frame (gait2392)
+omph = midh + [0, 0.1457 * SL, 0]; xyph = omph + [0, 0.2155 * SL, 0]
+cerv = xyph + [0, 0.1707 * SL, 0]; vert = cerv + [0, 0.2429 * SL, 0]
+trunk_note = "trunk landmarks stacked vertically above the hip centres' midpoint (gait2392 pelvis frame) at de Leva's segment lengths scaled to 1.80 m"
+bodies = []
+def seg(body, segment, share, a, b, note, u0=0.0, u1=1.0):
+    bodies.append([body, segment, share, *a, *b, u0, u1, HG, SD + note])
+seg("pelvis", "lower_trunk", 1.0, omph, midh, "OMPH-MIDH; " + trunk_note)
+for k, body in enumerate(["lumbar1", "lumbar2", "lumbar3", "lumbar4", "lumbar5"]):
+    o = origin[body]
+    seg(body, "middle_trunk", 0.2, xyph - o, omph - o, f"XYPH-OMPH, fifth {k + 1} from XYPH (uniform slices); " + trunk_note, 0.2 * k, 0.2 * (k + 1))
+ot = origin["torso"]
+seg("torso", "upper_trunk", 1.0, cerv - ot, xyph - ot, "CERV-XYPH; " + trunk_note)
+seg("torso", "head", 1.0, vert - ot, cerv - ot, "VERT-CERV; " + trunk_note)
+knee = np.array([-0.0041, -0.3959, 0.0])  # knee_r translations at knee angle 0 (gait2392 splines)
+ankle = np.array([0.0, -0.43, 0.0])
+talus_in_calcn = np.array([0.04877, 0.04195, -0.00792])
+mtp = np.array([0.1788, -0.002, 0.00108]); toe_tip = np.array([0.06, 0.0, 0.0])
+elbow = np.array([0.013144, -0.286273, -0.009595])
+ulna_radius = np.array([-0.006727, -0.013007, 0.026083])  # radius origin in the ulna frame
+wrist_in_radius = np.array([-0.008797, -0.235841, 0.01361])
+met3_in_radius = wrist_in_radius + [0, -0.0862 * SL, 0]
+for s, m in (("r", 1.0), ("l", -1.0)):
+    z = np.array([1.0, 1.0, m])
+    seg(f"femur_{s}", "thigh", 1.0, [0, 0, 0], knee * z, "HJC-KJC at the femur origin and the knee joint (gait2392)")
+    seg(f"tibia_{s}", "shank", 1.0, [0, 0, 0], ankle * z, "KJC-LMAL at the tibia origin and the ankle joint (gait2392)")
+    seg(f"calcn_{s}", "foot", 1.35 / 1.5666, [0, 0, 0], (mtp + toe_tip) * z, "HEEL-TTIP at the calcn origin and the toe tip; foot mass split calcn+talus : toes as in gait2392 (1.35 : 0.2166 kg)")
+    seg(f"toes_{s}", "foot", 0.2166 / 1.5666, [0, 0, 0], toe_tip * z, "MTP-TTIP (the toes' share of the foot with the foot's radii of gyration on the toes' length)")
+    seg(f"humerus_{s}", "upper_arm", 1.0, [0, 0, 0], elbow * z, "SJC-EJC at the shoulder and elbow joints (Rajagopal2016)")
+    seg(f"ulna_{s}", "forearm", 0.5, [0, 0, 0], (ulna_radius + wrist_in_radius) * z, "EJC-WJC; forearm mass split ulna : radius 1 : 1 as in Rajagopal2016")
+    seg(f"radius_{s}", "forearm", 0.5, -ulna_radius * z, wrist_in_radius * z, "EJC-WJC in the radius frame; forearm mass split 1 : 1")
+    seg(f"radius_{s}", "hand", 1.0, wrist_in_radius * z, met3_in_radius * z, "WJC-MET3, the hand lumped into the radius, MET3 at de Leva's hand length below the wrist")
+with open(os.path.join(out, "bodies.csv"), "w") as f:
+    print("body,segment,share,proximal_x,proximal_y,proximal_z,distal_x,distal_y,distal_z,slice_start,slice_end,source_height,source", file=f)
+    w(bodies, f)
+with open(os.path.join(out, "couplers.csv"), "w") as f:
+    print("name,dependent,independent,ratio,source", file=f)
+    w(couplers, f)
+
+# ---------------------------------------------------------------------------------------
+# Markers at joint centres, named after the 22 SMPL joints of HumanML3D and the CMU BVH
+# skeleton's joints; foot contact spheres tangent to the floor at the default pose.
+SM = "joint centre of the model (gait2392 / Rajagopal2016 geometry); name from SMPL (HumanML3D)"
+SB = "joint centre of the model (gait2392 / Rajagopal2016 geometry); name from the CMU mocap BVH skeleton"
+markers = []
+def mark(name, body, p, src):
+    markers.append([name, body, *np.round(np.asarray(p, float), 6), HG, src])
+head_centre = vert - [0, 0.12 * SL, 0]
+chest = xyph + [0, 0.5 * (cerv[1] - xyph[1]), 0]
+acromial = np.array([0.003155, 0.3715, 0.17])  # Rajagopal2016 shoulder in the torso frame
+for smpl, cmu, body, p in [
+    ("pelvis", "Hips", "pelvis", midh),
+    ("spine1", "Spine", "lumbar4", origin["lumbar4"] * 0),
+    ("spine2", "Spine1", "lumbar1", origin["lumbar1"] * 0),
+    ("spine3", None, "torso", chest - ot),
+    ("neck", "Neck", "torso", cerv - ot),
+    ("head", "Head", "torso", head_centre - ot),
+]:
+    mark(smpl, body, p, SM)
+    if cmu:
+        mark(cmu, body, p, SB)
+for s, side, Side, m in (("r", "right", "Right", 1.0), ("l", "left", "Left", -1.0)):
+    z = np.array([1.0, 1.0, m])
+    collar = 0.5 * (acromial + (cerv - ot)) * z
+    for smpl, cmu, body, p in [
+        ("hip", "UpLeg", f"femur_{s}", [0, 0, 0]),
+        ("knee", "Leg", f"tibia_{s}", [0, 0, 0]),
+        ("ankle", "Foot", f"calcn_{s}", talus_in_calcn * z),
+        ("foot", "ToeBase", f"toes_{s}", [0, 0, 0]),
+        ("collar", "Shoulder", "torso", collar),
+        ("shoulder", "Arm", f"humerus_{s}", [0, 0, 0]),
+        ("elbow", "ForeArm", f"ulna_{s}", [0, 0, 0]),
+        ("wrist", "Hand", f"radius_{s}", wrist_in_radius * z),
+    ]:
+        mark(f"{side}_{smpl}", body, p, SM)
+        mark(f"{Side}{cmu}", body, p, SB)
+with open(os.path.join(out, "markers.csv"), "w") as f:
+    print("marker,body,x,y,z,source_height,source", file=f)
+    w(markers, f)
+
+# calcn origin height at the default pose: pelvis_ty + hip + knee + ankle + (calcn origin - talus)
+calcn_height = 0.95 - 0.0661 + knee[1] + ankle[1] - talus_in_calcn[1]
+toes_height = calcn_height + mtp[1]
+SCn = "contact sphere on gait2392's foot geometry, tangent to the floor at the default pose"
+contacts = []
+for s, m in (("r", 1.0), ("l", -1.0)):
+    for name, body, x, zc, r, base in [
+        ("heel", f"calcn_{s}", 0.012, 0.0, 0.025, calcn_height),
+        ("metatarsal1", f"calcn_{s}", 0.17, -0.025, 0.015, calcn_height),
+        ("metatarsal5", f"calcn_{s}", 0.145, 0.04, 0.015, calcn_height),
+        ("toe_tip", f"toes_{s}", 0.05, -0.005, 0.01, toes_height),
+    ]:
+        contacts.append([f"{name}_{s}", body, x, round(r - base, 6), zc * m, r, HG, SCn])
+with open(os.path.join(out, "contacts.csv"), "w") as f:
+    print("contact,body,x,y,z,radius,source_height,source", file=f)
+    w(contacts, f)
+print(len(bodies), "body rows,", len(couplers), "couplers,", len(markers), "markers,", len(contacts), "contacts")
+
+# the joint tables again, now with the lumbar chain
+with open(os.path.join(out, "joints.csv"), "w") as f:
+    print("joint,kind,parent,child,parent_x,parent_y,parent_z,parent_rx,parent_ry,parent_rz,child_x,child_y,child_z,child_rx,child_ry,child_rz,source_height,source", file=f)
+    w(joints, f)
+with open(os.path.join(out, "coordinates.csv"), "w") as f:
+    print("joint,slot,coordinate,axis_x,axis_y,axis_z,function,default_value,range_min,range_max,locked,source", file=f)
+    w(axes, f)
+print(len(joints), "joints,", len(axes), "axes")

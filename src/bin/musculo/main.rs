@@ -3,6 +3,7 @@
 mod export_mjcf;
 mod id;
 mod inspect;
+mod model;
 mod muscles;
 mod so;
 mod tool;
@@ -39,6 +40,9 @@ enum Command {
     /// and reserve/residual actuator controls of least Σ xᵖ that produce the inverse-dynamics
     /// generalized forces; writes PREFIX_activation.sto and PREFIX_force.sto.
     So(so::Args),
+    /// The default full-body model: build it from its parameter tables (data/model).
+    #[command(subcommand)]
+    Model(model::Command),
 }
 
 fn main() -> ExitCode {
@@ -49,6 +53,7 @@ fn main() -> ExitCode {
         Command::Muscles(args) => muscles::run(&args),
         Command::Id(args) => id::run(&args),
         Command::So(args) => so::run(&args),
+        Command::Model(command) => model::run(&command),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -139,7 +139,7 @@ pub fn mass_properties(tables: &ModelTables) -> Result<Vec<(String, MassProperti
         let rot = Mat3::from_columns(&[e_s, e_l, e_t]);
         // A slice of a segment taken as uniform along its length: about the slice's own centre,
         // (r L)² − L²/12 + (Δu L)²/12 about the two cross axes, so that the slices recombine
-        // to the whole segment's m (r L)²; the longitudinal moment is unchanged by slicing.
+        // to the whole segment's m (r L)².
         let cross = |percent: f64| {
             let r2 = (percent / 100.0 * length).powi(2);
             if whole {
@@ -161,11 +161,15 @@ pub fn mass_properties(tables: &ModelTables) -> Result<Vec<(String, MassProperti
                 ),
             ));
         }
-        let local = Mat3::from_diagonal(&Vec3::new(
-            mass * i_s,
-            mass * (seg.r_longitudinal_percent / 100.0 * length).powi(2),
-            mass * i_t,
-        ));
+        // Longitudinal: the whole segment's (r_L L)²; a slice's is that of a prism slab with the
+        // cross moments above, i_S + i_T − (Δu L)²/6 (always a physical inertia; the slices of
+        // a segment then recombine to (r_S² + r_T² − 1/6) L², within a few % of de Leva's r_L).
+        let i_l = if whole {
+            (seg.r_longitudinal_percent / 100.0 * length).powi(2)
+        } else {
+            i_s + i_t - ((u1 - u0) * length).powi(2) / 6.0
+        };
+        let local = Mat3::from_diagonal(&Vec3::new(mass * i_s, mass * i_l, mass * i_t));
         let part = MassProperties {
             mass,
             com,
@@ -948,7 +952,7 @@ fn write_function(
                 )
             })?,
             None => 1.0,
-        } * scale;
+        };
         let _ = writeln!(
             w,
             "\t\t\t\t\t\t\t<LinearFunction name=\"function\">\n\t\t\t\t\t\t\t\t<coefficients>{k} 0</coefficients>\n\t\t\t\t\t\t\t</LinearFunction>"
@@ -1180,7 +1184,8 @@ mod tests {
     #[test]
     fn slices_of_a_segment_recombine_to_the_whole_segment() {
         // five slices on one body: mass, centre (middle of the segment for uniform slices)
-        // and the three moments equal the whole segment's m (r L)² about that centre
+        // and the cross moments equal the whole segment's m (r L)² about that centre; the
+        // longitudinal one is the prism's, m (r_S² + r_T² − 1/6) L²
         // (de Leva's middle-trunk radii; a slender segment's could not be sliced uniformly)
         let mut t = pendulum(1.8);
         t.segments
@@ -1197,7 +1202,8 @@ mod tests {
         let i = p.inertia;
         assert!(close(p.mass, m) && close(p.com.y, -0.25));
         assert!(close(i[(0, 0)], m * (0.482 * l) * (0.482 * l)), "{i}");
-        assert!(close(i[(1, 1)], m * (0.468 * l) * (0.468 * l)), "{i}");
+        let prism = 0.482f64.powi(2) + 0.383f64.powi(2) - 1.0 / 6.0;
+        assert!(close(i[(1, 1)], m * prism * l * l), "{i}");
         assert!(close(i[(2, 2)], m * (0.383 * l) * (0.383 * l)), "{i}");
         // a slender segment cannot be sliced into uniform parts: an error, not a bad inertia
         t.bodies[0].segment = "thigh".into();
