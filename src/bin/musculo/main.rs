@@ -1,5 +1,6 @@
 //! The `musculo` command-line tool: a thin layer over the library.
 
+mod check;
 mod export_mjcf;
 mod id;
 mod inspect;
@@ -39,6 +40,11 @@ enum Command {
     /// and reserve/residual actuator controls of least Σ xᵖ that produce the inverse-dynamics
     /// generalized forces; writes PREFIX_activation.sto and PREFIX_force.sto.
     So(so::Args),
+    /// Biomechanics unit checks: connectivity, masses and inertias, coordinate ranges,
+    /// muscle parameters, paths over the range of motion, agonist moment-arm signs and
+    /// maximum isometric joint moments against published ranges. Exits non-zero when a
+    /// check fails.
+    Check(check::Args),
 }
 
 fn main() -> ExitCode {
@@ -49,6 +55,11 @@ fn main() -> ExitCode {
         Command::Muscles(args) => muscles::run(&args),
         Command::Id(args) => id::run(&args),
         Command::So(args) => so::run(&args),
+        Command::Check(args) => match check::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(e) => Err(e),
+        },
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
