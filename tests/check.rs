@@ -285,7 +285,10 @@ fn mirrored_muscle_path_fails_the_agonist_sign_check() {
         .parse()
         .unwrap();
     assert!(wrong > 10, "{c:?}");
-    assert!(c.value.unwrap() < 0.0, "a flexor at the default pose: {c:?}");
+    assert!(
+        c.value.unwrap() < 0.0,
+        "a flexor at the default pose: {c:?}"
+    );
 }
 
 #[test]

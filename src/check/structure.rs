@@ -3,6 +3,7 @@
 use super::{Check, CheckOptions, Family, Status, SubjectKind};
 use crate::model::{Model, MotionType};
 
+#[allow(clippy::too_many_arguments)]
 fn check(
     family: Family,
     name: &str,
