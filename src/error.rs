@@ -44,6 +44,14 @@ pub enum Error {
         message: String,
     },
 
+    /// A reference table (e.g. `data/check/*.csv`) is malformed.
+    #[error("{table}:{line}: {message}")]
+    Table {
+        table: String,
+        line: usize,
+        message: String,
+    },
+
     /// MuJoCo (feature `mujoco`) refused the model or is the wrong version.
     #[error("MuJoCo: {message}")]
     Mujoco { message: String },

@@ -1,5 +1,6 @@
 //! The `musculo` command-line tool: a thin layer over the library.
 
+mod check;
 mod export_mjcf;
 mod id;
 mod inspect;
@@ -43,6 +44,11 @@ enum Command {
     /// The default full-body model: build it from its parameter tables (data/model).
     #[command(subcommand)]
     Model(model::Command),
+    /// Biomechanics unit checks: connectivity, masses and inertias, coordinate ranges,
+    /// muscle parameters, paths over the range of motion, agonist moment-arm signs and
+    /// maximum isometric joint moments against published ranges. Exits non-zero when a
+    /// check fails.
+    Check(check::Args),
 }
 
 fn main() -> ExitCode {
@@ -54,6 +60,11 @@ fn main() -> ExitCode {
         Command::Id(args) => id::run(&args),
         Command::So(args) => so::run(&args),
         Command::Model(command) => model::run(&command),
+        Command::Check(args) => match check::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(e) => Err(e),
+        },
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,136 @@
+//! `musculo check`: biomechanics unit checks of a model, as a table or JSON; the exit status
+//! is non-zero when a check fails.
+
+use musculo::check::{self, CheckOptions, CheckReport, Family, Status};
+use musculo::model::{LoadOptions, Model};
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// OpenSim 4.x model file (.osim).
+    #[arg(required_unless_present = "demo", conflicts_with = "demo")]
+    model: Option<PathBuf>,
+    /// Check the small built-in demonstration model instead of a file.
+    #[arg(long)]
+    demo: bool,
+    /// Print JSON (every check) instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Print every check, not only the failures.
+    #[arg(short, long)]
+    verbose: bool,
+    /// Read models whose inertias violate the triangle inequality (as OpenSim release builds
+    /// do); the check still reports them.
+    #[arg(long)]
+    allow_nonphysical_inertia: bool,
+    /// Grid points over each coordinate's range for the path, sign and moment checks.
+    #[arg(long, default_value_t = CheckOptions::default().grid_points)]
+    grid_points: usize,
+}
+
+/// Runs the checks; `Ok(false)` when some check failed.
+pub fn run(args: &Args) -> Result<bool, musculo::Error> {
+    let model = match &args.model {
+        Some(p) => Model::from_osim_file_with(
+            p,
+            &LoadOptions {
+                allow_nonphysical_inertia: args.allow_nonphysical_inertia,
+            },
+        )?,
+        None => Model::demo(),
+    };
+    let options = CheckOptions {
+        grid_points: args.grid_points,
+        ..CheckOptions::default()
+    };
+    let report = check::run(&model, &options)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&to_json(&report)).unwrap_or_default()
+        );
+    } else {
+        print!("{}", to_text(&report, args.verbose));
+    }
+    Ok(report.passed())
+}
+
+fn value_text(c: &check::Check) -> String {
+    match c.value {
+        Some(v) if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) => format!("{v:.3e} {}", c.unit),
+        Some(v) => format!("{v:.4} {}", c.unit),
+        None => "-".into(),
+    }
+}
+
+fn to_text(report: &CheckReport, verbose: bool) -> String {
+    let mut s = format!("checks of {}\n\n", report.model);
+    let shown: Vec<_> = report
+        .checks
+        .iter()
+        .filter(|c| verbose || c.status == Status::Fail)
+        .collect();
+    if !shown.is_empty() {
+        s += &format!(
+            "{:<4} {:<21} {:<30} {:<28} {:>16}  {:<28} {}\n",
+            "", "family", "check", "subject", "value", "limit", "message"
+        );
+        for c in shown {
+            s += &format!(
+                "{:<4} {:<21} {:<30} {:<28} {:>16}  {:<28} {}\n",
+                c.status.name(),
+                c.family.name(),
+                c.name,
+                c.subject,
+                value_text(c),
+                c.limit,
+                c.message
+            );
+        }
+        s += "\n";
+    }
+    s += &format!(
+        "{:<22} {:>5} {:>5} {:>5}\n",
+        "family", "pass", "fail", "skip"
+    );
+    for f in Family::ALL {
+        let n = report.summary(f);
+        s += &format!(
+            "{:<22} {:>5} {:>5} {:>5}\n",
+            f.name(),
+            n.pass,
+            n.fail,
+            n.skip
+        );
+    }
+    let failed = report.failures().count();
+    s += &if failed == 0 {
+        "\nall checks passed\n".to_string()
+    } else {
+        format!("\n{failed} check(s) failed\n")
+    };
+    s
+}
+
+fn to_json(report: &CheckReport) -> serde_json::Value {
+    json!({
+        "model": report.model,
+        "passed": report.passed(),
+        "summary": Family::ALL.iter().map(|f| {
+            let n = report.summary(*f);
+            (f.name().to_string(), json!({"pass": n.pass, "fail": n.fail, "skip": n.skip}))
+        }).collect::<serde_json::Map<_, _>>(),
+        "checks": report.checks.iter().map(|c| json!({
+            "family": c.family.name(),
+            "check": c.name,
+            "subject_kind": c.subject_kind.name(),
+            "subject": c.subject,
+            "status": match c.status { Status::Pass => "pass", Status::Fail => "fail", Status::Skip => "skip" },
+            "value": c.value.filter(|v| v.is_finite()),
+            "unit": c.unit,
+            "limit": c.limit,
+            "message": c.message,
+        })).collect::<Vec<_>>(),
+    })
+}

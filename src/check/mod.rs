@@ -1,0 +1,248 @@
+//! Biomechanics unit checks of a model: does it describe a plausible human body?
+//!
+//! [`run`] checks, in families ([`Family`]):
+//! - **connectivity**: every body reaches ground through exactly one joint, every attached
+//!   element (marker, path point, wrap object, contact geometry) names an existing body;
+//! - **mass and inertia**: masses > 0; inertias symmetric, positive definite and satisfying
+//!   the triangle inequality I₁ + I₂ ≥ I₃;
+//! - **coordinates**: min < max, default value inside the range, the range within plausible
+//!   limits (±2π for angles, ±10 m for translations by default);
+//! - **muscle parameters**: F_max, l_opt, l_s, α_opt and v_max within the physiological
+//!   ranges of `data/check/muscle_parameter_ranges.csv`;
+//! - **paths**: over a grid of each independent coordinate's range (the others at their
+//!   default values), musculotendon lengths finite and > 0, moment arms finite and with no
+//!   jump above 1 cm between neighbouring grid points;
+//! - **agonist signs**: the moment arms of muscles whose action is not in doubt
+//!   (`data/check/agonist_signs.csv`) have the sign of that action
+//!   (`data/check/coordinate_directions.csv`);
+//! - **maximum isometric moments**: per coordinate direction, Σ_k max(0, ±r_k F_iso,k(q))
+//!   at the best grid point against published adult ranges
+//!   (`data/check/max_isometric_moments.csv`).
+//!
+//! Every table row cites its publication in a `source` column. The report lists each check
+//! with its subject, status, measured value and limit; nothing is printed.
+
+// Comparisons are written `!(x > bound)` on purpose: NaN fails them.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod muscles;
+mod structure;
+mod tables;
+
+pub use tables::{
+    AgonistRow, DirectionRow, DirectionSign, MomentRow, ParameterRange, ParsedTables, RomRow,
+    Tables, glob_match,
+};
+
+use crate::error::Error;
+use crate::model::Model;
+
+/// The family a check belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Family {
+    Connectivity,
+    MassInertia,
+    Coordinates,
+    MuscleParameters,
+    Paths,
+    AgonistSigns,
+    MaxIsometricMoments,
+}
+
+impl Family {
+    pub const ALL: [Family; 7] = [
+        Family::Connectivity,
+        Family::MassInertia,
+        Family::Coordinates,
+        Family::MuscleParameters,
+        Family::Paths,
+        Family::AgonistSigns,
+        Family::MaxIsometricMoments,
+    ];
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Family::Connectivity => "connectivity",
+            Family::MassInertia => "mass-inertia",
+            Family::Coordinates => "coordinates",
+            Family::MuscleParameters => "muscle-parameters",
+            Family::Paths => "paths",
+            Family::AgonistSigns => "agonist-signs",
+            Family::MaxIsometricMoments => "max-isometric-moments",
+        }
+    }
+}
+
+/// What a check is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SubjectKind {
+    Model,
+    Body,
+    Joint,
+    Coordinate,
+    Muscle,
+    /// A coordinate direction, e.g. `knee_angle_r extension`.
+    Direction,
+}
+
+impl SubjectKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            SubjectKind::Model => "model",
+            SubjectKind::Body => "body",
+            SubjectKind::Joint => "joint",
+            SubjectKind::Coordinate => "coordinate",
+            SubjectKind::Muscle => "muscle",
+            SubjectKind::Direction => "direction",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    Pass,
+    Fail,
+    /// Not applicable or not computable (e.g. no muscle crosses the coordinate).
+    Skip,
+}
+
+impl Status {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Status::Pass => "pass",
+            Status::Fail => "FAIL",
+            Status::Skip => "skip",
+        }
+    }
+}
+
+/// One check.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Check {
+    pub family: Family,
+    /// What is checked, e.g. `mass > 0`, `optimal_fiber_length`.
+    pub name: String,
+    pub subject_kind: SubjectKind,
+    /// The body, coordinate, muscle… by name.
+    pub subject: String,
+    pub status: Status,
+    /// The measured value (in `unit`), when there is one.
+    pub value: Option<f64>,
+    pub unit: &'static str,
+    /// The limit the value is held to, in words (e.g. `[0.005, 0.6]`, `> 0`).
+    pub limit: String,
+    /// Why it failed or was skipped, or what was measured.
+    pub message: String,
+}
+
+/// The checks of one model, in family order.
+#[derive(Clone, Debug, Default)]
+pub struct CheckReport {
+    pub model: String,
+    pub checks: Vec<Check>,
+}
+
+/// Counts of one family.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FamilySummary {
+    pub pass: usize,
+    pub fail: usize,
+    pub skip: usize,
+}
+
+impl CheckReport {
+    /// True when no check failed.
+    pub fn passed(&self) -> bool {
+        self.checks.iter().all(|c| c.status != Status::Fail)
+    }
+
+    pub fn failures(&self) -> impl Iterator<Item = &Check> {
+        self.checks.iter().filter(|c| c.status == Status::Fail)
+    }
+
+    pub fn summary(&self, family: Family) -> FamilySummary {
+        let mut s = FamilySummary::default();
+        for c in self.checks.iter().filter(|c| c.family == family) {
+            match c.status {
+                Status::Pass => s.pass += 1,
+                Status::Fail => s.fail += 1,
+                Status::Skip => s.skip += 1,
+            }
+        }
+        s
+    }
+
+    /// The checks of one family on one subject (e.g. all checks of muscle `soleus_r`).
+    pub fn find<'a>(&'a self, family: Family, subject: &'a str) -> impl Iterator<Item = &'a Check> {
+        self.checks
+            .iter()
+            .filter(move |c| c.family == family && c.subject == subject)
+    }
+}
+
+/// Settings of [`run`], with the defaults in one place.
+#[derive(Clone, Debug)]
+pub struct CheckOptions {
+    /// Fewest grid points over each independent coordinate's range for the path, sign and
+    /// moment checks (default 9; at least 2).
+    pub grid_points: usize,
+    /// Largest spacing of the grid (default 2.5° for angles, scaled by 1 m/rad for
+    /// translations): fine enough that a smoothly varying moment arm (a few mm per degree)
+    /// cannot change by `max_moment_arm_jump` between neighbours, so that a flagged jump is a
+    /// discontinuity, not the grid's coarseness.
+    pub max_grid_step: f64,
+    /// Largest change of a moment arm between neighbouring grid points (default 0.01 m).
+    pub max_moment_arm_jump: f64,
+    /// Moment arms smaller than this are not sign-checked (default 0.001 m).
+    pub sign_threshold: f64,
+    /// Plausible range limit of rotational (and coupled) coordinates (default 2π rad).
+    pub max_rotation: f64,
+    /// Plausible range limit of translational coordinates (default 10 m).
+    pub max_translation: f64,
+    /// The reference tables (default: the built-in `data/check/*.csv`).
+    pub tables: Tables,
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        CheckOptions {
+            grid_points: 9,
+            max_grid_step: 2.5f64.to_radians(),
+            max_moment_arm_jump: 0.01,
+            sign_threshold: 0.001,
+            max_rotation: 2.0 * std::f64::consts::PI,
+            max_translation: 10.0,
+            tables: Tables::builtin(),
+        }
+    }
+}
+
+/// Runs every check on `model`. Errors only for invalid options or tables; a model that
+/// fails a check is a report with failures, not an error.
+pub fn run(model: &Model, options: &CheckOptions) -> crate::Result<CheckReport> {
+    if options.grid_points < 2 {
+        return Err(Error::invalid("grid_points", "must be at least 2"));
+    }
+    for (name, v) in [
+        ("max_moment_arm_jump", options.max_moment_arm_jump),
+        ("sign_threshold", options.sign_threshold),
+        ("max_grid_step", options.max_grid_step),
+        ("max_rotation", options.max_rotation),
+        ("max_translation", options.max_translation),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::invalid(name, format!("must be positive, found {v}")));
+        }
+    }
+    let tables = options.tables.parse()?;
+    let mut checks = Vec::new();
+    structure::connectivity(model, &mut checks);
+    structure::mass_inertia(model, &mut checks);
+    structure::coordinates(model, options, &mut checks);
+    muscles::all(model, options, &tables, &mut checks);
+    checks.sort_by_key(|c| c.family);
+    Ok(CheckReport {
+        model: model.source.clone(),
+        checks,
+    })
+}

@@ -1,0 +1,547 @@
+//! Checks of the muscles: parameters against physiological ranges, paths over a grid of the
+//! range of motion, the moment-arm signs of agonists, and maximum isometric joint moments.
+
+use super::tables::{ParsedTables, sides};
+use super::{Check, CheckOptions, Family, Status, SubjectKind, glob_match};
+use crate::dynamics::{Data, forward_kinematics};
+use crate::model::{CoordinateRole, Model, MotionType};
+use crate::muscle::hill::{HillMuscle, MuscleKind};
+use crate::muscle::path::{PathData, PathSet, compute_paths};
+
+/// Lengths and moment arms of every muscle path while one independent coordinate sweeps a
+/// grid of its range, the others at their default values.
+struct Sweep {
+    /// Grid values of the coordinate.
+    q: Vec<f64>,
+    /// [point * m + muscle]: ℓ (m).
+    length: Vec<f64>,
+    /// [point * m + muscle]: r = −∂ℓ/∂q about the swept coordinate.
+    arm: Vec<f64>,
+}
+
+pub(super) fn all(
+    model: &Model,
+    options: &CheckOptions,
+    tables: &ParsedTables,
+    out: &mut Vec<Check>,
+) {
+    let hill = parameters(model, tables, out);
+    let set = match PathSet::muscles(model) {
+        Ok(s) => s,
+        Err(e) => {
+            out.push(model_check(
+                Family::Paths,
+                "muscle paths build",
+                model,
+                false,
+                e.to_string(),
+            ));
+            return;
+        }
+    };
+    if set.is_empty() {
+        return;
+    }
+    let m = set.len();
+    // The force model of each path (None when its class or parameters are not modelled).
+    let forces: Vec<Option<&HillMuscle>> = set
+        .paths
+        .iter()
+        .map(|p| hill.iter().find(|(f, _)| *f == p.force).map(|(_, h)| h))
+        .collect();
+    let names: Vec<&str> = set.paths.iter().map(|p| p.name.as_str()).collect();
+
+    let mut data = Data::new(model);
+    let mut paths = PathData::new(model, &set);
+    let q0 = model.default_q();
+    let n = model.nq();
+    // The default pose: which coordinates any muscle crosses, and each arm there.
+    if let Err(e) = forward_kinematics(model, &mut data, &q0)
+        .and_then(|_| compute_paths(model, &data, &set, &mut paths))
+    {
+        out.push(model_check(
+            Family::Paths,
+            "paths at the default pose",
+            model,
+            false,
+            e.to_string(),
+        ));
+        return;
+    }
+    let default_arms = paths.moment_arms.clone();
+    let default_length = paths.length.clone();
+    // Which coordinates some muscle crosses, and the grids over their model range (paths)
+    // and their physiological range of motion (signs, moments).
+    let mut sweeps: Vec<Option<Sweep>> = Vec::with_capacity(n);
+    let mut rom_sweeps: Vec<Option<Sweep>> = Vec::with_capacity(n);
+    let mut ctx = SweepContext {
+        model,
+        set: &set,
+        data: &mut data,
+        paths: &mut paths,
+        q0: &q0,
+    };
+    for j in 0..n {
+        let crossed = (0..m).any(|k| default_arms[(j, k)].abs() > 1e-12);
+        let c = &model.coordinates[model.reduction.independent[j]];
+        let limit = match c.motion_type {
+            MotionType::Translational => options.max_translation,
+            _ => options.max_rotation,
+        };
+        let (lo, hi) = (c.range[0].max(-limit), c.range[1].min(limit));
+        if !crossed || !(lo < hi) {
+            sweeps.push(None);
+            rom_sweeps.push(None);
+            continue;
+        }
+        sweeps.push(Some(ctx.sweep(j, lo, hi, options)));
+        let [rlo, rhi] = tables.range_of_motion(&c.name, [lo, hi]);
+        rom_sweeps.push((rlo < hi && rlo <= rhi).then(|| ctx.sweep(j, rlo, rhi, options)));
+    }
+    let qname = |j: usize| {
+        model.coordinates[model.reduction.independent[j]]
+            .name
+            .as_str()
+    };
+
+    // Paths: finite positive lengths; finite, continuous moment arms.
+    for k in 0..m {
+        let mut min_length = default_length[k];
+        let mut where_min = "the default pose".to_string();
+        let mut nonfinite = !default_length[k].is_finite();
+        let mut jump: Option<(f64, usize, f64, f64)> = None;
+        let mut crossed = Vec::new();
+        for (j, s) in sweeps.iter().enumerate() {
+            let Some(s) = s else { continue };
+            if !(0..s.q.len())
+                .any(|i| s.arm[i * m + k].abs() > 1e-12 || !s.arm[i * m + k].is_finite())
+            {
+                continue;
+            }
+            crossed.push(qname(j));
+            for i in 0..s.q.len() {
+                let (l, r) = (s.length[i * m + k], s.arm[i * m + k]);
+                if !l.is_finite() || !r.is_finite() {
+                    nonfinite = true;
+                } else if l < min_length {
+                    min_length = l;
+                    where_min = format!("{} = {:.4}", qname(j), s.q[i]);
+                }
+            }
+            let rotational = model.coordinates[model.reduction.independent[j]].motion_type
+                != MotionType::Translational;
+            if rotational {
+                for i in 1..s.q.len() {
+                    let d = (s.arm[i * m + k] - s.arm[(i - 1) * m + k]).abs();
+                    if d.is_finite() && jump.is_none_or(|(b, ..)| d > b) {
+                        jump = Some((d, j, s.q[i - 1], s.q[i]));
+                    }
+                }
+            }
+        }
+        out.push(Check {
+            family: Family::Paths,
+            name: "length finite > 0".into(),
+            subject_kind: SubjectKind::Muscle,
+            subject: names[k].into(),
+            status: if !nonfinite && min_length > 0.0 {
+                Status::Pass
+            } else {
+                Status::Fail
+            },
+            value: Some(min_length),
+            unit: "m",
+            limit: "> 0, finite".into(),
+            message: if nonfinite {
+                "non-finite length or moment arm on the grid".into()
+            } else {
+                format!("shortest at {where_min}")
+            },
+        });
+        out.push(match jump {
+            None => Check {
+                family: Family::Paths,
+                name: "moment-arm continuity".into(),
+                subject_kind: SubjectKind::Muscle,
+                subject: names[k].into(),
+                status: Status::Skip,
+                value: None,
+                unit: "m",
+                limit: format!("≤ {} between grid points", options.max_moment_arm_jump),
+                message: "crosses no rotational coordinate".into(),
+            },
+            Some((d, j, a, b)) => Check {
+                family: Family::Paths,
+                name: "moment-arm continuity".into(),
+                subject_kind: SubjectKind::Muscle,
+                subject: names[k].into(),
+                status: if d <= options.max_moment_arm_jump {
+                    Status::Pass
+                } else {
+                    Status::Fail
+                },
+                value: Some(d),
+                unit: "m",
+                limit: format!("≤ {} between grid points", options.max_moment_arm_jump),
+                message: format!(
+                    "largest change about {} between {:.1}° and {:.1}° (crosses {})",
+                    qname(j),
+                    a.to_degrees(),
+                    b.to_degrees(),
+                    crossed.join(", ")
+                ),
+            },
+        });
+    }
+
+    // Agonist signs.
+    for row in &tables.agonists {
+        // `{side}` in the muscles or the coordinate (ercspn_{side} → lumbar_extension).
+        let has_side =
+            row.coordinate.contains("{side}") || row.muscles.iter().any(|p| p.contains("{side}"));
+        let expansions: Vec<(String, Option<&str>)> = if has_side {
+            ["r", "l"]
+                .into_iter()
+                .map(|s| (row.coordinate.replace("{side}", s), Some(s)))
+                .collect()
+        } else {
+            vec![(row.coordinate.clone(), None)]
+        };
+        // A pattern without `{side}` beside one with it is checked once per coordinate.
+        let mut seen: Vec<(usize, usize)> = Vec::new();
+        for (coordinate, side) in expansions {
+            let Some(ci) = model.coordinate_index(&coordinate) else {
+                continue;
+            };
+            let patterns: Vec<String> = row
+                .muscles
+                .iter()
+                .map(|p| match side {
+                    Some(s) => p.replace("{side}", s),
+                    None => p.clone(),
+                })
+                .collect();
+            let coord = &model.coordinates[ci];
+            let Some(sign) = tables.direction_sign(&row.coordinate, &row.direction, coord.range)
+            else {
+                continue;
+            };
+            for k in (0..m).filter(|&k| patterns.iter().any(|p| glob_match(p, names[k]))) {
+                if seen.contains(&(ci, k)) {
+                    continue;
+                }
+                seen.push((ci, k));
+                let name = format!("{} about {coordinate}", row.direction);
+                let limit = format!(
+                    "{} wherever |r| > {} m",
+                    if sign > 0.0 { "r > 0" } else { "r < 0" },
+                    options.sign_threshold
+                );
+                let CoordinateRole::Independent(j) = coord.role else {
+                    out.push(Check {
+                        family: Family::AgonistSigns,
+                        name,
+                        subject_kind: SubjectKind::Muscle,
+                        subject: names[k].into(),
+                        status: Status::Skip,
+                        value: None,
+                        unit: "m",
+                        limit,
+                        message: format!("{coordinate} is locked or dependent"),
+                    });
+                    continue;
+                };
+                let r0 = default_arms[(j, k)];
+                let mut values = vec![(q0[j], r0)];
+                if let Some(s) = &rom_sweeps[j] {
+                    values.extend((0..s.q.len()).map(|i| (s.q[i], s.arm[i * m + k])));
+                }
+                let t = options.sign_threshold;
+                let wrong: Vec<f64> = values
+                    .iter()
+                    .filter(|(_, r)| !(sign * r >= -t))
+                    .map(|(q, _)| *q)
+                    .collect();
+                let right = values.iter().filter(|(_, r)| sign * r > t).count();
+                let status = if wrong.is_empty() && right > 0 {
+                    Status::Pass
+                } else {
+                    Status::Fail
+                };
+                let message = if !wrong.is_empty() {
+                    format!(
+                        "wrong sign at {} of {} poses ({} = {} deg)",
+                        wrong.len(),
+                        values.len(),
+                        coordinate,
+                        wrong
+                            .iter()
+                            .map(|q| format!("{:.0}", q.to_degrees()))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                } else if right == 0 {
+                    "moment arm below the threshold everywhere: does not act".into()
+                } else {
+                    format!("right sign at {right} of {} poses", values.len())
+                };
+                out.push(Check {
+                    family: Family::AgonistSigns,
+                    name,
+                    subject_kind: SubjectKind::Muscle,
+                    subject: names[k].into(),
+                    status,
+                    value: Some(r0),
+                    unit: "m",
+                    limit,
+                    message,
+                });
+            }
+        }
+    }
+
+    // Maximum isometric moments per coordinate direction.
+    for row in &tables.moments {
+        for (coordinate, _) in sides(&row.coordinate) {
+            let Some(ci) = model.coordinate_index(&coordinate) else {
+                continue;
+            };
+            let coord = &model.coordinates[ci];
+            let Some(sign) = tables.direction_sign(&row.coordinate, &row.direction, coord.range)
+            else {
+                continue;
+            };
+            let subject = format!("{coordinate} {}", row.direction);
+            let limit = format!("[{}, {}]", row.min_nm, row.max_nm);
+            let skip = |message: String| Check {
+                family: Family::MaxIsometricMoments,
+                name: "max isometric moment".into(),
+                subject_kind: SubjectKind::Direction,
+                subject: subject.clone(),
+                status: Status::Skip,
+                value: None,
+                unit: "N m",
+                limit: limit.clone(),
+                message,
+            };
+            let CoordinateRole::Independent(j) = coord.role else {
+                out.push(skip(format!("{coordinate} is locked or dependent")));
+                continue;
+            };
+            let Some(s) = &rom_sweeps[j] else {
+                out.push(skip("no muscle crosses the coordinate".into()));
+                continue;
+            };
+            let mut best = (0.0, f64::NAN, 0usize);
+            let mut unmodelled = Vec::new();
+            for i in 0..s.q.len() {
+                let mut total = 0.0;
+                let mut count = 0;
+                for k in 0..m {
+                    let r = s.arm[i * m + k];
+                    if !(sign * r > 0.0) {
+                        continue;
+                    }
+                    let Some(h) = forces[k] else {
+                        if i == 0 {
+                            unmodelled.push(names[k]);
+                        }
+                        continue;
+                    };
+                    let f = h.isometric_force(s.length[i * m + k]);
+                    if f.is_finite() && f > 0.0 {
+                        total += sign * r * f;
+                        count += 1;
+                    }
+                }
+                if total > best.0 {
+                    best = (total, s.q[i], count);
+                }
+            }
+            if best.0 == 0.0 {
+                out.push(skip(format!(
+                    "no muscle acts in {} about {coordinate}",
+                    row.direction
+                )));
+                continue;
+            }
+            let mut message = format!(
+                "at {coordinate} = {:.0}°, {} muscles",
+                best.1.to_degrees(),
+                best.2
+            );
+            if !unmodelled.is_empty() {
+                message += &format!("; without force model: {}", unmodelled.join(", "));
+            }
+            out.push(Check {
+                family: Family::MaxIsometricMoments,
+                name: "max isometric moment".into(),
+                subject_kind: SubjectKind::Direction,
+                subject,
+                status: if (row.min_nm..=row.max_nm).contains(&best.0) {
+                    Status::Pass
+                } else {
+                    Status::Fail
+                },
+                value: Some(best.0),
+                unit: "N m",
+                limit,
+                message,
+            });
+        }
+    }
+}
+
+struct SweepContext<'a> {
+    model: &'a Model,
+    set: &'a PathSet,
+    data: &'a mut Data,
+    paths: &'a mut PathData,
+    q0: &'a [f64],
+}
+
+impl SweepContext<'_> {
+    /// Coordinate j over [lo, hi] (at least `grid_points`, at most `max_grid_step` apart),
+    /// the others at their default values. A pose that cannot be computed gives NaN.
+    fn sweep(&mut self, j: usize, lo: f64, hi: f64, options: &CheckOptions) -> Sweep {
+        let m = self.set.len();
+        let g = if hi > lo {
+            options
+                .grid_points
+                .max(((hi - lo) / options.max_grid_step).ceil() as usize + 1)
+        } else {
+            1
+        };
+        let mut q = self.q0.to_vec();
+        let mut s = Sweep {
+            q: (0..g)
+                .map(|i| lo + (hi - lo) * i as f64 / (g.max(2) - 1) as f64)
+                .collect(),
+            length: Vec::with_capacity(g * m),
+            arm: Vec::with_capacity(g * m),
+        };
+        for i in 0..g {
+            q[j] = s.q[i];
+            match forward_kinematics(self.model, self.data, &q)
+                .and_then(|_| compute_paths(self.model, self.data, self.set, self.paths))
+            {
+                Ok(()) => {
+                    s.length.extend_from_slice(&self.paths.length);
+                    s.arm.extend((0..m).map(|k| self.paths.moment_arms[(j, k)]));
+                }
+                Err(_) => {
+                    s.length.extend(std::iter::repeat_n(f64::NAN, m));
+                    s.arm.extend(std::iter::repeat_n(f64::NAN, m));
+                }
+            }
+        }
+        s
+    }
+}
+
+fn model_check(family: Family, name: &str, model: &Model, pass: bool, message: String) -> Check {
+    Check {
+        family,
+        name: name.into(),
+        subject_kind: SubjectKind::Model,
+        subject: model.name.clone(),
+        status: if pass { Status::Pass } else { Status::Fail },
+        value: None,
+        unit: "",
+        limit: String::new(),
+        message,
+    }
+}
+
+/// The five parameters of every muscle against the range table; returns the force models
+/// that could be built (force index, model).
+fn parameters(
+    model: &Model,
+    tables: &ParsedTables,
+    out: &mut Vec<Check>,
+) -> Vec<(usize, HillMuscle)> {
+    let mut built = Vec::new();
+    for (fi, f) in model
+        .forces
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.is_muscle())
+    {
+        let hill = HillMuscle::from_force_element(f);
+        let params = hill.as_ref().ok().map(|h| *h.params());
+        for range in &tables.ranges {
+            // The file's value; OpenSim's default when absent (from the force model).
+            let value = f.raw.number(&range.parameter).or_else(|| {
+                params.map(|p| match range.parameter.as_str() {
+                    "max_isometric_force" => p.max_isometric_force,
+                    "optimal_fiber_length" => p.optimal_fiber_length,
+                    "tendon_slack_length" => p.tendon_slack_length,
+                    "pennation_angle_at_optimal" => p.pennation_angle_at_optimal,
+                    _ => p.max_contraction_velocity,
+                })
+            });
+            let limit = format!("[{}, {}]", range.min, range.max);
+            out.push(match value {
+                Some(v) => Check {
+                    family: Family::MuscleParameters,
+                    name: range.parameter.clone(),
+                    subject_kind: SubjectKind::Muscle,
+                    subject: f.name.clone(),
+                    status: if v >= range.min && v <= range.max {
+                        Status::Pass
+                    } else {
+                        Status::Fail
+                    },
+                    value: Some(v),
+                    unit: unit(&range.parameter),
+                    limit,
+                    message: if f.raw.child(&range.parameter).is_none() {
+                        "OpenSim's default".into()
+                    } else {
+                        String::new()
+                    },
+                },
+                None => Check {
+                    family: Family::MuscleParameters,
+                    name: range.parameter.clone(),
+                    subject_kind: SubjectKind::Muscle,
+                    subject: f.name.clone(),
+                    status: Status::Skip,
+                    value: None,
+                    unit: unit(&range.parameter),
+                    limit,
+                    message: "absent, and the muscle class has no default musculo knows".into(),
+                },
+            });
+        }
+        match hill {
+            Ok(h) => built.push((fi, h)),
+            Err(e) => out.push(Check {
+                family: Family::MuscleParameters,
+                name: "force model".into(),
+                subject_kind: SubjectKind::Muscle,
+                subject: f.name.clone(),
+                // A class musculo does not model is not a defect of the model.
+                status: if MuscleKind::from_opensim_class(&f.kind).is_some() {
+                    Status::Fail
+                } else {
+                    Status::Skip
+                },
+                value: None,
+                unit: "",
+                limit: String::new(),
+                message: e,
+            }),
+        }
+    }
+    built
+}
+
+fn unit(parameter: &str) -> &'static str {
+    match parameter {
+        "max_isometric_force" => "N",
+        "pennation_angle_at_optimal" => "rad",
+        "max_contraction_velocity" => "l_opt/s",
+        _ => "m",
+    }
+}

@@ -1,0 +1,485 @@
+//! The reference tables of the checks (`data/check/*.csv`): a small CSV reader (quoted
+//! fields, `#` comment lines), glob patterns and the `{side}` placeholder.
+
+use crate::error::Error;
+
+/// The texts of the four tables; [`Tables::builtin`] holds the project's own.
+#[derive(Clone, Debug)]
+pub struct Tables {
+    /// `parameter,min,max,unit,source`.
+    pub parameter_ranges: String,
+    /// `coordinate,direction,sign,source`.
+    pub coordinate_directions: String,
+    /// `muscles,coordinate,direction,source`.
+    pub agonist_signs: String,
+    /// `coordinate,direction,min_nm,max_nm,source`.
+    pub max_isometric_moments: String,
+    /// `coordinate,direction,max_deg,source`.
+    pub range_of_motion: String,
+}
+
+impl Tables {
+    pub fn builtin() -> Tables {
+        Tables {
+            parameter_ranges: include_str!("../../data/check/muscle_parameter_ranges.csv").into(),
+            coordinate_directions: include_str!("../../data/check/coordinate_directions.csv")
+                .into(),
+            agonist_signs: include_str!("../../data/check/agonist_signs.csv").into(),
+            max_isometric_moments: include_str!("../../data/check/max_isometric_moments.csv")
+                .into(),
+            range_of_motion: include_str!("../../data/check/range_of_motion.csv").into(),
+        }
+    }
+
+    /// Parses the four tables; an error names the table and line.
+    pub fn parse(&self) -> crate::Result<ParsedTables> {
+        let ranges = rows(
+            "muscle_parameter_ranges.csv",
+            &self.parameter_ranges,
+            &["parameter", "min", "max", "unit", "source"],
+        )?
+        .into_iter()
+        .map(|(line, f)| {
+            let t = "muscle_parameter_ranges.csv";
+            let (min, max) = (number(t, line, &f[1])?, number(t, line, &f[2])?);
+            if !(min <= max) {
+                return Err(table_err(t, line, format!("min {min} exceeds max {max}")));
+            }
+            if !PARAMETERS.contains(&f[0].as_str()) {
+                return Err(table_err(
+                    t,
+                    line,
+                    format!("unknown parameter `{}` (one of {PARAMETERS:?})", f[0]),
+                ));
+            }
+            Ok(ParameterRange {
+                parameter: f[0].clone(),
+                min,
+                max,
+                unit: f[3].clone(),
+                source: f[4].clone(),
+            })
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+
+        let directions = rows(
+            "coordinate_directions.csv",
+            &self.coordinate_directions,
+            &["coordinate", "direction", "sign", "source"],
+        )?
+        .into_iter()
+        .map(|(line, f)| {
+            let sign = match f[2].as_str() {
+                "+" => DirectionSign::Positive,
+                "-" => DirectionSign::Negative,
+                "wider" => DirectionSign::WiderSide,
+                "narrower" => DirectionSign::NarrowerSide,
+                other => {
+                    return Err(table_err(
+                        "coordinate_directions.csv",
+                        line,
+                        format!("sign must be +, -, wider or narrower, found `{other}`"),
+                    ));
+                }
+            };
+            Ok(DirectionRow {
+                coordinate: f[0].clone(),
+                direction: f[1].clone(),
+                sign,
+                source: f[3].clone(),
+            })
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+
+        let known_direction = |t: &str, line: usize, coordinate: &str, direction: &str| {
+            if directions
+                .iter()
+                .any(|d| d.coordinate == coordinate && d.direction == direction)
+            {
+                Ok(())
+            } else {
+                Err(table_err(
+                    t,
+                    line,
+                    format!("`{coordinate}` `{direction}` is not in coordinate_directions.csv"),
+                ))
+            }
+        };
+
+        let agonists = rows(
+            "agonist_signs.csv",
+            &self.agonist_signs,
+            &["muscles", "coordinate", "direction", "source"],
+        )?
+        .into_iter()
+        .map(|(line, f)| {
+            known_direction("agonist_signs.csv", line, &f[1], &f[2])?;
+            Ok(AgonistRow {
+                muscles: f[0].split('|').map(|p| p.trim().to_string()).collect(),
+                coordinate: f[1].clone(),
+                direction: f[2].clone(),
+                source: f[3].clone(),
+            })
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+
+        let moments = rows(
+            "max_isometric_moments.csv",
+            &self.max_isometric_moments,
+            &["coordinate", "direction", "min_nm", "max_nm", "source"],
+        )?
+        .into_iter()
+        .map(|(line, f)| {
+            let t = "max_isometric_moments.csv";
+            known_direction(t, line, &f[0], &f[1])?;
+            let (min_nm, max_nm) = (number(t, line, &f[2])?, number(t, line, &f[3])?);
+            if !(0.0 <= min_nm && min_nm <= max_nm) {
+                return Err(table_err(
+                    t,
+                    line,
+                    format!("need 0 <= min_nm <= max_nm, found {min_nm}, {max_nm}"),
+                ));
+            }
+            Ok(MomentRow {
+                coordinate: f[0].clone(),
+                direction: f[1].clone(),
+                min_nm,
+                max_nm,
+                source: f[4].clone(),
+            })
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+
+        let range_of_motion = rows(
+            "range_of_motion.csv",
+            &self.range_of_motion,
+            &["coordinate", "direction", "max_deg", "source"],
+        )?
+        .into_iter()
+        .map(|(line, f)| {
+            let t = "range_of_motion.csv";
+            known_direction(t, line, &f[0], &f[1])?;
+            let max_deg = number(t, line, &f[2])?;
+            if !(0.0..=360.0).contains(&max_deg) {
+                return Err(table_err(
+                    t,
+                    line,
+                    format!("max_deg must be in [0, 360], found {max_deg}"),
+                ));
+            }
+            Ok(RomRow {
+                coordinate: f[0].clone(),
+                direction: f[1].clone(),
+                max_deg,
+                source: f[3].clone(),
+            })
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+
+        Ok(ParsedTables {
+            ranges,
+            directions,
+            agonists,
+            moments,
+            range_of_motion,
+        })
+    }
+}
+
+/// The muscle parameters the range table may name.
+pub const PARAMETERS: [&str; 5] = [
+    "max_isometric_force",
+    "optimal_fiber_length",
+    "tendon_slack_length",
+    "pennation_angle_at_optimal",
+    "max_contraction_velocity",
+];
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParameterRange {
+    pub parameter: String,
+    pub min: f64,
+    pub max: f64,
+    pub unit: String,
+    pub source: String,
+}
+
+/// Which sign of a coordinate is an anatomical direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DirectionSign {
+    Positive,
+    Negative,
+    /// The side of the range whose extreme is larger in magnitude (the knee's flexion).
+    WiderSide,
+    NarrowerSide,
+}
+
+impl DirectionSign {
+    /// +1 or −1 for a coordinate with this range.
+    pub fn resolve(&self, range: [f64; 2]) -> f64 {
+        let wider = if range[1].abs() >= range[0].abs() {
+            1.0
+        } else {
+            -1.0
+        };
+        match self {
+            DirectionSign::Positive => 1.0,
+            DirectionSign::Negative => -1.0,
+            DirectionSign::WiderSide => wider,
+            DirectionSign::NarrowerSide => -wider,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct DirectionRow {
+    /// Coordinate name, possibly with `{side}`.
+    pub coordinate: String,
+    pub direction: String,
+    pub sign: DirectionSign,
+    pub source: String,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct AgonistRow {
+    /// Glob patterns, possibly with `{side}`.
+    pub muscles: Vec<String>,
+    pub coordinate: String,
+    pub direction: String,
+    pub source: String,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct MomentRow {
+    pub coordinate: String,
+    pub direction: String,
+    pub min_nm: f64,
+    pub max_nm: f64,
+    pub source: String,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct RomRow {
+    pub coordinate: String,
+    pub direction: String,
+    /// Largest excursion from neutral in this direction (degrees).
+    pub max_deg: f64,
+    pub source: String,
+}
+
+/// The parsed tables.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParsedTables {
+    pub ranges: Vec<ParameterRange>,
+    pub directions: Vec<DirectionRow>,
+    pub agonists: Vec<AgonistRow>,
+    pub moments: Vec<MomentRow>,
+    pub range_of_motion: Vec<RomRow>,
+}
+
+impl ParsedTables {
+    /// The sign (+1/−1) of `direction` of the model coordinate `name` (with range `range`),
+    /// looked up through the table's `{side}` patterns.
+    pub fn direction_sign(
+        &self,
+        table_coordinate: &str,
+        direction: &str,
+        range: [f64; 2],
+    ) -> Option<f64> {
+        self.directions
+            .iter()
+            .find(|d| d.coordinate == table_coordinate && d.direction == direction)
+            .map(|d| d.sign.resolve(range))
+    }
+
+    /// The physiological range of motion of the model coordinate `name` (range `range`):
+    /// each side bounded by the table's excursion in the direction of that sign, when the
+    /// table has it; the result is intersected with `range`.
+    pub fn range_of_motion(&self, name: &str, range: [f64; 2]) -> [f64; 2] {
+        let mut rom = range;
+        for row in &self.range_of_motion {
+            if !sides(&row.coordinate).iter().any(|(c, _)| c == name) {
+                continue;
+            }
+            let Some(sign) = self.direction_sign(&row.coordinate, &row.direction, range) else {
+                continue;
+            };
+            let bound = sign * row.max_deg.to_radians();
+            if sign > 0.0 {
+                rom[1] = rom[1].min(bound);
+            } else {
+                rom[0] = rom[0].max(bound);
+            }
+        }
+        rom
+    }
+}
+
+/// `pattern` with `{side}` replaced by each side it is used with: `[(pattern, None)]` without
+/// a placeholder, else `[(…_r, Some("r")), (…_l, Some("l"))]`.
+pub(crate) fn sides(pattern: &str) -> Vec<(String, Option<&'static str>)> {
+    if pattern.contains("{side}") {
+        ["r", "l"]
+            .into_iter()
+            .map(|s| (pattern.replace("{side}", s), Some(s)))
+            .collect()
+    } else {
+        vec![(pattern.to_string(), None)]
+    }
+}
+
+/// Glob matching with `*` for any text (case-sensitive).
+pub fn glob_match(pattern: &str, name: &str) -> bool {
+    let parts: Vec<&str> = pattern.split('*').collect();
+    if parts.len() == 1 {
+        return pattern == name;
+    }
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if !name.starts_with(first) || name.len() < first.len() + last.len() || !name.ends_with(last) {
+        return false;
+    }
+    let mut rest = &name[first.len()..name.len() - last.len()];
+    for part in &parts[1..parts.len() - 1] {
+        match rest.find(part) {
+            Some(i) => rest = &rest[i + part.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+fn table_err(table: &str, line: usize, message: String) -> Error {
+    Error::Table {
+        table: table.to_string(),
+        line,
+        message,
+    }
+}
+
+fn number(table: &str, line: usize, text: &str) -> crate::Result<f64> {
+    text.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| table_err(table, line, format!("`{text}` is not a finite number")))
+}
+
+/// Data rows (1-based line, fields) after checking the header.
+fn rows(table: &str, text: &str, header: &[&str]) -> crate::Result<Vec<(usize, Vec<String>)>> {
+    let mut out = Vec::new();
+    let mut seen_header = false;
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        if raw.trim().is_empty() || raw.trim_start().starts_with('#') {
+            continue;
+        }
+        let fields = split_csv(raw).map_err(|m| table_err(table, line, m))?;
+        if !seen_header {
+            if fields != header {
+                return Err(table_err(
+                    table,
+                    line,
+                    format!("header must be `{}`", header.join(",")),
+                ));
+            }
+            seen_header = true;
+            continue;
+        }
+        if fields.len() != header.len() {
+            return Err(table_err(
+                table,
+                line,
+                format!("expected {} fields, found {}", header.len(), fields.len()),
+            ));
+        }
+        if fields.last().is_some_and(|s| s.trim().is_empty()) {
+            return Err(table_err(table, line, "empty source".into()));
+        }
+        out.push((line, fields));
+    }
+    if !seen_header {
+        return Err(table_err(table, 1, "no header".into()));
+    }
+    Ok(out)
+}
+
+/// One CSV line: fields separated by commas, optionally double-quoted ("" inside quotes).
+fn split_csv(line: &str) -> Result<Vec<String>, String> {
+    let mut fields = Vec::new();
+    let mut chars = line.chars().peekable();
+    loop {
+        let mut field = String::new();
+        if chars.peek() == Some(&'"') {
+            chars.next();
+            loop {
+                match chars.next() {
+                    None => return Err("unterminated quoted field".into()),
+                    Some('"') if chars.peek() == Some(&'"') => {
+                        chars.next();
+                        field.push('"');
+                    }
+                    Some('"') => break,
+                    Some(c) => field.push(c),
+                }
+            }
+            match chars.next() {
+                None => {
+                    fields.push(field);
+                    return Ok(fields);
+                }
+                Some(',') => fields.push(field),
+                Some(c) => return Err(format!("unexpected `{c}` after a quoted field")),
+            }
+        } else {
+            loop {
+                match chars.next() {
+                    None => {
+                        fields.push(field.trim().to_string());
+                        return Ok(fields);
+                    }
+                    Some(',') => break,
+                    Some(c) => field.push(c),
+                }
+            }
+            fields.push(field.trim().to_string());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtin_tables_parse_and_cite_a_source_on_every_row() {
+        let t = Tables::builtin().parse().unwrap();
+        assert_eq!(t.ranges.len(), PARAMETERS.len());
+        assert!(t.agonists.len() >= 15 && t.moments.len() >= 15);
+        assert!(t.ranges.iter().all(|r| !r.source.is_empty()));
+    }
+
+    #[test]
+    fn glob_matches_stars_anywhere() {
+        assert!(glob_match("vas*_r", "vas_med_r"));
+        assert!(glob_match("vas*_r", "vasmed_r"));
+        assert!(!glob_match("vas*_r", "vasmed_l"));
+        assert!(glob_match("BIClong", "BIClong"));
+        assert!(!glob_match("bic*_r", "bi_r"));
+        assert!(glob_match("*", "x"));
+    }
+
+    #[test]
+    fn csv_fields_may_be_quoted() {
+        assert_eq!(
+            split_csv(r#"a,"b, c",1"#).unwrap(),
+            vec!["a".to_string(), "b, c".into(), "1".into()]
+        );
+        assert!(split_csv(r#"a,"b"#).is_err());
+    }
+
+    #[test]
+    fn knee_flexion_is_the_wide_side_of_the_range() {
+        assert_eq!(DirectionSign::WiderSide.resolve([-2.09, 0.17]), -1.0);
+        assert_eq!(DirectionSign::WiderSide.resolve([0.0, 2.09]), 1.0);
+    }
+}
