@@ -11,7 +11,7 @@ Changes against the sources (documented in data/model/README.md):
 - mtp_angle locked; hand lumped into radius (no wrist joint);
 - PinJoints (elbow, radioulnar) written as CustomJoints rotating about their frames' z axis.
 """
-import os, sys
+import math, os, sys
 import xml.etree.ElementTree as ET
 import numpy as np
 
@@ -47,10 +47,26 @@ joints, axes, splines = [], [], []
 def add_joint(name, parent, child, pf, cf, h, src):
     joints.append([name, "custom", parent, child, *pf[0], *pf[1], *cf[0], *cf[1], h, src])
 
+# Coordinate ranges narrowed from the source models' (which span up to +-120 deg) to where the
+# muscle paths hold: `musculo check` finds moment-arm sign flips or jumps beyond them. Each is
+# within or at the normal adult range of motion (AAOS 1965, data/check/range_of_motion.csv).
+RANGE = {
+    "hip_adduction": ((-45, 30), "AAOS 1965 abduction 45, adduction 30 (gluteus minimus, TFL and quadratus femoris paths break at -95, -118 and +78 deg)"),
+    "hip_rotation": ((-45, 45), "AAOS 1965 internal and external rotation 45"),
+    "ankle_angle": ((-50, 30), "AAOS 1965 plantarflexion 50; dorsiflexion 30 (Rajagopal2016's limit; the toe extensors' paths break at 48 deg)"),
+    "arm_flex": ((-60, 70), "AAOS 1965 extension 60; flexion limited to 70 deg (no scapular motion in this model; the posterior deltoid's wraps break at 73 deg, the infraspinatus' at 83 deg)"),
+    "arm_add": ((-120, 30), "abduction to 120 deg (glenohumeral with a fixed scapula), adduction 30 deg (the middle deltoid's wrap breaks at 58 deg)"),
+    "arm_rot": ((-70, 70), "AAOS 1965 internal rotation 70 deg, both ways (the posterior deltoid's wrap breaks at 85 deg)"),
+}
 def add_axis(jname, slot, coord, axis, function, c=None, locked=False, src=SG):
     d = rng = None
     if c is not None:
         d, rng = c
+        key = coord.rsplit("_", 1)[0]
+        if key in RANGE:
+            (lo, hi), why = RANGE[key]
+            rng = [round(math.radians(lo), 8), round(math.radians(hi), 8)]
+            src = src + "; range " + why
     axes.append([jname, slot, coord, *axis, function,
                  "" if d is None else d, "" if rng is None else rng[0], "" if rng is None else rng[1],
                  "" if c is None else str(locked).lower(), src])
@@ -67,11 +83,18 @@ for slot, name, ax in [("rotation1", "pelvis_tilt", (0, 0, 1)), ("rotation2", "p
 for s in "rl":
     j = joint(G, f"hip_{s}"); c = coords(j); p, ch = frames(j)
     add_joint(f"hip_{s}", "pelvis", f"femur_{s}", p, ch, HG, SG)
+    # gait2392's lower-limb paths keep their moment-arm signs up to 100 deg of hip flexion
+    # (iliacus, psoas and gluteus maximus turn over beyond it) and the psoas' conditional point
+    # switches at -90 deg: the hip's flexion range is limited to [-30, 100] deg (AAOS extension
+    # 30 deg), the knee's to 115 deg of flexion (bifemlh turns over at 120 deg).
+    c[f"hip_flexion_{s}"] = (0.0, [-0.52359878, 1.74532925])
     for ta in j.iter("TransformAxis"):
         if ta.findtext("coordinates"):
             n = ta.findtext("coordinates").strip()
-            add_axis(f"hip_{s}", ta.get("name"), n, [float(v) for v in ta.findtext("axis").split()], "identity", c[n])
+            src = SG + ("; range limited to [-30, 100] deg where the gait2392 paths hold (musculo check)" if n.startswith("hip_flexion") else "")
+            add_axis(f"hip_{s}", ta.get("name"), n, [float(v) for v in ta.findtext("axis").split()], "identity", c[n], src=src)
     j = joint(G, f"knee_{s}"); c = coords(j); p, ch = frames(j)
+    c[f"knee_angle_{s}"] = (0.0, [-2.00712864, c[f"knee_angle_{s}"][1][1]])
     add_joint(f"knee_{s}", f"femur_{s}", f"tibia_{s}", p, ch, HG, SG)
     n = f"knee_angle_{s}"
     for ta in j.iter("TransformAxis"):
@@ -80,7 +103,7 @@ for s in "rl":
         axis = [float(v) for v in ta.findtext("axis").split()]
         sp = ta.find("SimmSpline")
         if sp is None:
-            add_axis(f"knee_{s}", ta.get("name"), n, axis, "identity", c[n])
+            add_axis(f"knee_{s}", ta.get("name"), n, axis, "identity", c[n], src=SG + "; flexion limited to 115 deg where bifemlh keeps its sign (musculo check)")
         else:
             spname = f"knee_{ta.get('name')}_{s}"
             xs = [float(v) for v in sp.findtext("x").split()]; ys = [float(v) for v in sp.findtext("y").split()]
@@ -139,6 +162,7 @@ import csv
 SC = "Christophy et al. 2012 Biomech Model Mechanobiol 11:19-34 (Lumbar_C_210 joints and couplers)"
 lumbar = list(csv.DictReader(open(os.path.join(out, "lumbar_joints.csv"))))
 HALF_PI = 1.5707963300000001
+LUMBAR_RANGE = {"lumbar_extension": (-1.35, 0.7538), "lumbar_bending": (-0.4363, 0.4363), "lumbar_rotation": (-0.7854, 0.7854)}
 names = {"extension": ("lumbar_extension", "FE"), "bending": ("lumbar_bending", "LB"), "rotation": ("lumbar_rotation", "AR")}
 couplers = []
 origin = {"pelvis": np.zeros(3)}
@@ -157,11 +181,14 @@ for row in lumbar:
         axis = [float(v) for v in axis_text.split()]
         ratio = float(row["ratio_" + {"FE": "extension", "LB": "bending", "AR": "rotation"}[suffix]])
         src = SC + ("; axial-rotation shares normalised to 1 (Millard 2024), see README_lumbar.md" if suffix == "AR" else "")
+        # ranges of the three lumbar coordinates: Christophy's model as MyoSuite ships it
+        # (flexion 77 deg, extension 43 deg, bending 25 deg, rotation 45 deg)
+        lo, hi = LUMBAR_RANGE[dof]
         if level == "L5_S1":
-            add_axis(name, slot, dof, axis, f"linear:{ratio!r}", (0.0, [-HALF_PI, HALF_PI]), src=src)
+            add_axis(name, slot, dof, axis, f"linear:{ratio!r}", (0.0, [lo, hi]), src=src + "; range: MyoTorso (Christophy 2012) virtual joint ranges")
         else:
             coord = f"{level}_{suffix}"
-            add_axis(name, slot, coord, axis, "identity", (0.0, sorted([-HALF_PI * ratio, HALF_PI * ratio])), src=src)
+            add_axis(name, slot, coord, axis, "identity", (0.0, [lo * ratio, hi * ratio]), src=src)
             couplers.append([f"{coord}_con", coord, dof, ratio, src])
 
 # ---------------------------------------------------------------------------------------

@@ -673,6 +673,25 @@ fn custom_recipe<'d, 'a, 'i>(
             }
         }
     }
+    // musculo's one departure: a coordinate that drives only rotation axes, each through a
+    // LinearFunction, is an angle whatever the slopes (e.g. lumbar extension shared over five
+    // vertebral joints); OpenSim would call it Coupled and leave it unconverted from degrees.
+    for (s, t) in types.iter_mut().enumerate() {
+        if *t != Some(MotionType::Coupled) {
+            continue;
+        }
+        let name = &d.coords[order[s]].name;
+        let users: Vec<(usize, &_)> = (d.axes.iter().enumerate())
+            .filter(|(_, a)| a.coords.contains(name))
+            .collect();
+        if !users.is_empty()
+            && users.iter().all(|(ai, a)| {
+                *ai < 3 && matches!(&a.function, Function::Linear(c) if c.len() == 2 && c[0] != 0.0)
+            })
+        {
+            *t = Some(MotionType::Rotational);
+        }
+    }
     let types = types
         .into_iter()
         .map(|t| t.unwrap_or(MotionType::Coupled))
