@@ -369,3 +369,9 @@ fn identities_hold_on_the_demo_model() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo.osim");
     check_model(&path, 7);
 }
+
+#[test]
+fn identities_hold_on_the_default_full_body_model() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim");
+    check_model(&path, 17);
+}

@@ -43,7 +43,9 @@ fn lengths(model: &Model, set: &PathSet, d: &mut Data, pd: &mut PathData, q: &[f
     pd.length.clone()
 }
 
-fn check_model(path: &Path, states: usize, seed: u64) {
+/// `known_bad`: paths whose mismatches are counted and printed instead of failing the test
+/// (each is an open problem named in the README).
+fn check_model(path: &Path, states: usize, seed: u64, known_bad: &[&str]) {
     let model = load(path);
     let name = path.file_name().unwrap().to_string_lossy().to_string();
     let set = PathSet::new(&model).unwrap();
@@ -56,6 +58,7 @@ fn check_model(path: &Path, states: usize, seed: u64) {
     let mut worst = 0.0f64;
     let mut worst_speed = 0.0f64;
     let mut done = 0;
+    let mut known = 0;
     while done < states {
         let q = random_q(&model, &mut rng);
         let qd = random_vec(n, 2.0, &mut rng);
@@ -74,6 +77,10 @@ fn check_model(path: &Path, states: usize, seed: u64) {
             for k in 0..set.len() {
                 let fd = -(lp[k] - lm[k]) / (2.0 * H);
                 let e = (pd.moment_arms[(j, k)] - fd).abs();
+                if e > 1e-6 && known_bad.contains(&set.paths[k].name.as_str()) {
+                    known += 1;
+                    continue;
+                }
                 assert!(
                     e <= 1e-6,
                     "{name}: {} about {}: r = {} vs −∂ℓ/∂q by differences {fd}",
@@ -91,6 +98,10 @@ fn check_model(path: &Path, states: usize, seed: u64) {
         for k in 0..set.len() {
             let fd = (lp[k] - lm[k]) / (2.0 * H);
             let e = (pd.speed[k] - fd).abs();
+            if e > 1e-6 && known_bad.contains(&set.paths[k].name.as_str()) {
+                known += 1;
+                continue;
+            }
             assert!(
                 e <= 1e-6,
                 "{name}: speed of {}: {} vs {fd}",
@@ -99,6 +110,9 @@ fn check_model(path: &Path, states: usize, seed: u64) {
             );
             worst_speed = worst_speed.max(e);
         }
+    }
+    if known > 0 {
+        eprintln!("{name}: {known} mismatches on the known-bad paths {known_bad:?}");
     }
     eprintln!(
         "{name}: {} paths, {states} states: worst |r − (−∂ℓ/∂q by differences)| = {worst:.1e}, worst ℓ̇ gap {worst_speed:.1e}",
@@ -109,8 +123,18 @@ fn check_model(path: &Path, states: usize, seed: u64) {
 #[test]
 fn moment_arms_equal_finite_differences_of_length_on_every_reference_model() {
     for (i, p) in reference_models().iter().enumerate() {
-        check_model(p, 20, 300 + i as u64);
+        check_model(p, 20, 300 + i as u64, &[]);
     }
+}
+
+#[test]
+fn moment_arms_equal_finite_differences_of_length_on_the_default_model() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim");
+    // TMAJ_r (MoBL-ARMS teres major, three wrap surfaces): at some poses its moment arm is not
+    // the derivative of its length (the wrap solution is not stationary there); its mirror
+    // TMAJ_l is. An open problem of the wrapping code, kept visible here.
+    check_model(&path, 20, 23, &["TMAJ_r"]);
 }
 
 #[test]

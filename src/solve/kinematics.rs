@@ -177,3 +177,51 @@ fn column_names_coordinate(label: &str, name: &str) -> bool {
             .strip_suffix("/value")
             .is_some_and(|p| p.rsplit('/').next() == Some(name))
 }
+
+/// Adds, for every independent coordinate of `model` that `table` has no column for, a
+/// constant column at the coordinate's default value (in degrees for a rotational coordinate
+/// when the table is in degrees) — for applying another model's motion by coordinate name.
+/// Returns the names of the coordinates added, in q order.
+pub fn fill_missing_coordinates(model: &Model, table: &mut Table) -> Vec<String> {
+    let degrees = table.in_degrees.unwrap_or(false);
+    let missing: Vec<usize> = (model.reduction.independent.iter().copied())
+        .filter(|&c| {
+            let name = &model.coordinates[c].name;
+            !table
+                .labels
+                .iter()
+                .any(|l| column_names_coordinate(l, name))
+        })
+        .collect();
+    if missing.is_empty() {
+        return Vec::new();
+    }
+    let old = table.labels.len();
+    let defaults: Vec<f64> = (missing.iter())
+        .map(|&c| {
+            let coord = &model.coordinates[c];
+            if degrees && coord.motion_type == MotionType::Rotational {
+                coord.default_value.to_degrees()
+            } else {
+                coord.default_value
+            }
+        })
+        .collect();
+    let mut values = Vec::with_capacity(table.time.len() * (old + missing.len()));
+    for row in table.values.chunks(old.max(1)).take(table.time.len()) {
+        values.extend_from_slice(&row[..old]);
+        values.extend_from_slice(&defaults);
+    }
+    if old == 0 {
+        values = (0..table.time.len())
+            .flat_map(|_| defaults.iter().copied())
+            .collect();
+    }
+    table.values = values;
+    let names: Vec<String> = missing
+        .iter()
+        .map(|&c| model.coordinates[c].name.clone())
+        .collect();
+    table.labels.extend(names.iter().cloned());
+    names
+}

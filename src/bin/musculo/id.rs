@@ -39,6 +39,11 @@ pub struct Args {
     /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
     #[arg(long)]
     allow_nonphysical_inertia: bool,
+    /// Hold the model's coordinates that the coordinates file has no column for at their
+    /// default values (to apply another model's motion by coordinate name) instead of
+    /// stopping with an error.
+    #[arg(long)]
+    missing_coordinates_at_default: bool,
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
@@ -88,7 +93,18 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             allow_nonphysical_inertia: args.allow_nonphysical_inertia,
         },
     )?;
-    let coordinates = Table::read(&coordinates_path)?;
+    let mut coordinates = Table::read(&coordinates_path)?;
+    if args.missing_coordinates_at_default {
+        let added = musculo::solve::kinematics::fill_missing_coordinates(&model, &mut coordinates);
+        if !added.is_empty() {
+            eprintln!(
+                "{} coordinate(s) not in {} held at their defaults: {}",
+                added.len(),
+                coordinates_path.display(),
+                added.join(" ")
+            );
+        }
+    }
     let loads = loads_path
         .as_deref()
         .map(|p| ExternalLoadSet::read(&model, p))
