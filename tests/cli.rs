@@ -295,3 +295,56 @@ fn id_runs_opensims_setup() {
     ]);
     assert!(!ok && err.contains("/nonexistent/model.osim"), "{err}");
 }
+
+#[test]
+fn model_build_reproduces_the_default_model_and_scale_writes_a_subject() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let tmp = TempDir::new("model");
+    let built = tmp.0.join("built.osim");
+    let (ok, out, err) = musculo(&[
+        "model",
+        "build",
+        "--data",
+        root.join("data/model").to_str().unwrap(),
+        "-o",
+        built.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("324 muscles"), "{out}");
+    let committed = std::fs::read(root.join("models/musculo_fullbody.osim")).unwrap();
+    assert!(
+        std::fs::read(&built).unwrap() == committed,
+        "rebuilt model differs"
+    );
+    let small = tmp.0.join("small.osim");
+    let (ok, out, err) = musculo(&[
+        "model",
+        "scale",
+        built.to_str().unwrap(),
+        "--mass",
+        "60",
+        "--height",
+        "1.6",
+        "-o",
+        small.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("masses × 0.8000"), "{out}");
+    let text = std::fs::read_to_string(&small).unwrap();
+    assert!(text.contains("reference subject 60 kg, 1.6 m"));
+    let model = musculo::Model::from_osim_str(&text, "small").unwrap();
+    assert!((model.total_mass() - 60.0).abs() < 1e-9);
+    // a model that does not state its height needs --model-height
+    let (ok, _, err) = musculo(&[
+        "model",
+        "scale",
+        root.join("models/demo.osim").to_str().unwrap(),
+        "--mass",
+        "60",
+        "--height",
+        "1.6",
+        "-o",
+        small.to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("--model-height"), "{err}");
+}
