@@ -1,8 +1,7 @@
 //! `musculo id`: OpenSim's Inverse Dynamics tool — generalized forces from a motion and
 //! its external loads, written as an OpenSim .sto file.
 
-use crate::tool::{FrameProgress, create_parent_dir, missing};
-use musculo::io::Table;
+use crate::tool::{FrameProgress, create_parent_dir, missing, read_coordinates};
 use musculo::io::setup::InverseDynamicsSetup;
 use musculo::model::{LoadOptions, Model};
 use musculo::solve::external_loads::ExternalLoadSet;
@@ -93,18 +92,11 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             allow_nonphysical_inertia: args.allow_nonphysical_inertia,
         },
     )?;
-    let mut coordinates = Table::read(&coordinates_path)?;
-    if args.missing_coordinates_at_default {
-        let added = musculo::solve::kinematics::fill_missing_coordinates(&model, &mut coordinates);
-        if !added.is_empty() {
-            eprintln!(
-                "{} coordinate(s) not in {} held at their defaults: {}",
-                added.len(),
-                coordinates_path.display(),
-                added.join(" ")
-            );
-        }
-    }
+    let coordinates = read_coordinates(
+        &model,
+        &coordinates_path,
+        args.missing_coordinates_at_default,
+    )?;
     let loads = loads_path
         .as_deref()
         .map(|p| ExternalLoadSet::read(&model, p))

@@ -2,8 +2,7 @@
 //! analysis) — muscle activations and actuator forces per frame, written as OpenSim's
 //! `_activation.sto` and `_force.sto`.
 
-use crate::tool::{FrameProgress, create_parent_dir, missing};
-use musculo::io::Table;
+use crate::tool::{FrameProgress, create_parent_dir, missing, read_coordinates};
 use musculo::io::setup::AnalyzeSetup;
 use musculo::model::{LoadOptions, Model};
 use musculo::solve::external_loads::ExternalLoadSet;
@@ -161,18 +160,11 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         replace,
     )?;
     let so = StaticOptimization::new(&model, options)?;
-    let mut coordinates = Table::read(&coordinates_path)?;
-    if args.missing_coordinates_at_default {
-        let added = musculo::solve::kinematics::fill_missing_coordinates(&model, &mut coordinates);
-        if !added.is_empty() {
-            eprintln!(
-                "{} coordinate(s) not in {} held at their defaults: {}",
-                added.len(),
-                coordinates_path.display(),
-                added.join(" ")
-            );
-        }
-    }
+    let coordinates = read_coordinates(
+        &model,
+        &coordinates_path,
+        args.missing_coordinates_at_default,
+    )?;
     let loads = loads_path
         .as_deref()
         .map(|p| ExternalLoadSet::read(&model, p))

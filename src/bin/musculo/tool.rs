@@ -55,3 +55,25 @@ pub fn create_parent_dir(file: &Path) -> Result<(), musculo::Error> {
     }
     Ok(())
 }
+
+/// The coordinates file, with the model's coordinates it lacks held at their defaults when
+/// asked (saying which on stderr).
+pub fn read_coordinates(
+    model: &musculo::Model,
+    path: &Path,
+    missing_at_default: bool,
+) -> Result<musculo::io::Table, musculo::Error> {
+    let mut table = musculo::io::Table::read(path)?;
+    if missing_at_default {
+        let added = musculo::solve::kinematics::fill_missing_coordinates(model, &mut table);
+        if !added.is_empty() {
+            eprintln!(
+                "{} coordinate(s) not in {} held at their defaults: {}",
+                added.len(),
+                path.display(),
+                added.join(" ")
+            );
+        }
+    }
+    Ok(table)
+}
