@@ -336,3 +336,11 @@ fn fixed_point_muscle_lengths_and_moment_arms_match_mujoco_tendons() {
         }
     }
 }
+
+#[test]
+fn default_full_body_model_matches_mujoco() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim");
+    crosscheck(&path, 27);
+    // its fixed-point muscles (the 210 lumbar fascicles among them) against MuJoCo's tendons
+    tendon_crosscheck(&path, 34);
+}
