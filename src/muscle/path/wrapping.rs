@@ -89,7 +89,9 @@ const SWEEP_TOLERANCE: f64 = 1e-14;
 /// changes by less than 0.5 mm; musculo sweeps until the wrapped path is converged (length
 /// change below 1e-14 relative, at most 100 sweeps). The two agree to within OpenSim's
 /// tolerance, and the converged path makes ℓ(q) smooth, so that moment arms are its exact
-/// derivatives.
+/// derivatives. Where the sweeps cycle between configurations instead (OpenSim then stops
+/// wherever its eighth sweep leaves it), the last configuration is kept and its engaged
+/// objects are re-wrapped between their neighbours until consistent.
 pub(super) fn apply_wrap_objects(
     model: &Model,
     data: &Data,
@@ -197,6 +199,14 @@ pub(super) fn apply_wrap_objects(
         if (length - last_length).abs() <= SWEEP_TOLERANCE * (1.0 + length) {
             break;
         }
+        if iteration + 1 == iterations {
+            // The sweeps cycle between wrap configurations (one object's contact makes
+            // another let go, and so on) and never settle: keep the last configuration and
+            // make it consistent, each engaged object wrapped between its final neighbours,
+            // so that ℓ is stationary in the tangent points and the moment arms are its
+            // derivatives.
+            settle_engaged_wraps(model, data, path, nodes);
+        }
         last_length = length;
         if iteration == 0 && first_results[0] == 0 && first_results[1] == 1 {
             order = [1, 0];
@@ -207,6 +217,51 @@ pub(super) fn apply_wrap_objects(
                 nodes.remove(pos);
                 nodes.remove(pos);
             }
+        }
+    }
+}
+
+/// Re-wraps every engaged object between its current neighbours, keeping which objects are
+/// engaged, until the tangent points stop moving (a Gauss–Seidel sweep over the objects); an
+/// object that no longer wraps its segment is released.
+fn settle_engaged_wraps(model: &Model, data: &Data, path: &PathGeometry, nodes: &mut Vec<Node>) {
+    for _ in 0..MAX_SWEEPS {
+        let mut moved = 0.0f64;
+        let mut k = 0;
+        while k < nodes.len() {
+            let NodeKind::Tangent(wi, false) = nodes[k].kind else {
+                k += 1;
+                continue;
+            };
+            let (a, b) = (nodes[k - 1].ground, nodes[k + 2].ground);
+            match wrap_segment(model, data, &path.wraps[wi], &a, &b) {
+                SegmentWrap::Wrapped {
+                    t1,
+                    t2,
+                    surface,
+                    grad_p,
+                    grad_s,
+                    ..
+                } => {
+                    moved = moved
+                        .max((t1 - nodes[k].ground).norm())
+                        .max((t2 - nodes[k + 1].ground).norm());
+                    nodes[k].ground = t1;
+                    nodes[k].grad = grad_p;
+                    nodes[k + 1].ground = t2;
+                    nodes[k + 1].surface = surface;
+                    nodes[k + 1].grad = grad_s;
+                    k += 2;
+                }
+                _ => {
+                    nodes.remove(k);
+                    nodes.remove(k);
+                    moved = f64::INFINITY;
+                }
+            }
+        }
+        if moved <= SWEEP_TOLERANCE * (1.0 + path_length(nodes)) {
+            return;
         }
     }
 }
