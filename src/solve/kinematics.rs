@@ -208,14 +208,9 @@ pub fn fill_missing_coordinates(model: &Model, table: &mut Table) -> Vec<String>
         })
         .collect();
     let mut values = Vec::with_capacity(table.time.len() * (old + missing.len()));
-    for row in table.values.chunks(old.max(1)).take(table.time.len()) {
-        values.extend_from_slice(&row[..old]);
+    for r in 0..table.time.len() {
+        values.extend_from_slice(&table.values[r * old..(r + 1) * old]);
         values.extend_from_slice(&defaults);
-    }
-    if old == 0 {
-        values = (0..table.time.len())
-            .flat_map(|_| defaults.iter().copied())
-            .collect();
     }
     table.values = values;
     let names: Vec<String> = missing
