@@ -52,6 +52,15 @@ pub enum Error {
         message: String,
     },
 
+    /// A motion file (`.npy`, `.bvh`, `.c3d`, …) holds data musculo cannot use. `location`
+    /// says where: `line 40`, `frame 12, joint "left_knee"`, `header`, `array shape`.
+    #[error("{file}: {location}: {message}")]
+    Motion {
+        file: String,
+        location: String,
+        message: String,
+    },
+
     /// MuJoCo (feature `mujoco`) refused the model or is the wrong version.
     #[error("MuJoCo: {message}")]
     Mujoco { message: String },

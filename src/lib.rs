@@ -20,6 +20,7 @@ pub mod dynamics;
 pub mod error;
 pub mod io;
 pub mod model;
+pub mod motion;
 #[cfg(feature = "mujoco")]
 pub mod mujoco;
 pub mod muscle;

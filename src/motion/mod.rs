@@ -1,0 +1,293 @@
+//! Motion inputs: readers that turn a motion file into a [`Motion`] — named 3-D targets
+//! (joint centres or markers) over time, in metres, in the axes of the file — and the
+//! skeleton maps that say which model marker each target stands for.
+//!
+//! | format | module | what it holds |
+//! |---|---|---|
+//! | HumanML3D `new_joints` / `new_joint_vecs` `.npy` | [`humanml3d`] | 22 SMPL joint centres, y up, 20 fps |
+//! | KIT-ML joints `.npy` | [`kit`] | 21 KIT joint centres, 12.5 fps |
+//! | BVH | [`bvh`] | any hierarchy; joint centres by forward kinematics |
+//! | C3D | [`c3d`] | markers with gaps, analog channels, force platforms |
+//! | TRC | [`crate::io::trc`] | markers ([`Motion::from_trc`]) |
+//!
+//! A target missing in a frame (a marker gap) has NaN coordinates; everything else is finite.
+//! Axes stay those of the file: [`skeleton::SkeletonMap`] converts them to the model's.
+
+pub mod bvh;
+pub mod c3d;
+pub mod humanml3d;
+pub mod kit;
+pub mod npy;
+pub mod skeleton;
+
+use crate::error::Error;
+use crate::io::trc::Trc;
+use crate::spatial::Vec3;
+
+/// Named 3-D targets over time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Motion {
+    /// Where it was read from (a path), for messages.
+    pub source: String,
+    /// Target names (joints or markers), unique.
+    pub names: Vec<String>,
+    /// Sampling rate (Hz).
+    pub rate_hz: f64,
+    /// Time of each frame (s), strictly increasing.
+    pub time: Vec<f64>,
+    /// Frame-major positions (m): `positions[f * names.len() + i]`; NaN where missing.
+    pub positions: Vec<Vec3>,
+}
+
+impl Motion {
+    /// A motion sampled at `rate_hz` from time 0, checked with [`Motion::validate`].
+    pub fn uniform(
+        source: impl Into<String>,
+        names: Vec<String>,
+        rate_hz: f64,
+        positions: Vec<Vec3>,
+    ) -> crate::Result<Motion> {
+        let source = source.into();
+        if !(rate_hz > 0.0 && rate_hz.is_finite()) {
+            return Err(Error::Motion {
+                file: source,
+                location: "frame rate".into(),
+                message: format!("{rate_hz} Hz must be positive and finite"),
+            });
+        }
+        let frames = positions.len().checked_div(names.len()).unwrap_or(0);
+        let time = (0..frames).map(|f| f as f64 / rate_hz).collect();
+        let m = Motion {
+            source,
+            names,
+            rate_hz,
+            time,
+            positions,
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    pub fn n_frames(&self) -> usize {
+        self.time.len()
+    }
+
+    pub fn n_targets(&self) -> usize {
+        self.names.len()
+    }
+
+    /// The targets of frame `f`.
+    pub fn frame(&self, f: usize) -> &[Vec3] {
+        let n = self.names.len();
+        &self.positions[f * n..(f + 1) * n]
+    }
+
+    /// Index of the named target.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+
+    /// Duration from the first to the last frame (s).
+    pub fn duration(&self) -> f64 {
+        match (self.time.first(), self.time.last()) {
+            (Some(a), Some(b)) => b - a,
+            _ => 0.0,
+        }
+    }
+
+    fn error(&self, location: String, message: String) -> Error {
+        Error::Motion {
+            file: self.source.clone(),
+            location,
+            message,
+        }
+    }
+
+    /// Checks sizes, unique non-empty names, a positive rate, finite strictly increasing
+    /// times, and positions that are finite or NaN (missing) — never infinite, and never
+    /// partly missing (a target is missing in all three coordinates or in none).
+    pub fn validate(&self) -> crate::Result<()> {
+        let n = self.names.len();
+        if n == 0 {
+            return Err(self.error("targets".into(), "the motion has no targets".into()));
+        }
+        if self.time.is_empty() {
+            return Err(self.error("frames".into(), "the motion has no frames".into()));
+        }
+        if self.positions.len() != self.time.len() * n {
+            return Err(self.error(
+                "array shape".into(),
+                format!(
+                    "{} positions for {} frames × {n} targets",
+                    self.positions.len(),
+                    self.time.len()
+                ),
+            ));
+        }
+        for (i, name) in self.names.iter().enumerate() {
+            if name.trim().is_empty() {
+                return Err(self.error(format!("target {i}"), "empty name".into()));
+            }
+            if let Some(j) = self.names[..i].iter().position(|o| o == name) {
+                return Err(self.error(
+                    format!("target \"{name}\""),
+                    format!("duplicate name (targets {j} and {i})"),
+                ));
+            }
+        }
+        if !(self.rate_hz > 0.0 && self.rate_hz.is_finite()) {
+            return Err(self.error(
+                "frame rate".into(),
+                format!("{} Hz must be positive and finite", self.rate_hz),
+            ));
+        }
+        for (f, t) in self.time.iter().enumerate() {
+            if !t.is_finite() || (f > 0 && *t <= self.time[f - 1]) {
+                return Err(self.error(
+                    format!("frame {f}"),
+                    format!("time {t} is not finite or does not increase"),
+                ));
+            }
+        }
+        for (k, p) in self.positions.iter().enumerate() {
+            let nan = p.iter().filter(|v| v.is_nan()).count();
+            if p.iter().any(|v| v.is_infinite()) || (nan != 0 && nan != 3) {
+                return Err(self.error(
+                    format!("frame {}, target \"{}\"", k / n, self.names[k % n]),
+                    format!("position ({}, {}, {}) is infinite or partly missing", p.x, p.y, p.z),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Per target, the number of frames in which it is missing.
+    pub fn missing_counts(&self) -> Vec<usize> {
+        let n = self.names.len();
+        let mut out = vec![0; n];
+        for (k, p) in self.positions.iter().enumerate() {
+            if p.x.is_nan() {
+                out[k % n] += 1;
+            }
+        }
+        out
+    }
+
+    /// The markers of a `.trc` file (already in metres).
+    pub fn from_trc(trc: &Trc, source: &str) -> crate::Result<Motion> {
+        let m = Motion {
+            source: source.to_string(),
+            names: trc.markers.clone(),
+            rate_hz: trc.data_rate,
+            time: trc.time.clone(),
+            positions: trc.positions.clone(),
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// The frames whose time lies in `[start, end]` (inclusive, with a tolerance of a
+    /// thousandth of a frame), as OpenSim's tools select a time range.
+    pub fn time_window(&self, start: f64, end: f64) -> crate::Result<Motion> {
+        let tol = 1e-3 / self.rate_hz;
+        let frames: Vec<usize> = (0..self.n_frames())
+            .filter(|&f| self.time[f] >= start - tol && self.time[f] <= end + tol)
+            .collect();
+        if frames.is_empty() {
+            return Err(self.error(
+                "time range".into(),
+                format!(
+                    "no frame lies in [{start}, {end}] (the motion covers [{}, {}])",
+                    self.time[0],
+                    self.time[self.n_frames() - 1]
+                ),
+            ));
+        }
+        let mut out = Motion {
+            source: self.source.clone(),
+            names: self.names.clone(),
+            rate_hz: self.rate_hz,
+            time: Vec::with_capacity(frames.len()),
+            positions: Vec::with_capacity(frames.len() * self.n_targets()),
+        };
+        for f in frames {
+            out.time.push(self.time[f]);
+            out.positions.extend_from_slice(self.frame(f));
+        }
+        Ok(out)
+    }
+}
+
+/// Length units of motion files that do not state theirs (BVH offsets, KIT joints).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LengthUnit {
+    Metres,
+    Centimetres,
+    Millimetres,
+    Inches,
+    /// Any other unit, as metres per file unit (the CMU skeletons' unit is 1/0.45 inch =
+    /// 0.056444 m, which many CMU BVH conversions keep).
+    Custom(f64),
+}
+
+impl LengthUnit {
+    /// Metres per file unit.
+    pub fn metres(self) -> f64 {
+        match self {
+            LengthUnit::Metres => 1.0,
+            LengthUnit::Centimetres => 0.01,
+            LengthUnit::Millimetres => 0.001,
+            LengthUnit::Inches => 0.0254,
+            LengthUnit::Custom(m) => m,
+        }
+    }
+
+    /// Parses `m`, `cm`, `mm`, `in`, or a number (metres per unit).
+    pub fn parse(text: &str) -> Option<LengthUnit> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "m" | "metre" | "metres" | "meter" | "meters" => Some(LengthUnit::Metres),
+            "cm" => Some(LengthUnit::Centimetres),
+            "mm" => Some(LengthUnit::Millimetres),
+            "in" | "inch" | "inches" => Some(LengthUnit::Inches),
+            t => t
+                .parse::<f64>()
+                .ok()
+                .filter(|v| *v > 0.0 && v.is_finite())
+                .map(LengthUnit::Custom),
+        }
+    }
+}
+
+/// Standing-height bounds (m) a motion's implied body height must lie in: a clip whose
+/// skeleton is 17 m or 17 mm tall was read in the wrong units.
+pub const PLAUSIBLE_HEIGHT_M: [f64; 2] = [0.5, 2.6];
+
+/// Checks that `height` (m, implied by the skeleton read in `unit`) is a human's; the error
+/// names the unit that would make it one.
+pub fn check_plausible_height(source: &str, height: f64, unit: LengthUnit) -> crate::Result<()> {
+    let [lo, hi] = PLAUSIBLE_HEIGHT_M;
+    if height >= lo && height <= hi {
+        return Ok(());
+    }
+    let raw = height / unit.metres();
+    let suggestion = [
+        ("m", 1.0),
+        ("cm", 0.01),
+        ("mm", 0.001),
+        ("in", 0.0254),
+        ("0.056444 (CMU BVH)", 0.056444),
+    ]
+    .iter()
+    .find(|(_, m)| (lo..=hi).contains(&(raw * m)))
+    .map(|(name, m)| format!("; read in {name} it would be {:.2} m", raw * m))
+    .unwrap_or_default();
+    Err(Error::Motion {
+        file: source.to_string(),
+        location: "skeleton".into(),
+        message: format!(
+            "implied body height {height:.3} m is not a person's ({lo}–{hi} m): wrong length unit \
+             ({} m per file unit)?{suggestion}",
+            unit.metres()
+        ),
+    })
+}
