@@ -222,14 +222,14 @@ impl AnalyzeSetup {
     }
 }
 
-fn read_text(path: &Path) -> crate::Result<String> {
+pub(crate) fn read_text(path: &Path) -> crate::Result<String> {
     std::fs::read_to_string(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })
 }
 
-fn parse_xml<'i>(text: &'i str, path: &Path) -> crate::Result<Document<'i>> {
+pub(crate) fn parse_xml<'i>(text: &'i str, path: &Path) -> crate::Result<Document<'i>> {
     Document::parse(text).map_err(|e| Error::Xml {
         file: path.display().to_string(),
         line: e.pos().row,
@@ -238,7 +238,7 @@ fn parse_xml<'i>(text: &'i str, path: &Path) -> crate::Result<Document<'i>> {
     })
 }
 
-fn base_dir(path: &Path) -> &Path {
+pub(crate) fn base_dir(path: &Path) -> &Path {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -255,14 +255,14 @@ const INTEGRATOR: &[&str] = &[
     "integrator_error_tolerance",
 ];
 
-struct Reader<'a, 'i> {
+pub(crate) struct Reader<'a, 'i> {
     doc: &'a Document<'i>,
     path: &'a Path,
     file: String,
 }
 
 impl<'a, 'i> Reader<'a, 'i> {
-    fn new(doc: &'a Document<'i>, path: &'a Path) -> Self {
+    pub(crate) fn new(doc: &'a Document<'i>, path: &'a Path) -> Self {
         Reader {
             doc,
             path,
@@ -270,12 +270,12 @@ impl<'a, 'i> Reader<'a, 'i> {
         }
     }
 
-    fn line(&self, n: Node) -> u32 {
+    pub(crate) fn line(&self, n: Node) -> u32 {
         self.doc.text_pos_at(n.range().start).row
     }
 
     /// `AnalyzeTool "arm26" > AnalysisSet > StaticOptimization "so" > <step_interval>`.
-    fn describe(&self, n: Node) -> String {
+    pub(crate) fn describe(&self, n: Node) -> String {
         let mut parts: Vec<String> = n
             .ancestors()
             .filter(|a| a.is_element())
@@ -291,7 +291,7 @@ impl<'a, 'i> Reader<'a, 'i> {
         parts.join(" > ")
     }
 
-    fn error(&self, n: Node, message: String) -> Error {
+    pub(crate) fn error(&self, n: Node, message: String) -> Error {
         Error::Model {
             file: self.file.clone(),
             line: self.line(n),
@@ -300,7 +300,7 @@ impl<'a, 'i> Reader<'a, 'i> {
         }
     }
 
-    fn warning(&self, n: Node, message: impl Into<String>) -> SetupWarning {
+    pub(crate) fn warning(&self, n: Node, message: impl Into<String>) -> SetupWarning {
         SetupWarning {
             file: self.file.clone(),
             line: self.line(n),
@@ -309,7 +309,7 @@ impl<'a, 'i> Reader<'a, 'i> {
         }
     }
 
-    fn tool_element(&self) -> crate::Result<Node<'a, 'i>> {
+    pub(crate) fn tool_element(&self) -> crate::Result<Node<'a, 'i>> {
         let root = self.doc.root_element();
         if root.has_tag_name("OpenSimDocument") {
             root.first_element_child()
@@ -320,21 +320,21 @@ impl<'a, 'i> Reader<'a, 'i> {
     }
 
     /// The trimmed text, None when empty or `Unassigned`.
-    fn text(n: Node) -> Option<String> {
+    pub(crate) fn text(n: Node) -> Option<String> {
         let t = n.text().unwrap_or("").trim();
         (!t.is_empty() && t != "Unassigned").then(|| t.to_string())
     }
 
-    fn path(&self, n: Node) -> Option<PathBuf> {
+    pub(crate) fn path(&self, n: Node) -> Option<PathBuf> {
         Self::text(n).map(|t| base_dir(self.path).join(t))
     }
 
-    fn number(&self, n: Node) -> crate::Result<f64> {
+    pub(crate) fn number(&self, n: Node) -> crate::Result<f64> {
         let t = n.text().unwrap_or("").trim();
         parse_number(t).ok_or_else(|| self.error(n, format!("`{t}` is not a number")))
     }
 
-    fn numbers(&self, n: Node, count: usize) -> crate::Result<Vec<f64>> {
+    pub(crate) fn numbers(&self, n: Node, count: usize) -> crate::Result<Vec<f64>> {
         let t = n.text().unwrap_or("").trim();
         let v: Option<Vec<f64>> = t.split_whitespace().map(parse_number).collect();
         match v {
@@ -343,13 +343,13 @@ impl<'a, 'i> Reader<'a, 'i> {
         }
     }
 
-    fn count(&self, n: Node) -> crate::Result<usize> {
+    pub(crate) fn count(&self, n: Node) -> crate::Result<usize> {
         let t = n.text().unwrap_or("").trim();
         t.parse::<usize>()
             .map_err(|_| self.error(n, format!("`{t}` is not a non-negative integer")))
     }
 
-    fn boolean(&self, n: Node) -> crate::Result<bool> {
+    pub(crate) fn boolean(&self, n: Node) -> crate::Result<bool> {
         let t = n.text().unwrap_or("").trim();
         match t.to_ascii_lowercase().as_str() {
             "true" => Ok(true),
@@ -358,7 +358,7 @@ impl<'a, 'i> Reader<'a, 'i> {
         }
     }
 
-    fn words(n: Node) -> Vec<String> {
+    pub(crate) fn words(n: Node) -> Vec<String> {
         n.text()
             .unwrap_or("")
             .split_whitespace()
@@ -642,7 +642,7 @@ impl<'a, 'i> Reader<'a, 'i> {
 }
 
 /// A number as OpenSim writes them, including `inf`, `-Inf`, `infinity`.
-fn parse_number(t: &str) -> Option<f64> {
+pub(crate) fn parse_number(t: &str) -> Option<f64> {
     t.parse::<f64>().ok().filter(|v| !v.is_nan())
 }
 
