@@ -1,0 +1,167 @@
+"""Shared helpers for the OpenSim 4.6 side-by-side checks (run with the .opensim/venv Python).
+
+Paths: the repository root is two levels above this file; reference data are read in place from
+$MUSCULO_REFERENCE (default ../shared/reference beside the repository); everything written goes
+under target/opensim-validation/.
+"""
+
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+
+os.environ.setdefault("OPENSIM_LOG_LEVEL", "warn")
+import opensim as osim  # noqa: E402  (after the environment is set)
+
+REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+REFERENCE = os.path.abspath(
+    os.environ.get("MUSCULO_REFERENCE", os.path.join(REPO, "..", "shared", "reference")))
+MODELS = os.path.join(REFERENCE, "opensim-models")
+WORK = os.path.join(REPO, "target", "opensim-validation")
+MUSCULO = os.environ.get("MUSCULO_BIN", os.path.join(REPO, "target", "release", "musculo"))
+
+DEG = 180.0 / math.pi
+
+
+def quiet_opensim():
+    """OpenSim logs every IK frame at `info` and every missing geometry file at `warn`: keep
+    errors only."""
+    osim.Logger.setLevelString("error")
+
+
+# OpenSim opens ./opensim.log on its first message; the scripts keep their logs under WORK.
+osim.Logger.removeFileSink()
+
+
+def require(path, what):
+    if not os.path.exists(path):
+        sys.exit(f"missing {what}: {path} (set MUSCULO_REFERENCE to the shared reference folder)")
+    return path
+
+
+def fresh_dir(path):
+    """Creates an empty folder (removing an old one: it only ever holds this script's outputs)."""
+    if os.path.isdir(path):
+        shutil.rmtree(path)
+    os.makedirs(path)
+    return path
+
+
+def edit_setup(src, dst, replacements):
+    """Copies an OpenSim setup file, replacing the text of the named elements.
+
+    replacements: {element_name: new_text}. Each element must occur exactly once (self-closing
+    `<name />` forms included); everything else in the file is kept byte for byte.
+    """
+    with open(src, encoding="utf-8") as f:
+        text = f.read()
+    for name, value in replacements.items():
+        pattern = re.compile(rf"<{name}\s*>[^<]*</{name}\s*>|<{name}\s*/>")
+        hits = pattern.findall(text)
+        if len(hits) != 1:
+            sys.exit(f"{src}: expected one <{name}> element, found {len(hits)}")
+        text = pattern.sub(lambda _m: f"<{name}>{value}</{name}>", text)
+    with open(dst, "w", encoding="utf-8") as f:
+        f.write(text)
+    return dst
+
+
+def run_musculo(args, log_path):
+    """Runs the musculo CLI; returns (ok, seconds, combined output)."""
+    import time
+    t0 = time.perf_counter()
+    proc = subprocess.run([MUSCULO] + args, capture_output=True, text=True)
+    dt = time.perf_counter() - t0
+    out = proc.stdout + proc.stderr
+    with open(log_path, "w", encoding="utf-8") as f:
+        f.write(f"$ {MUSCULO} {' '.join(args)}\nexit {proc.returncode}\n{out}")
+    return proc.returncode == 0, dt, out
+
+
+def musculo_has(command):
+    """Whether target/release/musculo exists and lists `command` among its subcommands."""
+    if not os.path.exists(MUSCULO):
+        return False
+    proc = subprocess.run([MUSCULO, "--help"], capture_output=True, text=True)
+    return re.search(rf"^\s+{command}\b", proc.stdout + proc.stderr, re.M) is not None
+
+
+# ---------------------------------------------------------------------------------------------
+# Motion files
+
+
+def read_motion(path, model):
+    """Reads an OpenSim .mot/.sto of coordinates with OpenSim's own reader.
+
+    Returns (times, {coordinate: values in model units (rad or m)}). Columns that are not model
+    coordinates are kept too (unconverted); rotational columns are converted from degrees when
+    the header says inDegrees=yes (or has no inDegrees line: old SIMM files, in degrees), as
+    OpenSim's Storage::convertDegreesToRadians does.
+    """
+    table = osim.TimeSeriesTable(path)
+    if table.hasTableMetaDataKey("inDegrees"):
+        in_degrees = table.getTableMetaDataAsString("inDegrees").strip().lower() == "yes"
+    else:
+        # Old SIMM motion files have no inDegrees line; SIMM wrote angles in degrees.
+        in_degrees = True
+    times = np.array(table.getIndependentColumn())
+    coords = model.getCoordinateSet()
+    out = {}
+    for label in table.getColumnLabels():
+        values = table.getDependentColumn(label).to_numpy().copy()
+        name = label.split("/")[-2] if label.startswith("/") and label.endswith("/value") else label
+        if coords.contains(name):
+            if in_degrees and coords.get(name).getMotionType() == osim.Coordinate.Rotational:
+                values = values / DEG
+            out[name] = values
+        else:
+            out[label] = values
+    return times, out
+
+
+def read_sto_columns(path):
+    """Reads a .sto/.mot with OpenSim's reader: (times, {label: values}) with no conversion."""
+    table = osim.TimeSeriesTable(path)
+    return (np.array(table.getIndependentColumn()),
+            {lab: table.getDependentColumn(lab).to_numpy().copy()
+             for lab in table.getColumnLabels()})
+
+
+def is_rotational(coord):
+    return coord.getMotionType() == osim.Coordinate.Rotational
+
+
+def coordinate_unit(coord):
+    """(factor to display units, unit name, tolerance in model units) for the IK comparison."""
+    if is_rotational(coord):
+        return DEG, "deg", 0.5 / DEG
+    return 1000.0, "mm", 0.002
+
+
+# ---------------------------------------------------------------------------------------------
+# Tables
+
+
+def print_table(headers, rows, file=sys.stdout):
+    widths = [max(len(str(h)), *(len(str(r[i])) for r in rows)) if rows else len(str(h))
+              for i, h in enumerate(headers)]
+    line = "  ".join(str(h).ljust(w) for h, w in zip(headers, widths))
+    print(line, file=file)
+    print("  ".join("-" * w for w in widths), file=file)
+    for r in rows:
+        print("  ".join(str(c).rjust(w) if isinstance(c, str) and c[:1] in "-+0123456789."
+                        else str(c).ljust(w) for c, w in zip(r, widths)), file=file)
+
+
+def fmt(x, digits=4):
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "n/a"
+    if x == 0:
+        return "0"
+    if abs(x) >= 1e4 or abs(x) < 1e-3:
+        return f"{x:.{digits - 1}e}"
+    return f"{x:.{digits}g}"
