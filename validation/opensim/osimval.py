@@ -54,17 +54,27 @@ def fresh_dir(path):
 def edit_setup(src, dst, replacements):
     """Copies an OpenSim setup file, replacing the text of the named elements.
 
-    replacements: {element_name: new_text}. Each element must occur exactly once (self-closing
-    `<name />` forms included); everything else in the file is kept byte for byte.
+    replacements: {element_name or "Parent/element_name": new_text}. The element must occur
+    exactly once (in the Parent element when one is named; self-closing `<name />` forms
+    included); everything else in the file is kept byte for byte.
     """
     with open(src, encoding="utf-8") as f:
         text = f.read()
-    for name, value in replacements.items():
+    for key, value in replacements.items():
+        parent, _, name = key.rpartition("/")
+        start, end = 0, len(text)
+        if parent:
+            m = re.search(rf"<{parent}[\s>].*?</{parent}\s*>", text, re.S)
+            if m is None:
+                sys.exit(f"{src}: no <{parent}> element")
+            start, end = m.span()
         pattern = re.compile(rf"<{name}\s*>[^<]*</{name}\s*>|<{name}\s*/>")
-        hits = pattern.findall(text)
+        part = text[start:end]
+        hits = pattern.findall(part)
         if len(hits) != 1:
-            sys.exit(f"{src}: expected one <{name}> element, found {len(hits)}")
-        text = pattern.sub(lambda _m: f"<{name}>{value}</{name}>", text)
+            sys.exit(f"{src}: expected one <{key}> element, found {len(hits)}")
+        part = pattern.sub(lambda _m: f"<{name}>{value}</{name}>", part)
+        text = text[:start] + part + text[end:]
     with open(dst, "w", encoding="utf-8") as f:
         f.write(text)
     return dst

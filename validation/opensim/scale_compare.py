@@ -1,0 +1,393 @@
+"""Scaling side by side: OpenSim 4.6's ScaleTool against `musculo scale`.
+
+OpenSim's ScaleTool runs on Pipelines/Gait2392_Simbody/subject01_Setup_Scale.xml, copied to
+target/opensim-validation/scale/setup.xml with its inputs named by paths relative to that folder
+(the generic model `gait2392_simbody.osim` is Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim,
+which opensim-models installs under that name) and its outputs as plain file names; the tool runs
+with that folder as working directory (OpenSim 4.6 prefixes the setup's folder to input paths,
+absolute ones included, and writes outputs relative to the working directory). It writes
+opensim/scaled.osim (after marker placement), opensim/scaled_only.osim and
+opensim/scale_set.xml. musculo then scales from the same setup copy (see MUSCULO_SCALE below).
+
+Both scaled models are loaded in OpenSim 4.6 and compared (exit status 1 when one fails):
+- per-body scale factors (scale-set files)                                 <= 0.1 %
+- body masses                                                              <= 0.1 %
+- inertia components, relative to the body's largest moment                <= 0.1 %
+- mass centres, joint frame offsets (parent and child), marker locations   <= 1 mm
+- coordinate default values                                                 <= 1e-6
+- body origins in ground at the generic model's default pose and at 20 random poses  <= 1 mm
+- muscle optimal fiber lengths, tendon slack lengths                        <= 0.1 %
+- musculotendon lengths, computed by OpenSim for both models, at the generic model's default
+  pose and at the same 20 random poses (rotations uniform within the generic model's ranges,
+  seed 0; translations at their defaults)                                   <= 0.1 %
+The same comparison, for information only, of the stored OutputReference/subject01_simbody.osim
+against OpenSim 4.6's result, with the inertia scaling law each follows.
+
+Usage: scale_compare.py [--opensim-only] [--self-test] [--musculo-model M.osim
+                        [--musculo-scale-set S.xml]]
+"""
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+import osimval as ov
+from osimval import osim
+
+P = os.path.join(ov.MODELS, "Pipelines", "Gait2392_Simbody")
+SETUP = os.path.join(P, "subject01_Setup_Scale.xml")
+GENERIC = os.path.join(ov.MODELS, "Models", "Gait2392_Simbody", "gait2392_thelen2003muscle.osim")
+MARKER_SET = os.path.join(P, "gait2392_Scale_MarkerSet.xml")
+STATIC = os.path.join(P, "subject01_static.trc")
+STORED = os.path.join(P, "OutputReference", "subject01_simbody.osim")
+
+# How musculo is asked to scale (relative to the work folder, run there). Updated from
+# /work/notes/scale_cli.md when `musculo scale` lands.
+MUSCULO_SCALE = ["scale", "--setup", "setup.xml"]
+
+REL = 1e-3       # 0.1 %
+POS = 1e-3       # 1 mm
+N_POSES = 20
+
+
+def prepare():
+    d = ov.fresh_dir(os.path.join(ov.WORK, "scale"))
+    for sub in ("opensim", "musculo"):
+        os.makedirs(os.path.join(d, sub))
+    for path in (SETUP, GENERIC, MARKER_SET, STATIC):
+        ov.require(path, "scale input")
+    rel = lambda p: os.path.relpath(p, d)  # noqa: E731
+    setup = ov.edit_setup(SETUP, os.path.join(d, "setup.xml"), {
+        "GenericModelMaker/model_file": rel(GENERIC),
+        "GenericModelMaker/marker_set_file": rel(MARKER_SET),
+        "ModelScaler/marker_file": rel(STATIC),
+        "ModelScaler/output_model_file": "opensim/scaled_only.osim",
+        "ModelScaler/output_scale_file": "opensim/scale_set.xml",
+        "MarkerPlacer/marker_file": rel(STATIC),
+        "MarkerPlacer/output_model_file": "opensim/scaled.osim",
+        "MarkerPlacer/output_motion_file": "opensim/static_output.mot",
+    })
+    return d, setup
+
+
+def run_opensim(d, setup):
+    log = os.path.join(d, "opensim", "opensim_scale.log")
+    osim.Logger.setLevelString("info")
+    osim.Logger.addFileSink(log)
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        tool = osim.ScaleTool(setup)
+        t0 = time.perf_counter()
+        ok = tool.run()
+        dt = time.perf_counter() - t0
+    finally:
+        os.chdir(cwd)
+        osim.Logger.removeFileSink()
+        ov.quiet_opensim()
+    if not ok:
+        sys.exit(f"OpenSim's ScaleTool failed (see {log})")
+    return dt
+
+
+def read_scale_set(path):
+    """{segment: (sx, sy, sz)} from an OpenSim ScaleSet file."""
+    out = {}
+    for sc in ET.parse(path).getroot().iter("Scale"):
+        seg = sc.findtext("segment").strip()
+        if sc.findtext("apply", "true").strip().lower() == "true":
+            out[seg] = tuple(float(v) for v in sc.findtext("scales").split())
+    return out
+
+
+def poses_of(generic):
+    """The generic model's default pose, then N_POSES coordinate vectors (by name): rotations
+    uniform within the generic model's ranges, other coordinates at their default values."""
+    rng = np.random.default_rng(0)
+    coords = generic.getCoordinateSet()
+    poses = [{coords.get(i).getName(): coords.get(i).getDefaultValue()
+              for i in range(coords.getSize())}]
+    for _ in range(N_POSES):
+        pose = {}
+        for i in range(coords.getSize()):
+            c = coords.get(i)
+            if c.getMotionType() == osim.Coordinate.Rotational:
+                pose[c.getName()] = rng.uniform(c.getRangeMin(), c.getRangeMax())
+            else:
+                pose[c.getName()] = c.getDefaultValue()
+        poses.append(pose)
+    return poses
+
+
+def summary(path, poses):
+    """Everything compared, from the model as OpenSim 4.6 loads it."""
+    m = osim.Model(path)
+    s = m.initSystem()
+    out = {"bodies": {}, "joints": {}, "markers": {}, "muscles": {}, "origins": {},
+           "mass": m.getTotalMass(s)}
+    for b in m.getBodySet():
+        inertia = b.get_inertia()
+        out["bodies"][b.getName()] = dict(
+            mass=b.getMass(), com=b.getMassCenter().to_numpy().copy(),
+            inertia=np.array([inertia.get(i) for i in range(6)]))
+    for j in m.getJointSet():
+        frames = {}
+        for k, f in enumerate((j.getParentFrame(), j.getChildFrame())):
+            off = osim.PhysicalOffsetFrame.safeDownCast(f)
+            frames["parent" if k == 0 else "child"] = (
+                off.get_translation().to_numpy().copy() if off else np.zeros(3))
+        out["joints"][j.getName()] = frames
+    for mk in m.getMarkerSet():
+        out["markers"][mk.getName()] = (mk.getParentFrameName(), mk.get_location().to_numpy().copy())
+    muscles = m.getMuscles()
+    lengths = {muscles.get(i).getName(): [] for i in range(muscles.getSize())}
+    coords = m.getCoordinateSet()
+    default = {coords.get(i).getName(): coords.get(i).getDefaultValue()
+               for i in range(coords.getSize())}
+    for p, pose in enumerate(poses):
+        for name, v in pose.items():
+            if coords.contains(name):
+                coords.get(name).setValue(s, float(v), False)
+        m.realizeVelocity(s)
+        for i in range(muscles.getSize()):
+            lengths[muscles.get(i).getName()].append(muscles.get(i).getLength(s))
+        for b in m.getBodySet():
+            out["origins"].setdefault(b.getName(), []).append(
+                b.getTransformInGround(s).p().to_numpy().copy())
+    for i in range(muscles.getSize()):
+        mu = muscles.get(i)
+        out["muscles"][mu.getName()] = dict(
+            optimal_fiber_length=mu.getOptimalFiberLength(),
+            tendon_slack_length=mu.getTendonSlackLength(),
+            mt_length_default=lengths[mu.getName()][0],
+            mt_length_poses=np.array(lengths[mu.getName()][1:]))
+    out["origins"] = {k: np.array(v) for k, v in out["origins"].items()}
+    out["default_pose"] = default
+    return out
+
+
+def rel_diff(a, b):
+    return abs(a - b) / max(abs(b), 1e-300)
+
+
+class Checker:
+    """Collects per-quantity worst differences against a tolerance."""
+
+    def __init__(self, label):
+        self.label = label
+        self.rows = []
+        self.failures = []
+        self.details = []
+
+    def add(self, quantity, items, tol, unit, enforce=True):
+        """items: list of (difference, where); the worst is tabled, the five worst kept."""
+        items = sorted(items, key=lambda it: -it[0]) or [(0.0, "-")]
+        worst, where = items[0]
+        if worst > tol:
+            self.details.append((quantity, unit, [it for it in items[:5] if it[0] > tol],
+                                 sum(1 for it in items if it[0] > tol), len(items)))
+        status = "ok" if worst <= tol else ("FAIL" if enforce else "differs")
+        mm = unit == "m"
+        self.rows.append([quantity, f"{worst * 1000:.4f}" if mm else f"{worst:.3e}",
+                          "mm" if mm else ("relative" if unit == "rel" else "rad or m"),
+                          f"{tol * 1000:g}" if mm else f"{tol:g}", where, status])
+        if enforce and worst > tol:
+            self.failures.append(f"{quantity}: {worst:.3e} at {where}")
+
+    def print(self):
+        print(f"\n{self.label}")
+        ov.print_table(["quantity", "worst", "unit", "tolerance", "where", "status"], self.rows)
+        for quantity, unit, top, count, total in self.details:
+            shown = ", ".join(f"{w} {v * 1000:.2f} mm" if unit == "m" else f"{w} {v:.3e}"
+                              for v, w in top)
+            print(f"  {quantity}: {count}/{total} over tolerance; worst: {shown}")
+
+
+def compare(a, b, label, enforce=True, scale_a=None, scale_b=None):
+    """Compares summary a (candidate) with summary b (OpenSim 4.6)."""
+    ck = Checker(label)
+    missing = []
+    for group in ("bodies", "joints", "markers", "muscles"):
+        for name in b[group]:
+            if name not in a[group]:
+                missing.append(f"{group[:-1]} {name}")
+    if missing:
+        ck.failures.append(f"missing in candidate: {', '.join(missing[:10])}"
+                           + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
+    bodies = [n for n in b["bodies"] if n in a["bodies"]]
+    if scale_a is not None and scale_b is not None:
+        items = [(max(rel_diff(x, y) for x, y in zip(scale_a[s], scale_b[s])), s)
+                 for s in scale_b if s in scale_a]
+        absent = [s for s in scale_b if s not in scale_a]
+        if absent:
+            ck.failures.append(f"scale factors missing for {absent}")
+        ck.add("scale factors", list(items), REL, "rel", enforce)
+    ck.add("total mass", [(rel_diff(a["mass"], b["mass"]), "model")], REL, "rel", enforce)
+    ck.add("coordinate default values (rad or m)", [
+        (abs(a["default_pose"][n] - v), n) for n, v in b["default_pose"].items()
+        if n in a["default_pose"]], 1e-6, "abs", enforce)
+    ck.add("body mass", list((rel_diff(a["bodies"][n]["mass"], b["bodies"][n]["mass"]), n)
+                                  for n in bodies), REL, "rel", enforce)
+    ck.add("inertia", list(
+        (np.max(np.abs(a["bodies"][n]["inertia"] - b["bodies"][n]["inertia"]))
+         / max(np.max(np.abs(b["bodies"][n]["inertia"][:3])), 1e-300), n)
+        for n in bodies if b["bodies"][n]["mass"] > 0), REL, "rel", enforce)
+    ck.add("mass centre", list(
+        (np.linalg.norm(a["bodies"][n]["com"] - b["bodies"][n]["com"]), n) for n in bodies),
+        POS, "m", enforce)
+    joints = [n for n in b["joints"] if n in a["joints"]]
+    ck.add("joint frame offsets", list(
+        (np.linalg.norm(a["joints"][n][k] - b["joints"][n][k]), f"{n} {k}")
+        for n in joints for k in ("parent", "child")), POS, "m", enforce)
+    markers = [n for n in b["markers"] if n in a["markers"]]
+    wrong_body = [n for n in markers if a["markers"][n][0] != b["markers"][n][0]]
+    if wrong_body:
+        ck.failures.append(f"markers on other bodies: {wrong_body}")
+    ck.add("marker locations", list(
+        (np.linalg.norm(a["markers"][n][1] - b["markers"][n][1]), n) for n in markers),
+        POS, "m", enforce)
+    ck.add("body origins in ground (default + 20 poses)", list(
+        (float(np.max(np.linalg.norm(a["origins"][n] - b["origins"][n], axis=1))), n)
+        for n in bodies), POS, "m", enforce)
+    muscles = [n for n in b["muscles"] if n in a["muscles"]]
+    for q in ("optimal_fiber_length", "tendon_slack_length", "mt_length_default"):
+        ck.add(q.replace("_", " "), list(
+            (rel_diff(a["muscles"][n][q], b["muscles"][n][q]), n) for n in muscles),
+            REL, "rel", enforce)
+    ck.add("mt length (20 poses)", list(
+        (float(np.max(np.abs(a["muscles"][n]["mt_length_poses"] - b["muscles"][n]["mt_length_poses"])
+                      / b["muscles"][n]["mt_length_poses"])), n) for n in muscles),
+        REL, "rel", enforce)
+    ck.print()
+    for f in ck.failures:
+        print(f"{'FAIL' if enforce else 'note'}: {f}")
+    return ck
+
+
+def inertia_law(generic, stored, scaled46, scale46):
+    """Per body: mass ratio, inertia ratio of the stored model and of OpenSim 4.6's, and the
+    ratio 4.6's rule predicts for a uniform scale s: (m'/m) s^2."""
+    rows = []
+    out = {}
+    for n, g in generic["bodies"].items():
+        if g["mass"] == 0 or n not in stored["bodies"]:
+            continue
+        gi = g["inertia"][:3]
+        k = int(np.argmax(gi))
+        st, os46 = stored["bodies"][n], scaled46["bodies"][n]
+        s = scale46.get(n, (1, 1, 1))
+        r_mass_st = st["mass"] / g["mass"]
+        r_mass_46 = os46["mass"] / g["mass"]
+        r_i_st = st["inertia"][k] / gi[k]
+        r_i_46 = os46["inertia"][k] / gi[k]
+        rows.append([n, f"{s[0]:.5f}", f"{r_mass_st:.5f}", f"{r_mass_46:.5f}", f"{r_i_st:.5f}",
+                     f"{r_i_46:.5f}", f"{r_mass_46 * s[0] ** 2:.5f}",
+                     f"{(st['inertia'][k] - os46['inertia'][k]) / os46['inertia'][k] * 100:+.2f}"])
+        out[n] = dict(scale=s[0], mass_ratio_stored=r_mass_st, mass_ratio_46=r_mass_46,
+                      inertia_ratio_stored=r_i_st, inertia_ratio_46=r_i_46)
+    print("\ninertia scaling (largest moment of each body; ratios to the generic model):")
+    ov.print_table(["body", "scale s", "mass ratio stored", "mass ratio 4.6", "I ratio stored",
+                    "I ratio 4.6", "(m'/m) s^2", "stored vs 4.6 %"], rows)
+    return out
+
+
+def muscle_scaling(generic, stored, scaled46):
+    """Whether the stored model's fiber and tendon lengths were scaled at all."""
+    out = {}
+    for q in ("optimal_fiber_length", "tendon_slack_length"):
+        names = [n for n in generic["muscles"] if n in stored["muscles"]]
+        same = [n for n in names
+                if rel_diff(stored["muscles"][n][q], generic["muscles"][n][q]) < 1e-9]
+        r46 = np.array([scaled46["muscles"][n][q] / generic["muscles"][n][q] for n in names])
+        out[q] = dict(unscaled_in_stored=len(same), muscles=len(names),
+                      ratio_46_min=float(r46.min()), ratio_46_max=float(r46.max()))
+        print(f"{q.replace('_', ' ')}: the stored model keeps the generic value for {len(same)}"
+              f"/{len(names)} muscles; OpenSim 4.6 scales it by {r46.min():.4f} to "
+              f"{r46.max():.4f} (its musculotendon-length ratio at the default pose)")
+    return out
+
+
+def run_musculo_scale(d, args):
+    """Runs `musculo scale` in the work folder; returns (model path, scale-set path or None)."""
+    if args.musculo_model:
+        return args.musculo_model, args.musculo_scale_set
+    if not ov.musculo_has("scale"):
+        print("musculo scale: not available in target/release/musculo")
+        return None, None
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        ok, secs, out = ov.run_musculo(MUSCULO_SCALE, os.path.join(d, "musculo", "musculo_scale.log"))
+    finally:
+        os.chdir(cwd)
+    if not ok:
+        print(out[-3000:])
+        return None, None
+    print(f"musculo scale: {secs:.3f} s (whole process)")
+    model = os.path.join(d, "musculo", "scaled.osim")
+    scale = os.path.join(d, "musculo", "scale_set.xml")
+    return model, scale if os.path.exists(scale) else None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--opensim-only", action="store_true")
+    ap.add_argument("--self-test", action="store_true",
+                    help="compare OpenSim's scaled model with itself (checks this script)")
+    ap.add_argument("--musculo-model")
+    ap.add_argument("--musculo-scale-set")
+    args = ap.parse_args()
+    ov.quiet_opensim()
+
+    print(f"=== Scale: {os.path.relpath(SETUP, ov.MODELS)}")
+    d, setup = prepare()
+    seconds = run_opensim(d, setup)
+    print(f"OpenSim 4.6 ScaleTool: {seconds:.3f} s (tool.run: load, scale, place markers, write)")
+    os_model = os.path.join(d, "opensim", "scaled.osim")
+    scale46 = read_scale_set(os.path.join(d, "opensim", "scale_set.xml"))
+    generic_model = osim.Model(GENERIC)
+    poses = poses_of(generic_model)
+    s46 = summary(os_model, poses)
+    report = dict(seconds=seconds, failures=[])
+
+    stored = summary(STORED, poses)
+    ck = compare(stored, s46, "stored OutputReference/subject01_simbody.osim vs OpenSim 4.6 "
+                 "(information; tolerances as for musculo)", enforce=False)
+    report["stored"] = {r[0]: r[1] for r in ck.rows}
+    generic = summary(GENERIC, poses)
+    report["inertia_law"] = inertia_law(generic, stored, s46, scale46)
+    report["muscle_scaling"] = muscle_scaling(generic, stored, s46)
+
+    if args.self_test:
+        cand, cand_scale = os_model, os.path.join(d, "opensim", "scale_set.xml")
+        print("\nself-test: OpenSim's own scaled model stands in for musculo's")
+    elif args.opensim_only:
+        cand, cand_scale = None, None
+    else:
+        cand, cand_scale = run_musculo_scale(d, args)
+        if cand is None:
+            report["failures"].append("musculo scale did not run")
+    if cand:
+        smu = summary(cand, poses)
+        ck = compare(smu, s46, "musculo's scaled model (loaded in OpenSim 4.6) vs OpenSim 4.6's",
+                     scale_a=read_scale_set(cand_scale) if cand_scale else None, scale_b=scale46)
+        if not cand_scale:
+            print("note: no scale-set file from musculo; scale factors compared through the "
+                  "model quantities only")
+        report["musculo"] = {r[0]: r[1] for r in ck.rows}
+        report["failures"] += ck.failures
+    with open(os.path.join(ov.WORK, "scale_report.json"), "w", encoding="utf-8") as f:
+        json.dump(report, f, indent=1, default=float)
+    ok = not report["failures"]
+    print(f"\nScale side by side: {'PASS' if ok else 'FAIL'}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
