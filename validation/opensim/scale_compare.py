@@ -29,7 +29,6 @@ Usage: scale_compare.py [--opensim-only] [--self-test] [--musculo-model M.osim
 
 import argparse
 import json
-import math
 import os
 import sys
 import time

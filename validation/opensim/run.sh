@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Runs the OpenSim 4.6 side-by-side checks (validation/opensim/README.md): builds musculo
+# (cargo build --release), then the IK and Scale comparisons, each running OpenSim itself on the
+# reference setups and musculo on the same setup copies under target/opensim-validation/.
+#
+# Usage:   eval "$(scripts/setup-opensim.sh)" && validation/opensim/run.sh [--opensim-only | --self-test]
+#   --opensim-only   run and evaluate OpenSim's side only (no musculo)
+#   --self-test      feed OpenSim's own outputs as musculo's (checks the comparison code)
+# Without MUSCULO_OPENSIM_PYTHON it runs scripts/setup-opensim.sh itself. Exit status 1 when a
+# tolerance fails; every check runs either way.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+if [ -z "${MUSCULO_OPENSIM_PYTHON:-}" ]; then
+    eval "$(scripts/setup-opensim.sh)"
+fi
+mode=()
+case "${1:-}" in
+    "") ;;
+    --opensim-only|--self-test) mode=("$1") ;;
+    *) echo "usage: $0 [--opensim-only | --self-test]" >&2; exit 2 ;;
+esac
+
+if [ ${#mode[@]} -eq 0 ]; then
+    cargo build --release
+fi
+
+status=0
+for check in ik_compare scale_compare; do
+    echo "== OpenSim side by side: $check ${mode[*]:-}"
+    "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
+done
+if [ $status -ne 0 ]; then
+    echo "== OpenSim side by side: FAILED (see above)"
+else
+    echo "== OpenSim side by side: passed"
+fi
+exit $status
