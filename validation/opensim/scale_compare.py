@@ -46,9 +46,9 @@ MARKER_SET = os.path.join(P, "gait2392_Scale_MarkerSet.xml")
 STATIC = os.path.join(P, "subject01_static.trc")
 STORED = os.path.join(P, "OutputReference", "subject01_simbody.osim")
 
-# How musculo is asked to scale (relative to the work folder, run there). Updated from
-# /work/notes/scale_cli.md when `musculo scale` lands.
-MUSCULO_SCALE = ["scale", "--setup", "setup.xml"]
+# How musculo is asked to scale (run in the work folder): every output the setup names goes to
+# musculo/ under its file name (scaled.osim, scaled_only.osim, scale_set.xml, static_output.mot).
+MUSCULO_SCALE = ["scale", "--setup", "setup.xml", "--output-dir", "musculo"]
 
 REL = 1e-3       # 0.1 %
 POS = 1e-3       # 1 mm
@@ -312,6 +312,25 @@ def muscle_scaling(generic, stored, scaled46):
     return out
 
 
+def static_pose(model_path, os_mot, mu_mot):
+    """Information: the marker placer's static pose (an IK frame), musculo against OpenSim."""
+    model = osim.Model(model_path)
+    _, a = ov.read_motion(os_mot, model)
+    _, b = ov.read_motion(mu_mot, model)
+    rows, out = [], {}
+    for c in model.getCoordinateSet():
+        n = c.getName()
+        if n in a and n in b:
+            scale, unit, _ = ov.coordinate_unit(c)
+            diff = abs(float(a[n][0]) - float(b[n][0])) * scale
+            rows.append([n, unit, f"{float(a[n][0]) * scale:.4f}", f"{float(b[n][0]) * scale:.4f}",
+                         f"{diff:.4f}"])
+            out[n] = diff
+    print("\nmarker placer's static pose (information):")
+    ov.print_table(["coordinate", "unit", "OpenSim", "musculo", "|diff|"], rows)
+    return out
+
+
 def run_musculo_scale(d, args):
     """Runs `musculo scale` in the work folder; returns (model path, scale-set path or None)."""
     if args.musculo_model:
@@ -381,6 +400,10 @@ def main():
                   "model quantities only")
         report["musculo"] = {r[0]: r[1] for r in ck.rows}
         report["failures"] += ck.failures
+        static = os.path.join(os.path.dirname(cand), "static_output.mot")
+        if os.path.exists(static) and not args.self_test:
+            report["static_pose"] = static_pose(os_model, os.path.join(d, "opensim",
+                                                                      "static_output.mot"), static)
     with open(os.path.join(ov.WORK, "scale_report.json"), "w", encoding="utf-8") as f:
         json.dump(report, f, indent=1, default=float)
     ok = not report["failures"]
