@@ -330,6 +330,7 @@ def compare_case(case, spec, args, report):
           f"{dq[worst]:.4f} ({worst})")
     res.update(tight_gap_median=float(np.median(gap)), tight_gap_max=float(gap.max()),
                tight_max_coordinate_change=dq, objective_opensim_tight=f_tight.tolist())
+    stationarity(problem, times, q_tight, res)
 
     stored_differences(problem, spec, times, q_os, f_os, res)
 
@@ -357,6 +358,42 @@ def compare_case(case, spec, args, report):
     for fmsg in res["failures"]:
         print(f"FAIL {case}: {fmsg}")
     return not res["failures"]
+
+
+def stationarity(problem, times, q, res):
+    """Checks the relative weight of the marker and coordinate terms of F against OpenSim.
+
+    At OpenSim's tightly converged solution dF/dq_j = 0, so for a coordinate with a task the
+    marker term's derivative must cancel the task's w_j (q_j - r_j): the ratio of the two is 1
+    with F as written above (it would be 2 sum(w_i) = 184 for gait2392 without the marker
+    term's normalisation). Frames where |q_j - r_j| < 1e-8 rad (the .mot's precision) are skipped.
+    """
+    ratios = []
+    for i, t in enumerate(times):
+        obs = problem.observed(t)
+        for k, w, r in problem.coord_targets(t):
+            if abs(q[i][k] - r) < 1e-8:
+                continue
+            terms = []
+            for sign in (1, -1):
+                qq = q[i].copy()
+                qq[k] += sign * FD_STEP
+                problem.objective(qq, t, obs)
+                terms.append(problem.last_marker_term)
+            g_markers = (terms[0] - terms[1]) / (2 * FD_STEP)
+            ratios.append(-g_markers / (w * (q[i][k] - r)))
+    if not ratios:
+        print("stationarity check: no coordinate task away from its target (nothing to check)")
+        return
+    ratios = np.array(ratios)
+    print(f"stationarity check at OpenSim's accuracy-{TIGHT_ACCURACY} solution: marker-term "
+          f"slope / coordinate-task slope, {len(ratios)} (frame, task) pairs: median "
+          f"{np.median(ratios):.4f}, range {ratios.min():.4f} to {ratios.max():.4f} (1 expected)")
+    res["stationarity"] = dict(pairs=len(ratios), median=float(np.median(ratios)),
+                               min=float(ratios.min()), max=float(ratios.max()))
+    if np.any(np.abs(ratios - 1) > 0.05):
+        res["failures"].append("the objective's marker/coordinate weighting disagrees with "
+                               "OpenSim's solution (stationarity check)")
 
 
 def compare_solutions(problem, times, q_os, f_os, q_tight, mus_mot, res, self_test=False):
