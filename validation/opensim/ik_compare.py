@@ -365,8 +365,8 @@ def stationarity(problem, times, q, res):
 
     At OpenSim's tightly converged solution dF/dq_j = 0, so for a coordinate with a task the
     marker term's derivative must cancel the task's w_j (q_j - r_j): the ratio of the two is 1
-    with F as written above (it would be 2 sum(w_i) = 184 for gait2392 without the marker
-    term's normalisation). Frames where |q_j - r_j| < 1e-8 rad (the .mot's precision) are skipped.
+    with F as written above (for sum_i w_i |e_i|^2 + sum_j w_j (q_j - r_j)^2 it would be
+    sum(w_i) = 92.1 on gait2392). Frames where |q_j - r_j| < 1e-8 rad (the .mot's precision) are skipped.
     """
     ratios = []
     for i, t in enumerate(times):
