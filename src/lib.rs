@@ -32,5 +32,9 @@ pub use dynamics::Data;
 pub use error::{Error, Result};
 pub use model::Model;
 
+/// The default full-body model, `models/musculo_fullbody.osim` (21 segments, 29 degrees of
+/// freedom, 324 muscles; built from `data/model` by `musculo model build`).
+pub const DEFAULT_MODEL_OSIM: &str = include_str!("../models/musculo_fullbody.osim");
+
 /// The built-in demonstration model, `models/demo.osim`.
 pub const DEMO_MODEL_OSIM: &str = include_str!("../models/demo.osim");

@@ -6,6 +6,8 @@
 //! * [`setup`]: OpenSim tool setup files (Inverse Dynamics, Analyze with Static Optimization).
 
 pub mod external_loads;
+pub mod ik_setup;
+pub mod scale_setup;
 pub mod setup;
 pub mod storage;
 pub mod trc;

@@ -507,6 +507,16 @@ impl Model {
             .expect("the built-in demo model is valid")
     }
 
+    /// The default full-body model (`models/musculo_fullbody.osim`, embedded in the library).
+    pub fn default_fullbody() -> Model {
+        osim::parse(
+            crate::DEFAULT_MODEL_OSIM,
+            "<default model: models/musculo_fullbody.osim>",
+            &LoadOptions::default(),
+        )
+        .expect("the built-in default model is valid")
+    }
+
     /// Number of independent coordinates n.
     pub fn nq(&self) -> usize {
         self.reduction.independent.len()

@@ -1,1 +1,291 @@
-//! (in progress)
+//! Skeleton maps: which model marker each joint (or marker) of an input skeleton stands for,
+//! with what weight, and how the input's axes turn into the model's.
+//!
+//! A map is a declarative JSON table (the built-in ones live in `data/skeletons/`):
+//!
+//! ```json
+//! {
+//!   "skeleton": "HumanML3D (SMPL, 22 joints)",
+//!   "description": "why each choice was made …",
+//!   "axes": ["z", "y", "-x"],
+//!   "targets": [
+//!     { "source": ["pelvis"], "marker": "pelvis", "weight": 1.0 },
+//!     { "source": ["LeftUpLeg", "LeftHip"], "marker": "LeftUpLeg", "weight": 1.0 }
+//!   ]
+//! }
+//! ```
+//!
+//! - `axes[k]` is the input axis (`x`, `y`, `z`, optionally negated) that becomes model axis
+//!   k: p_model = A p_input with A a signed permutation. A proper rotation keeps the motion
+//!   as it is; a reflection (det A = −1, for left-handed input frames) is only accepted with
+//!   `"mirror": true`, so that no motion is mirrored by accident.
+//! - `scale` (optional, default 1): metres per input unit, for inputs whose reader cannot
+//!   know the unit.
+//! - `source` lists the accepted names of one input joint (the first one present is used),
+//!   so one map serves the naming variants of a skeleton (CMU BVH conversions differ).
+//! - `weight` ≥ 0: the IK weight of that target.
+//!
+//! [`SkeletonMap::apply`] turns a [`Motion`] into targets in the model's frame, one column
+//! per mapped target, with the IK marker tasks that pair them with the model's markers. A
+//! motion that lacks a source joint, or a model that lacks a marker, is an error that lists
+//! every name missing.
+
+use super::Motion;
+use crate::error::Error;
+use crate::model::Model;
+use crate::solve::ik::{IkTasks, MarkerTask};
+use crate::spatial::{Mat3, Vec3};
+use serde::Deserialize;
+
+/// One input joint → one model marker.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapTarget {
+    /// Accepted names of the input joint, in order of preference.
+    pub source: Vec<String>,
+    /// The model marker it stands for.
+    pub marker: String,
+    /// IK weight (≥ 0).
+    pub weight: f64,
+    /// Why this pairing (free text, for people).
+    #[serde(default)]
+    pub note: String,
+}
+
+/// A skeleton map (see the module documentation for the file format).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkeletonMap {
+    /// What skeleton it reads.
+    pub skeleton: String,
+    #[serde(default)]
+    pub description: String,
+    /// Input axis per model axis.
+    pub axes: [String; 3],
+    /// Accept a reflection (det A = −1).
+    #[serde(default)]
+    pub mirror: bool,
+    /// Metres per input unit.
+    #[serde(default = "one")]
+    pub scale: f64,
+    pub targets: Vec<MapTarget>,
+    /// Where it was read from.
+    #[serde(skip)]
+    pub source: String,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// The built-in maps: (name, file text).
+const BUILTIN: [(&str, &str); 3] = [
+    (
+        "humanml3d",
+        include_str!("../../data/skeletons/humanml3d.json"),
+    ),
+    ("kit", include_str!("../../data/skeletons/kit.json")),
+    ("cmu_bvh", include_str!("../../data/skeletons/cmu_bvh.json")),
+];
+
+impl SkeletonMap {
+    /// Names of the built-in maps.
+    pub fn builtin_names() -> Vec<&'static str> {
+        BUILTIN.iter().map(|(n, _)| *n).collect()
+    }
+
+    /// A built-in map by name (`humanml3d`, `kit`, `cmu_bvh`).
+    pub fn builtin(name: &str) -> crate::Result<SkeletonMap> {
+        let (n, text) = BUILTIN.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+            Error::invalid(
+                "skeleton map",
+                format!(
+                    "no built-in map `{name}` (built in: {})",
+                    Self::builtin_names().join(", ")
+                ),
+            )
+        })?;
+        Self::parse(text, &format!("data/skeletons/{n}.json"))
+    }
+
+    /// Reads a map file.
+    pub fn read(path: &std::path::Path) -> crate::Result<SkeletonMap> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses map text; `source` names it in errors.
+    pub fn parse(text: &str, source: &str) -> crate::Result<SkeletonMap> {
+        let table_error = |line: usize, message: String| Error::Table {
+            table: source.to_string(),
+            line,
+            message,
+        };
+        let mut map: SkeletonMap =
+            serde_json::from_str(text).map_err(|e| table_error(e.line(), e.to_string()))?;
+        map.source = source.to_string();
+        let det = map.axes_matrix()?.determinant();
+        if det < 0.0 && !map.mirror {
+            return Err(table_error(
+                0,
+                format!(
+                    "axes {:?} mirror the motion (a left-handed input frame); say \"mirror\": \
+                     true if that is meant",
+                    map.axes
+                ),
+            ));
+        }
+        if !(map.scale > 0.0 && map.scale.is_finite()) {
+            return Err(table_error(0, format!("scale {} must be positive", map.scale)));
+        }
+        if map.targets.is_empty() {
+            return Err(table_error(0, "no targets".into()));
+        }
+        for (i, t) in map.targets.iter().enumerate() {
+            if t.source.is_empty() || t.source.iter().any(|s| s.trim().is_empty()) {
+                return Err(table_error(0, format!("target {i}: empty source name")));
+            }
+            if !(t.weight >= 0.0 && t.weight.is_finite()) {
+                return Err(table_error(
+                    0,
+                    format!("target {i} (`{}`): weight {} must be ≥ 0", t.marker, t.weight),
+                ));
+            }
+            if let Some(j) = map.targets[..i].iter().position(|o| o.marker == t.marker) {
+                return Err(table_error(
+                    0,
+                    format!("targets {j} and {i} both map onto marker `{}`", t.marker),
+                ));
+            }
+        }
+        Ok(map)
+    }
+
+    /// A: p_model = A p_input (a signed permutation).
+    pub fn axes_matrix(&self) -> crate::Result<Mat3> {
+        let mut a = Mat3::zeros();
+        let mut used = [false; 3];
+        for (k, text) in self.axes.iter().enumerate() {
+            let t = text.trim();
+            let (sign, axis) = match t.strip_prefix('-') {
+                Some(rest) => (-1.0, rest.trim()),
+                None => (1.0, t.strip_prefix('+').unwrap_or(t).trim()),
+            };
+            let i = match axis {
+                "x" | "X" => 0,
+                "y" | "Y" => 1,
+                "z" | "Z" => 2,
+                _ => {
+                    return Err(Error::Table {
+                        table: self.source.clone(),
+                        line: 0,
+                        message: format!("axes[{k}] = `{text}`: expected x, y or z, optionally -"),
+                    });
+                }
+            };
+            if used[i] {
+                return Err(Error::Table {
+                    table: self.source.clone(),
+                    line: 0,
+                    message: format!("axes {:?} use input axis {axis} twice", self.axes),
+                });
+            }
+            used[i] = true;
+            a[(k, i)] = sign;
+        }
+        Ok(a)
+    }
+
+    /// For each target, the motion column of its source joint (None where absent).
+    pub fn source_columns(&self, motion: &Motion) -> Vec<Option<usize>> {
+        self.targets
+            .iter()
+            .map(|t| t.source.iter().find_map(|s| motion.index(s)))
+            .collect()
+    }
+
+    /// Whether `motion` has every source joint of the map.
+    pub fn matches(&self, motion: &Motion) -> bool {
+        self.source_columns(motion).iter().all(Option::is_some)
+    }
+
+    /// The targets in the model's frame and metres, one column per map target (named after
+    /// its model marker), and the IK marker tasks pairing each with its model marker.
+    pub fn apply(&self, model: &Model, motion: &Motion) -> crate::Result<(Motion, IkTasks)> {
+        let columns = self.source_columns(motion);
+        let missing: Vec<String> = self
+            .targets
+            .iter()
+            .zip(&columns)
+            .filter(|(_, c)| c.is_none())
+            .map(|(t, _)| t.source.join(" or "))
+            .collect();
+        if !missing.is_empty() {
+            return Err(Error::Motion {
+                file: motion.source.clone(),
+                location: "skeleton".into(),
+                message: format!(
+                    "does not match the skeleton map {} ({}): no joint {} (the motion has: {})",
+                    self.source,
+                    self.skeleton,
+                    missing.join(", "),
+                    motion.names.join(", ")
+                ),
+            });
+        }
+        let mut markers = Vec::with_capacity(self.targets.len());
+        let mut absent = Vec::new();
+        for t in &self.targets {
+            match model.markers.iter().position(|m| m.name == t.marker) {
+                Some(i) => markers.push(i),
+                None => absent.push(t.marker.as_str()),
+            }
+        }
+        if !absent.is_empty() {
+            return Err(Error::invalid(
+                "model",
+                format!(
+                    "model `{}` has no marker {} that the skeleton map {} needs",
+                    model.name,
+                    absent.join(", "),
+                    self.source
+                ),
+            ));
+        }
+        let a = self.axes_matrix()? * self.scale;
+        let n = self.targets.len();
+        let mut positions = Vec::with_capacity(motion.n_frames() * n);
+        for f in 0..motion.n_frames() {
+            let frame = motion.frame(f);
+            for c in &columns {
+                let p: Vec3 = frame[c.expect("checked above")];
+                positions.push(a * p);
+            }
+        }
+        let out = Motion {
+            source: motion.source.clone(),
+            names: self.targets.iter().map(|t| t.marker.clone()).collect(),
+            rate_hz: motion.rate_hz,
+            time: motion.time.clone(),
+            positions,
+        };
+        let tasks = IkTasks {
+            markers: self
+                .targets
+                .iter()
+                .zip(markers)
+                .enumerate()
+                .map(|(k, (t, marker))| MarkerTask {
+                    marker,
+                    target: k,
+                    weight: t.weight,
+                })
+                .collect(),
+            coordinates: Vec::new(),
+        };
+        Ok((out, tasks))
+    }
+}

@@ -5,7 +5,9 @@
 
 pub mod external_loads;
 pub mod filter;
+pub mod ik;
 pub mod inverse_dynamics;
 pub mod kinematics;
 pub mod qp;
+pub mod scale;
 pub mod static_optimization;

@@ -1,0 +1,642 @@
+//! Inverse kinematics: per frame, the independent coordinates q that best place the model's
+//! markers on measured targets (OpenSim's Inverse Kinematics tool, and joint-centre targets
+//! from motion datasets).
+//!
+//! Per frame t the solver minimises, with coordinate bounds lo ≤ q ≤ hi,
+//!
+//!   f(q) = Σ_i w_i ‖p_i(q) − x_i(t)‖²  +  Σ_c w_c (q_c − q̂_c(t))²  +  s ‖q − q(t−1)‖²
+//!
+//! (marker tasks, coordinate tasks, and an optional temporal-smoothness weight s). Markers
+//! missing in a frame (NaN targets) drop out of that frame's sum. The method is a
+//! bound-constrained Levenberg–Marquardt (Gauss–Newton with Marquardt's diagonal damping,
+//! Moré 1978) with the projected-Newton active set of Bertsekas (1982):
+//!
+//!   J_i = ∂p_i/∂q (analytic: `dynamics::point_jacobian`, reduced coordinates),
+//!   H = Σ_i w_i J_iᵀ J_i + Σ_c w_c e_c e_cᵀ + s I,   g = Σ_i w_i J_iᵀ r_i + Σ_c w_c (q_c − q̂_c) e_c + s (q − q_prev),
+//!   free set F = { j : not (q_j = lo_j and g_j > 0) and not (q_j = hi_j and g_j < 0) },
+//!   (H_FF + μ diag H_FF) δ_F = −g_F,   q ← clamp(q + δ),
+//!
+//! accepting a step when f decreases (μ ÷ 3) and rejecting it otherwise (μ × 4). It stops
+//! when the projected gradient or the relative decrease of f falls below the tolerance. Each
+//! frame starts from the previous frame's solution (the first from `initial_q` or the
+//! model's default pose), so frames within a clip are sequential; clips run in parallel
+//! ([`solve_motions`]) and the result does not depend on the thread count.
+//!
+//! After the first frame no allocation happens: `IkWorkspace` holds every buffer.
+
+use crate::dynamics::{self, Data};
+use crate::error::Error;
+use crate::model::{CoordinateRole, Model};
+use crate::motion::Motion;
+use crate::spatial::Vec3;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+/// A model marker that follows a target column of the motion.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MarkerTask {
+    /// Index in `Model::markers`.
+    pub marker: usize,
+    /// Column of the target motion.
+    pub target: usize,
+    pub weight: f64,
+}
+
+/// An independent coordinate held near a value (OpenSim's IKCoordinateTask).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoordinateTask {
+    /// Index in q.
+    pub q: usize,
+    pub weight: f64,
+    /// The value per frame, or one value for every frame.
+    pub value: Vec<f64>,
+}
+
+/// What the solver fits.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IkTasks {
+    pub markers: Vec<MarkerTask>,
+    pub coordinates: Vec<CoordinateTask>,
+}
+
+/// Which coordinate ranges bound the solution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bounds {
+    /// Every independent coordinate stays within its range.
+    Range,
+    /// Only coordinates marked `clamped` (OpenSim's IK: the assembler restricts clamped
+    /// coordinates to their ranges).
+    Clamped,
+    /// No bounds.
+    None,
+}
+
+/// Solver settings; [`IkSettings::default`] documents the defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IkSettings {
+    /// Default [`Bounds::Range`].
+    pub bounds: Bounds,
+    /// Temporal-smoothness weight s (m² per rad², as the marker terms); default 0.
+    pub smoothness: f64,
+    /// Iterations per frame (first frame: ten times as many); default 100.
+    pub max_iterations: usize,
+    /// Relative decrease of f and projected-gradient size that end a frame; default 1e-10.
+    pub tolerance: f64,
+    /// The first frame's starting point (default: the model's default coordinates).
+    pub initial_q: Option<Vec<f64>>,
+}
+
+impl Default for IkSettings {
+    fn default() -> Self {
+        IkSettings {
+            bounds: Bounds::Range,
+            smoothness: 0.0,
+            max_iterations: 100,
+            tolerance: 1e-10,
+            initial_q: None,
+        }
+    }
+}
+
+impl IkSettings {
+    /// Checks the settings' values.
+    pub fn validate(&self) -> crate::Result<()> {
+        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
+            return Err(Error::invalid(
+                "smoothness",
+                format!("{} must be ≥ 0 and finite", self.smoothness),
+            ));
+        }
+        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
+            return Err(Error::invalid(
+                "tolerance",
+                format!("{} must lie in (0, 1)", self.tolerance),
+            ));
+        }
+        if self.max_iterations == 0 {
+            return Err(Error::invalid("max_iterations", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// The solution of a clip.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IkSolution {
+    /// Number of independent coordinates.
+    pub nq: usize,
+    /// Time of each frame (s).
+    pub time: Vec<f64>,
+    /// Frame-major coordinates: `q[f * nq + j]`.
+    pub q: Vec<f64>,
+    /// f(q) per frame.
+    pub objective: Vec<f64>,
+    /// Frame-major marker errors ‖p_i − x_i‖ (m), one per marker task; NaN where missing.
+    pub marker_error: Vec<f64>,
+    /// Per frame: root mean square of the present markers' errors (m).
+    pub rmse: Vec<f64>,
+    /// Per frame: the largest marker error (m).
+    pub max_error: Vec<f64>,
+    /// Per frame: the indices in q of the coordinates that ended at a bound.
+    pub at_limit: Vec<Vec<usize>>,
+    /// Per frame: iterations used.
+    pub iterations: Vec<u32>,
+}
+
+impl IkSolution {
+    pub fn n_frames(&self) -> usize {
+        self.time.len()
+    }
+
+    /// The coordinates of frame `f`.
+    pub fn frame(&self, f: usize) -> &[f64] {
+        &self.q[f * self.nq..(f + 1) * self.nq]
+    }
+
+    /// The frames at which at least one coordinate ended at a bound.
+    pub fn frames_at_limit(&self) -> usize {
+        self.at_limit.iter().filter(|l| !l.is_empty()).count()
+    }
+}
+
+/// Every independent coordinate's bounds under `bounds` (±∞ where unbounded).
+pub fn coordinate_bounds(model: &Model, bounds: Bounds) -> (Vec<f64>, Vec<f64>) {
+    let n = model.nq();
+    let (mut lo, mut hi) = (vec![f64::NEG_INFINITY; n], vec![f64::INFINITY; n]);
+    for (j, &c) in model.reduction.independent.iter().enumerate() {
+        let coord = &model.coordinates[c];
+        let bounded = match bounds {
+            Bounds::Range => true,
+            Bounds::Clamped => coord.clamped,
+            Bounds::None => false,
+        };
+        if bounded && coord.range[0] <= coord.range[1] {
+            lo[j] = coord.range[0];
+            hi[j] = coord.range[1];
+        }
+    }
+    (lo, hi)
+}
+
+/// Checks tasks against the model and the targets.
+fn check_tasks(model: &Model, targets: &Motion, tasks: &IkTasks) -> crate::Result<()> {
+    let frames = targets.n_frames();
+    if tasks.markers.is_empty() && tasks.coordinates.is_empty() {
+        return Err(Error::invalid("tasks", "no marker or coordinate task"));
+    }
+    for t in &tasks.markers {
+        if t.marker >= model.markers.len() || t.target >= targets.n_targets() {
+            return Err(Error::invalid(
+                "tasks",
+                format!(
+                    "marker task ({}, target {}) out of range ({} markers, {} targets)",
+                    t.marker,
+                    t.target,
+                    model.markers.len(),
+                    targets.n_targets()
+                ),
+            ));
+        }
+        if !(t.weight >= 0.0 && t.weight.is_finite()) {
+            return Err(Error::invalid(
+                "tasks",
+                format!(
+                    "marker \"{}\": weight {} must be ≥ 0 and finite",
+                    model.markers[t.marker].name, t.weight
+                ),
+            ));
+        }
+    }
+    for t in &tasks.coordinates {
+        if t.q >= model.nq() {
+            return Err(Error::invalid(
+                "tasks",
+                format!("coordinate task q[{}] out of range (nq = {})", t.q, model.nq()),
+            ));
+        }
+        if !(t.weight >= 0.0 && t.weight.is_finite()) {
+            return Err(Error::invalid(
+                "tasks",
+                format!("coordinate task q[{}]: weight {} must be ≥ 0", t.q, t.weight),
+            ));
+        }
+        if t.value.len() != 1 && t.value.len() != frames {
+            return Err(Error::invalid(
+                "tasks",
+                format!(
+                    "coordinate task q[{}]: {} values for {frames} frames",
+                    t.q,
+                    t.value.len()
+                ),
+            ));
+        }
+        if t.value.iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid(
+                "tasks",
+                format!("coordinate task q[{}]: a value is not finite", t.q),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The buffers of one solve, reused frame after frame.
+pub struct IkWorkspace {
+    data: Data,
+    jac: DMatrix<f64>,
+    hessian: DMatrix<f64>,
+    chol: DMatrix<f64>,
+    gradient: DVector<f64>,
+    step: DVector<f64>,
+    q: Vec<f64>,
+    q_trial: Vec<f64>,
+    q_prev: Vec<f64>,
+    free: Vec<bool>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+}
+
+impl IkWorkspace {
+    pub fn new(model: &Model, bounds: Bounds) -> IkWorkspace {
+        let n = model.nq();
+        let (lo, hi) = coordinate_bounds(model, bounds);
+        IkWorkspace {
+            data: Data::new(model),
+            jac: DMatrix::zeros(3, n),
+            hessian: DMatrix::zeros(n, n),
+            chol: DMatrix::zeros(n, n),
+            gradient: DVector::zeros(n),
+            step: DVector::zeros(n),
+            q: vec![0.0; n],
+            q_trial: vec![0.0; n],
+            q_prev: vec![0.0; n],
+            free: vec![true; n],
+            lo,
+            hi,
+        }
+    }
+}
+
+/// One frame's inputs.
+struct Frame<'a> {
+    targets: &'a [Vec3],
+    index: usize,
+    smoothness: f64,
+}
+
+/// f(q) for one frame; leaves forward kinematics at q in `data`.
+fn objective(
+    model: &Model,
+    data: &mut Data,
+    tasks: &IkTasks,
+    frame: &Frame,
+    q: &[f64],
+    q_prev: &[f64],
+) -> crate::Result<f64> {
+    dynamics::forward_kinematics(model, data, q)?;
+    let mut f = 0.0;
+    for t in &tasks.markers {
+        let x = frame.targets[t.target];
+        if x.x.is_nan() {
+            continue;
+        }
+        let m = &model.markers[t.marker];
+        f += t.weight * (data.point_position(m.body, &m.location_in_body) - x).norm_squared();
+    }
+    for t in &tasks.coordinates {
+        let v = t.value[if t.value.len() == 1 { 0 } else { frame.index }];
+        f += t.weight * (q[t.q] - v).powi(2);
+    }
+    if frame.smoothness > 0.0 {
+        f += frame.smoothness
+            * q.iter()
+                .zip(q_prev)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>();
+    }
+    Ok(f)
+}
+
+/// H and g (of f/2) at the q whose forward kinematics `ws.data` holds.
+fn normal_equations(
+    model: &Model,
+    ws: &mut IkWorkspace,
+    tasks: &IkTasks,
+    frame: &Frame,
+) -> crate::Result<()> {
+    let n = model.nq();
+    ws.hessian.fill(0.0);
+    ws.gradient.fill(0.0);
+    for t in &tasks.markers {
+        let x = frame.targets[t.target];
+        if x.x.is_nan() || t.weight == 0.0 {
+            continue;
+        }
+        let m = &model.markers[t.marker];
+        dynamics::point_jacobian(model, &ws.data, m.body, &m.location_in_body, &mut ws.jac)?;
+        let r = ws.data.point_position(m.body, &m.location_in_body) - x;
+        // H += w Jᵀ J (upper triangle; columns of zeros skipped),  g += w Jᵀ r
+        for a in 0..n {
+            let ja = [ws.jac[(0, a)], ws.jac[(1, a)], ws.jac[(2, a)]];
+            if ja == [0.0; 3] {
+                continue;
+            }
+            ws.gradient[a] += t.weight * (ja[0] * r.x + ja[1] * r.y + ja[2] * r.z);
+            for b in a..n {
+                let jb = [ws.jac[(0, b)], ws.jac[(1, b)], ws.jac[(2, b)]];
+                ws.hessian[(a, b)] += t.weight * (ja[0] * jb[0] + ja[1] * jb[1] + ja[2] * jb[2]);
+            }
+        }
+    }
+    for t in &tasks.coordinates {
+        let v = t.value[if t.value.len() == 1 { 0 } else { frame.index }];
+        ws.hessian[(t.q, t.q)] += t.weight;
+        ws.gradient[t.q] += t.weight * (ws.q[t.q] - v);
+    }
+    if frame.smoothness > 0.0 {
+        for j in 0..n {
+            ws.hessian[(j, j)] += frame.smoothness;
+            ws.gradient[j] += frame.smoothness * (ws.q[j] - ws.q_prev[j]);
+        }
+    }
+    for a in 0..n {
+        for b in 0..a {
+            ws.hessian[(a, b)] = ws.hessian[(b, a)];
+        }
+    }
+    Ok(())
+}
+
+/// Solves (H_FF + μ diag H_FF + ε I) δ_F = −g_F by Cholesky (L Lᵀ, L in `chol`), δ = 0 off
+/// the free set; false when the damped matrix is not positive definite.
+fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
+    let n = ws.gradient.len();
+    let (h, l, free) = (&ws.hessian, &mut ws.chol, &ws.free);
+    // L_ik = (A_ik − Σ_{p<k} L_ip L_kp) / L_kk,  L_ii = √(A_ii − Σ_{p<i} L_ip²)
+    for i in 0..n {
+        if !free[i] {
+            continue;
+        }
+        for k in 0..=i {
+            if !free[k] {
+                continue;
+            }
+            let mut s = if k == i {
+                h[(i, i)] * (1.0 + mu) + 1e-12 * (1.0 + h[(i, i)])
+            } else {
+                h[(i, k)]
+            };
+            for p in 0..k {
+                if free[p] {
+                    s -= l[(i, p)] * l[(k, p)];
+                }
+            }
+            if k == i {
+                if !(s > 0.0 && s.is_finite()) {
+                    return false;
+                }
+                l[(i, i)] = s.sqrt();
+            } else {
+                l[(i, k)] = s / l[(k, k)];
+            }
+        }
+    }
+    // L y = −g,  Lᵀ δ = y (δ overwrites y in `step`)
+    for i in 0..n {
+        if !free[i] {
+            ws.step[i] = 0.0;
+            continue;
+        }
+        let mut s = -ws.gradient[i];
+        for p in 0..i {
+            if free[p] {
+                s -= l[(i, p)] * ws.step[p];
+            }
+        }
+        ws.step[i] = s / l[(i, i)];
+    }
+    for i in (0..n).rev() {
+        if !free[i] {
+            continue;
+        }
+        let mut s = ws.step[i];
+        for p in i + 1..n {
+            if free[p] {
+                s -= l[(p, i)] * ws.step[p];
+            }
+        }
+        ws.step[i] = s / l[(i, i)];
+    }
+    true
+}
+
+/// The free set of the projected-Newton method: a coordinate at a bound whose gradient
+/// pushes it further out is held; returns the projected gradient's largest component.
+fn update_free_set(ws: &mut IkWorkspace) -> f64 {
+    let mut pg = 0.0f64;
+    for j in 0..ws.q.len() {
+        let g = ws.gradient[j];
+        let at_lo = ws.q[j] <= ws.lo[j] && g > 0.0;
+        let at_hi = ws.q[j] >= ws.hi[j] && g < 0.0;
+        ws.free[j] = !(at_lo || at_hi);
+        if ws.free[j] {
+            pg = pg.max(g.abs());
+        }
+    }
+    pg
+}
+
+/// Solves one frame from `ws.q` (already within bounds); returns (f, iterations).
+fn solve_frame(
+    model: &Model,
+    ws: &mut IkWorkspace,
+    tasks: &IkTasks,
+    frame: &Frame,
+    max_iterations: usize,
+    tolerance: f64,
+) -> crate::Result<(f64, u32)> {
+    let mut f = objective(model, &mut ws.data, tasks, frame, &ws.q, &ws.q_prev)?;
+    let mut mu = 1e-3;
+    let mut iterations = 0u32;
+    normal_equations(model, ws, tasks, frame)?;
+    while (iterations as usize) < max_iterations {
+        iterations += 1;
+        // Scale for the gradient test: the objective's size, at least a (1 mm)² error.
+        let pg = update_free_set(ws);
+        if pg <= tolerance * (f + 1e-6).sqrt() * 1e-2 {
+            break;
+        }
+        let mut accepted = false;
+        while mu < 1e12 {
+            if damped_step(ws, mu) {
+                for j in 0..ws.q.len() {
+                    ws.q_trial[j] = (ws.q[j] + ws.step[j]).clamp(ws.lo[j], ws.hi[j]);
+                }
+                let f_trial =
+                    objective(model, &mut ws.data, tasks, frame, &ws.q_trial, &ws.q_prev)?;
+                if f_trial < f {
+                    std::mem::swap(&mut ws.q, &mut ws.q_trial);
+                    let decrease = f - f_trial;
+                    f = f_trial;
+                    mu = (mu / 3.0).max(1e-12);
+                    accepted = true;
+                    if decrease <= tolerance * f.max(1e-12) {
+                        return Ok((f, iterations));
+                    }
+                    break;
+                }
+            }
+            mu *= 4.0;
+        }
+        if !accepted {
+            break;
+        }
+        normal_equations(model, ws, tasks, frame)?;
+    }
+    // Leave forward kinematics at the solution.
+    dynamics::forward_kinematics(model, &mut ws.data, &ws.q)?;
+    Ok((f, iterations))
+}
+
+/// Inverse kinematics of one clip. `targets` must be in the model's frame and metres (see
+/// `motion::skeleton`); `progress` is called with the number of frames done.
+pub fn solve_motion(
+    model: &Model,
+    targets: &Motion,
+    tasks: &IkTasks,
+    settings: &IkSettings,
+    progress: &dyn Fn(usize),
+) -> crate::Result<IkSolution> {
+    settings.validate()?;
+    targets.validate()?;
+    check_tasks(model, targets, tasks)?;
+    let n = model.nq();
+    let mut ws = IkWorkspace::new(model, settings.bounds);
+    let start = match &settings.initial_q {
+        Some(q) if q.len() == n && q.iter().all(|v| v.is_finite()) => q.clone(),
+        Some(q) => {
+            return Err(Error::invalid(
+                "initial_q",
+                format!("needs {n} finite values, has {}", q.len()),
+            ));
+        }
+        None => model.default_q(),
+    };
+    for j in 0..n {
+        ws.q[j] = start[j].clamp(ws.lo[j], ws.hi[j]);
+    }
+    ws.q_prev.copy_from_slice(&ws.q);
+    let frames = targets.n_frames();
+    let nm = tasks.markers.len();
+    let mut out = IkSolution {
+        nq: n,
+        time: targets.time.clone(),
+        q: Vec::with_capacity(frames * n),
+        objective: Vec::with_capacity(frames),
+        marker_error: Vec::with_capacity(frames * nm),
+        rmse: Vec::with_capacity(frames),
+        max_error: Vec::with_capacity(frames),
+        at_limit: Vec::with_capacity(frames),
+        iterations: Vec::with_capacity(frames),
+    };
+    for f in 0..frames {
+        let frame = Frame {
+            targets: targets.frame(f),
+            index: f,
+            // The first frame has no predecessor to stay close to.
+            smoothness: if f == 0 { 0.0 } else { settings.smoothness },
+        };
+        let max_iterations = if f == 0 {
+            settings.max_iterations * 10
+        } else {
+            settings.max_iterations
+        };
+        let (value, iterations) =
+            solve_frame(model, &mut ws, tasks, &frame, max_iterations, settings.tolerance)?;
+        out.q.extend_from_slice(&ws.q);
+        out.objective.push(value);
+        out.iterations.push(iterations);
+        let (mut sum, mut count, mut worst) = (0.0, 0usize, 0.0f64);
+        for t in &tasks.markers {
+            let x = frame.targets[t.target];
+            if x.x.is_nan() {
+                out.marker_error.push(f64::NAN);
+                continue;
+            }
+            let m = &model.markers[t.marker];
+            let e = (ws.data.point_position(m.body, &m.location_in_body) - x).norm();
+            out.marker_error.push(e);
+            sum += e * e;
+            count += 1;
+            worst = worst.max(e);
+        }
+        out.rmse.push(if count > 0 {
+            (sum / count as f64).sqrt()
+        } else {
+            f64::NAN
+        });
+        out.max_error.push(if count > 0 { worst } else { f64::NAN });
+        out.at_limit.push(
+            (0..n)
+                .filter(|&j| ws.q[j] <= ws.lo[j] || ws.q[j] >= ws.hi[j])
+                .collect(),
+        );
+        ws.q_prev.copy_from_slice(&ws.q);
+        progress(f + 1);
+    }
+    Ok(out)
+}
+
+/// Inverse kinematics of several clips in parallel (one clip per task, frames within a clip
+/// sequential): the same result whatever the thread count. `progress` receives the total
+/// number of frames done across clips.
+pub fn solve_motions(
+    model: &Model,
+    clips: &[(Motion, IkTasks)],
+    settings: &IkSettings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Vec<crate::Result<IkSolution>> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let done = AtomicUsize::new(0);
+    clips
+        .par_iter()
+        .map(|(motion, tasks)| {
+            let reported = std::cell::Cell::new(0usize);
+            solve_motion(model, motion, tasks, settings, &|k| {
+                let new = k - reported.replace(k);
+                progress(done.fetch_add(new, Ordering::Relaxed) + new);
+            })
+        })
+        .collect()
+}
+
+/// The marker tasks that pair each model marker with the motion target of the same name,
+/// all with weight 1 (OpenSim marker sets used as they are). Targets without a model marker
+/// are left out.
+pub fn tasks_by_name(model: &Model, targets: &Motion) -> IkTasks {
+    let markers = model
+        .markers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| {
+            targets.index(&m.name).map(|t| MarkerTask {
+                marker: i,
+                target: t,
+                weight: 1.0,
+            })
+        })
+        .collect();
+    IkTasks {
+        markers,
+        coordinates: Vec::new(),
+    }
+}
+
+/// Whether a model coordinate (by name) is independent, and its index in q.
+pub fn independent_index(model: &Model, name: &str) -> Option<usize> {
+    let c = model.coordinate_index(name)?;
+    match model.coordinates[c].role {
+        CoordinateRole::Independent(j) => Some(j),
+        _ => None,
+    }
+}
