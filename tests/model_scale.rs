@@ -1,4 +1,4 @@
-//! `model::scale` against what uniform scaling must do to a model: total mass and segment
+//! `solve::scale::scale_uniform` against what uniform scaling must do to a model: total mass and segment
 //! masses × k, mass centres × s, inertias × k s², gravity torques on rotational coordinates
 //! × k s (forces on translational ones × k), musculotendon lengths × s, and each muscle's
 //! optimal fiber and tendon slack lengths in the same ratio to its length as before.
@@ -6,9 +6,9 @@
 mod common;
 
 use common::reference_file;
-use musculo::model::scale::{ScaleFactors, scale_osim};
 use musculo::model::{LoadOptions, Model, MotionType};
 use musculo::muscle::path::{PathData, PathSet, compute_paths};
+use musculo::solve::scale::{ScaleFactors, scale_uniform};
 use musculo::{Data, dynamics};
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -38,7 +38,7 @@ fn muscle_parameter(model: &Model, name: &str, tag: &str) -> f64 {
 fn check_scaling(xml: &str, source: &str, options: &LoadOptions, s: f64, k: f64) {
     let model = Model::from_osim_str_with(xml, source, options).unwrap();
     let factors = ScaleFactors { length: s, mass: k };
-    let scaled_xml = scale_osim(xml, source, &model, factors).unwrap();
+    let scaled_xml = scale_uniform(xml, source, &model, factors).unwrap();
     let scaled = Model::from_osim_str_with(&scaled_xml, source, options).unwrap();
     assert!(close(scaled.total_mass(), k * model.total_mass(), 1e-12));
     for (a, b) in model.bodies.iter().zip(&scaled.bodies) {
@@ -147,7 +147,7 @@ fn bad_factors_are_errors() {
     let model = Model::from_osim_str(&xml, "demo").unwrap();
     for (s, k) in [(0.0, 1.0), (1.0, -2.0), (f64::NAN, 1.0)] {
         let f = ScaleFactors { length: s, mass: k };
-        assert!(scale_osim(&xml, "demo", &model, f).is_err());
+        assert!(scale_uniform(&xml, "demo", &model, f).is_err());
     }
     assert!(ScaleFactors::for_subject(&model, 1.75, 0.0, 1.7).is_err());
 }

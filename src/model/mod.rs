@@ -19,7 +19,6 @@ pub mod mjcf;
 pub mod natural_spline;
 mod osim;
 pub(crate) mod reduction;
-pub mod scale;
 
 pub use function::{Arity, Function};
 pub use osim::{ForceSetFiles, LoadOptions};

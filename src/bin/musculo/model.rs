@@ -88,13 +88,13 @@ pub fn run(command: &Command) -> Result<(), musculo::Error> {
                     });
                 }
             };
-            let factors = musculo::model::scale::ScaleFactors::for_subject(
+            let factors = musculo::solve::scale::ScaleFactors::for_subject(
                 &model,
                 model_height,
                 args.mass,
                 args.height,
             )?;
-            let mut scaled = musculo::model::scale::scale_osim(&xml, &source, &model, factors)?;
+            let mut scaled = musculo::solve::scale::scale_uniform(&xml, &source, &model, factors)?;
             // a musculo-built model states its subject: keep that true
             if let Some(at) = scaled.find("reference subject ") {
                 if let Some(end) = scaled[at..].find(" m)").map(|e| at + e + 2) {
