@@ -6,6 +6,7 @@ mod id;
 mod inspect;
 mod model;
 mod muscles;
+mod scale;
 mod so;
 mod tool;
 
@@ -41,6 +42,9 @@ enum Command {
     /// and reserve/residual actuator controls of least Σ xᵖ that produce the inverse-dynamics
     /// generalized forces; writes PREFIX_activation.sto and PREFIX_force.sto.
     So(so::Args),
+    /// OpenSim's Scale tool from a setup file: scale factors from marker-pair measurements
+    /// and manual factors, mass scaling, marker placement on a static trial.
+    Scale(scale::Args),
     /// The default full-body model: build it from its parameter tables (data/model).
     #[command(subcommand)]
     Model(model::Command),
@@ -59,6 +63,7 @@ fn main() -> ExitCode {
         Command::Muscles(args) => muscles::run(&args),
         Command::Id(args) => id::run(&args),
         Command::So(args) => so::run(&args),
+        Command::Scale(args) => scale::run(&args),
         Command::Model(command) => model::run(&command),
         Command::Check(args) => match check::run(&args) {
             Ok(true) => Ok(()),

@@ -1,0 +1,169 @@
+//! `musculo scale --setup Scale.xml`: OpenSim's Scale tool (generic model and marker set,
+//! measured and manual scale factors, mass scaling, marker placement on a static trial).
+
+use musculo::io::scale_setup::ScaleSetup;
+use musculo::solve::scale::tool::{self, OutputKind, ToolOptions};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// OpenSim ScaleTool setup file (.xml, OpenSim 3 or 4). Its file names are relative to
+    /// its folder.
+    #[arg(long)]
+    setup: PathBuf,
+    /// Generic model to scale, instead of the setup's GenericModelMaker model_file.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// The final model (after marker placement, or after scaling when placement does not
+    /// run) is written here instead of to the setup's output_model_file.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Write every output the setup names into this folder under its file name, instead of
+    /// relative to the setup's folder.
+    #[arg(long)]
+    output_dir: Option<PathBuf>,
+    /// Run GenericModelMaker and ModelScaler only (no marker placement).
+    #[arg(long)]
+    skip_placement: bool,
+}
+
+/// Writes `text` to `path` through a temporary file beside it, renamed into place.
+fn write_atomically(path: &Path, text: &str) -> Result<(), musculo::Error> {
+    crate::tool::create_parent_dir(path)?;
+    let io = |source| musculo::Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let name = path.file_name().ok_or_else(|| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a file path",
+        ))
+    })?;
+    let tmp = path.with_file_name(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    std::fs::write(&tmp, text).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}
+
+fn kind_name(kind: OutputKind) -> &'static str {
+    match kind {
+        OutputKind::ScaledModel => "scaled model",
+        OutputKind::ScaleSet => "scale factors",
+        OutputKind::PlacedModel => "model with placed markers",
+        OutputKind::MarkerSet => "marker set",
+        OutputKind::StaticPose => "static pose",
+    }
+}
+
+pub fn run(args: &Args) -> Result<(), musculo::Error> {
+    let setup = ScaleSetup::read(&args.setup)?;
+    let options = ToolOptions {
+        model_file: args.model.clone(),
+        skip_placement: args.skip_placement,
+        ..ToolOptions::default()
+    };
+    let result = tool::run(&setup, &options)?;
+    for w in &result.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "{}: generic model {} ({:.3} kg)",
+        if result.name.is_empty() { "scale" } else { &result.name },
+        result.generic_file.display(),
+        result.generic.total_mass()
+    );
+    for m in &result.measurements {
+        println!("measurement {:<12} factor {:.6}", m.name, m.factor);
+        for p in &m.pairs {
+            println!(
+                "    {} – {}: model {:.2} mm, experimental {:.2} mm ({} of {} frames)",
+                p.markers[0],
+                p.markers[1],
+                1e3 * p.model,
+                1e3 * p.experimental,
+                p.frames_used,
+                p.frames_in_window
+            );
+        }
+    }
+    if let Some(set) = &result.scale_set {
+        println!(
+            "{:<16} {:>9} {:>9} {:>9} {:>10} {:>10}",
+            "body", "x", "y", "z", "mass (kg)", "scaled"
+        );
+        for s in &set.scales {
+            let before = result.generic.body_index(&s.body).map(|b| result.generic.bodies[b].mass);
+            let after = (result.scaled.model.body_index(&s.body))
+                .map(|b| result.scaled.model.bodies[b].mass);
+            println!(
+                "{:<16} {:>9.6} {:>9.6} {:>9.6} {:>10.4} {:>10.4}",
+                s.body,
+                s.factors.x,
+                s.factors.y,
+                s.factors.z,
+                before.unwrap_or(f64::NAN),
+                after.unwrap_or(f64::NAN)
+            );
+        }
+        println!(
+            "total mass {:.4} kg → {:.4} kg",
+            result.generic.total_mass(),
+            result.scaled.total_mass
+        );
+    }
+    if let Some(p) = &result.placement {
+        let (worst, _) = (p.marker_errors.iter())
+            .filter(|e| e.1.is_finite())
+            .fold(("", 0.0), |a, e| if e.1 > a.1 { (&e.0, e.1) } else { a });
+        let max_move = p.moved.iter().map(|m| m.1).fold(0.0, f64::max);
+        println!(
+            "marker placement at t = {} s: IK marker error RMS {:.2} mm, max {:.2} mm ({worst}); \
+             {} markers moved (at most {:.2} mm){}",
+            p.time,
+            1e3 * p.rmse,
+            1e3 * p.max_error,
+            p.moved.len(),
+            1e3 * max_move,
+            if p.removed.is_empty() {
+                String::new()
+            } else {
+                format!(", {} removed (not in the trial)", p.removed.len())
+            }
+        );
+    }
+    let final_kind = if result.placement.is_some() {
+        OutputKind::PlacedModel
+    } else {
+        OutputKind::ScaledModel
+    };
+    let mut final_written = false;
+    for out in &result.outputs {
+        let mut path = match &args.output_dir {
+            Some(dir) => dir.join(out.path.file_name().unwrap_or(out.path.as_os_str())),
+            None => out.path.clone(),
+        };
+        if out.kind == final_kind {
+            if let Some(o) = &args.output {
+                path = o.clone();
+            }
+            final_written = true;
+        }
+        write_atomically(&path, &out.text)?;
+        println!("wrote {} ({})", path.display(), kind_name(out.kind));
+    }
+    if let (Some(o), false) = (&args.output, final_written) {
+        write_atomically(o, result.final_model().0)?;
+        println!("wrote {} ({})", o.display(), kind_name(final_kind));
+    }
+    if result.outputs.is_empty() && args.output.is_none() {
+        eprintln!("note: the setup names no output file and no -o was given: nothing written");
+    }
+    Ok(())
+}
