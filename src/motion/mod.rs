@@ -23,6 +23,141 @@ pub mod skeleton;
 use crate::error::Error;
 use crate::io::trc::Trc;
 use crate::spatial::Vec3;
+use std::path::Path;
+
+/// The motion file formats [`read`] knows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// HumanML3D `new_joints` (T×22×3) or `new_joint_vecs` (T×263) `.npy`, told apart by
+    /// shape.
+    HumanMl3d,
+    /// KIT-ML joints (T×21×3) or features (T×251) `.npy`.
+    Kit,
+    Bvh,
+    C3d,
+    Trc,
+}
+
+impl Format {
+    /// Parses `humanml3d`, `kit`, `bvh`, `c3d`, `trc`.
+    pub fn parse(text: &str) -> crate::Result<Format> {
+        Ok(match text.to_ascii_lowercase().as_str() {
+            "humanml3d" => Format::HumanMl3d,
+            "kit" | "kit-ml" | "kitml" => Format::Kit,
+            "bvh" => Format::Bvh,
+            "c3d" => Format::C3d,
+            "trc" => Format::Trc,
+            _ => {
+                return Err(Error::invalid(
+                    "format",
+                    format!("`{text}`: expected humanml3d, kit, bvh, c3d or trc"),
+                ));
+            }
+        })
+    }
+
+    /// The format of a file from its extension and, for `.npy`, its array shape (22 joints
+    /// or 263 features: HumanML3D; 21 joints or 251 features: KIT-ML).
+    pub fn detect(path: &Path) -> crate::Result<Format> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "bvh" => Ok(Format::Bvh),
+            "c3d" => Ok(Format::C3d),
+            "trc" => Ok(Format::Trc),
+            "npy" => {
+                let array = npy::read_array_as_f64(path)?;
+                match array.shape() {
+                    [_, 22, 3] | [_, humanml3d::N_FEATURES] => Ok(Format::HumanMl3d),
+                    [_, 21, 3] | [_, kit::N_FEATURES] => Ok(Format::Kit),
+                    shape => Err(Error::Motion {
+                        file: path.display().to_string(),
+                        location: "array shape".into(),
+                        message: format!(
+                            "{}: neither HumanML3D (T×22×3, T×{}) nor KIT-ML (T×21×3, T×{});                              give --format",
+                            npy::shape_text(shape),
+                            humanml3d::N_FEATURES,
+                            kit::N_FEATURES
+                        ),
+                    }),
+                }
+            }
+            _ => Err(Error::Motion {
+                file: path.display().to_string(),
+                location: "file name".into(),
+                message: "unknown motion file type (expected .npy, .bvh, .c3d or .trc)".into(),
+            }),
+        }
+    }
+
+    /// The built-in skeleton map of the format (None: markers matched by name).
+    pub fn default_map(self) -> Option<&'static str> {
+        match self {
+            Format::HumanMl3d => Some("humanml3d"),
+            Format::Kit => Some("kit"),
+            Format::Bvh => Some("cmu_bvh"),
+            Format::C3d | Format::Trc => None,
+        }
+    }
+}
+
+/// Options of [`read`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReadOptions {
+    /// The length unit of BVH and KIT files (default: each reader's; see [`bvh`], [`kit`]).
+    pub length_unit: Option<LengthUnit>,
+}
+
+/// Reads any supported motion file as a [`Motion`] (format given or detected). C3D markers
+/// come rotated from the z-up lab frame into OpenSim's y-up frame ([`c3d::lab_to_opensim`]),
+/// as OpenSim users rotate them; TRC files are in their model's frame already.
+pub fn read(path: &Path, format: Option<Format>, options: &ReadOptions) -> crate::Result<Motion> {
+    let format = match format {
+        Some(f) => f,
+        None => Format::detect(path)?,
+    };
+    match format {
+        Format::HumanMl3d => {
+            let mut o = humanml3d::Options::default();
+            if let Some(u) = options.length_unit {
+                o.unit = u;
+            }
+            humanml3d::read(path, &o)
+        }
+        Format::Kit => {
+            let o = kit::Options {
+                unit: options.length_unit,
+                ..kit::Options::default()
+            };
+            kit::read(path, &o)
+        }
+        Format::Bvh => {
+            let mut o = bvh::BvhOptions::default();
+            if let Some(u) = options.length_unit {
+                o.unit = u;
+            }
+            bvh::read(path, &o)
+        }
+        Format::C3d => {
+            let file = c3d::C3d::read(path)?;
+            let mut markers = file.markers.ok_or_else(|| Error::Motion {
+                file: path.display().to_string(),
+                location: "POINT".into(),
+                message: "the file has no marker points".into(),
+            })?;
+            for p in &mut markers.positions {
+                *p = c3d::lab_to_opensim(p);
+            }
+            Ok(markers)
+        }
+        Format::Trc => {
+            let trc = Trc::read(path)?;
+            Motion::from_trc(&trc, &path.display().to_string())
+        }
+    }
+}
 
 /// Named 3-D targets over time.
 #[derive(Clone, Debug, PartialEq)]

@@ -24,6 +24,10 @@
 //! - `source` lists the accepted names of one input joint (the first one present is used),
 //!   so one map serves the naming variants of a skeleton (CMU BVH conversions differ).
 //! - `weight` ≥ 0: the IK weight of that target.
+//! - `segments` (optional): `{ "name", "bodies": [model bodies], "pairs": [[a, b], …] }`,
+//!   where a and b are target (model marker) names: scaling a model to a clip multiplies
+//!   the bodies' dimensions by the median over frames of ‖x_a − x_b‖ divided by the same
+//!   distance on the model (see `solve::scale_from_clip`).
 //!
 //! [`SkeletonMap::apply`] turns a [`Motion`] into targets in the model's frame, one column
 //! per mapped target, with the IK marker tasks that pair them with the model's markers. A
@@ -52,6 +56,19 @@ pub struct MapTarget {
     pub note: String,
 }
 
+/// A group of model bodies scaled together from target distances (for scaling a model to a
+/// clip, [`crate::solve::scale_from_clip`]).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSegment {
+    /// For messages (`right thigh`).
+    pub name: String,
+    /// Model bodies scaled by the segment's factor on all three axes.
+    pub bodies: Vec<String>,
+    /// Pairs of map targets (model marker names) whose distance measures the segment.
+    pub pairs: Vec<[String; 2]>,
+}
+
 /// A skeleton map (see the module documentation for the file format).
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -69,6 +86,9 @@ pub struct SkeletonMap {
     #[serde(default = "one")]
     pub scale: f64,
     pub targets: Vec<MapTarget>,
+    /// Segments for scaling the model to a clip (optional).
+    #[serde(default)]
+    pub segments: Vec<MapSegment>,
     /// Where it was read from.
     #[serde(skip)]
     pub source: String,
@@ -158,6 +178,22 @@ impl SkeletonMap {
                 return Err(table_error(
                     0,
                     format!("targets {j} and {i} both map onto marker `{}`", t.marker),
+                ));
+            }
+        }
+        for seg in &map.segments {
+            for name in seg.pairs.iter().flatten() {
+                if !map.targets.iter().any(|t| &t.marker == name) {
+                    return Err(table_error(
+                        0,
+                        format!("segment `{}`: `{name}` is not a target marker of the map", seg.name),
+                    ));
+                }
+            }
+            if seg.bodies.is_empty() || seg.pairs.is_empty() {
+                return Err(table_error(
+                    0,
+                    format!("segment `{}` needs bodies and pairs", seg.name),
                 ));
             }
         }

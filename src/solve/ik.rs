@@ -84,6 +84,11 @@ pub struct IkSettings {
     pub tolerance: f64,
     /// The first frame's starting point (default: the model's default coordinates).
     pub initial_q: Option<Vec<f64>>,
+    /// Divide the marker weights by their sum over the markers present in each frame, as
+    /// OpenSim's IK does (its marker goal is a weighted mean, its coordinate goals are not;
+    /// the two choices have different minimisers when coordinate tasks exist). Default
+    /// false.
+    pub normalize_marker_weights: bool,
 }
 
 impl Default for IkSettings {
@@ -94,6 +99,7 @@ impl Default for IkSettings {
             max_iterations: 100,
             tolerance: 1e-10,
             initial_q: None,
+            normalize_marker_weights: false,
         }
     }
 }
@@ -282,6 +288,8 @@ struct Frame<'a> {
     targets: &'a [Vec3],
     index: usize,
     smoothness: f64,
+    /// Factor on every marker weight this frame (1, or 1/Σ w of the markers present).
+    marker_scale: f64,
 }
 
 /// f(q) for one frame; leaves forward kinematics at q in `data`.
@@ -301,7 +309,9 @@ fn objective(
             continue;
         }
         let m = &model.markers[t.marker];
-        f += t.weight * (data.point_position(m.body, &m.location_in_body) - x).norm_squared();
+        f += frame.marker_scale
+            * t.weight
+            * (data.point_position(m.body, &m.location_in_body) - x).norm_squared();
     }
     for t in &tasks.coordinates {
         let v = t.value[if t.value.len() == 1 { 0 } else { frame.index }];
@@ -335,16 +345,17 @@ fn normal_equations(
         let m = &model.markers[t.marker];
         dynamics::point_jacobian(model, &ws.data, m.body, &m.location_in_body, &mut ws.jac)?;
         let r = ws.data.point_position(m.body, &m.location_in_body) - x;
+        let w = frame.marker_scale * t.weight;
         // H += w Jᵀ J (upper triangle; columns of zeros skipped),  g += w Jᵀ r
         for a in 0..n {
             let ja = [ws.jac[(0, a)], ws.jac[(1, a)], ws.jac[(2, a)]];
             if ja == [0.0; 3] {
                 continue;
             }
-            ws.gradient[a] += t.weight * (ja[0] * r.x + ja[1] * r.y + ja[2] * r.z);
+            ws.gradient[a] += w * (ja[0] * r.x + ja[1] * r.y + ja[2] * r.z);
             for b in a..n {
                 let jb = [ws.jac[(0, b)], ws.jac[(1, b)], ws.jac[(2, b)]];
-                ws.hessian[(a, b)] += t.weight * (ja[0] * jb[0] + ja[1] * jb[1] + ja[2] * jb[2]);
+                ws.hessian[(a, b)] += w * (ja[0] * jb[0] + ja[1] * jb[1] + ja[2] * jb[2]);
             }
         }
     }
@@ -540,11 +551,23 @@ pub fn solve_motion(
         iterations: Vec::with_capacity(frames),
     };
     for f in 0..frames {
+        let frame_targets = targets.frame(f);
+        let present_weight: f64 = tasks
+            .markers
+            .iter()
+            .filter(|t| !frame_targets[t.target].x.is_nan())
+            .map(|t| t.weight)
+            .sum();
         let frame = Frame {
-            targets: targets.frame(f),
+            targets: frame_targets,
             index: f,
             // The first frame has no predecessor to stay close to.
             smoothness: if f == 0 { 0.0 } else { settings.smoothness },
+            marker_scale: if settings.normalize_marker_weights && present_weight > 0.0 {
+                1.0 / present_weight
+            } else {
+                1.0
+            },
         };
         let max_iterations = if f == 0 {
             settings.max_iterations * 10

@@ -6,8 +6,10 @@
 pub mod external_loads;
 pub mod filter;
 pub mod ik;
+pub mod ik_tool;
 pub mod inverse_dynamics;
 pub mod kinematics;
 pub mod qp;
+pub mod scale_from_clip;
 pub mod scale;
 pub mod static_optimization;

@@ -3,6 +3,7 @@
 mod check;
 mod export_mjcf;
 mod id;
+mod ik;
 mod inspect;
 mod model;
 mod muscles;
@@ -38,6 +39,10 @@ enum Command {
     /// Inverse dynamics as OpenSim's tool computes it: generalized forces from coordinates
     /// (filtered and splined like OpenSim) and external loads, written as a .sto file.
     Id(id::Args),
+    /// Inverse kinematics: the model's coordinates that best fit a motion's markers or joint
+    /// centres (OpenSim IK setups; HumanML3D, KIT-ML, BVH, C3D and TRC files), written as a
+    /// .mot with the marker errors beside it.
+    Ik(ik::Args),
     /// Static optimization as OpenSim's tool computes it: per frame, the muscle activations
     /// and reserve/residual actuator controls of least Σ xᵖ that produce the inverse-dynamics
     /// generalized forces; writes PREFIX_activation.sto and PREFIX_force.sto.
@@ -62,6 +67,7 @@ fn main() -> ExitCode {
         Command::ExportMjcf(args) => export_mjcf::run(&args),
         Command::Muscles(args) => muscles::run(&args),
         Command::Id(args) => id::run(&args),
+        Command::Ik(args) => ik::run(&args),
         Command::So(args) => so::run(&args),
         Command::Scale(args) => scale::run(&args),
         Command::Model(command) => model::run(&command),
