@@ -1,1 +1,343 @@
-//! (in progress)
+//! NumPy `.npy` and `.npz` files: reading float arrays of any shape and writing them
+//! atomically, through the `ndarray-npy` crate (the format itself is never parsed by hand
+//! here).
+//!
+//! Reading is defensive: the whole file is read, and the array is first *viewed* in place
+//! (`ViewNpyExt`), which checks the header's shape against the bytes actually present before
+//! anything is allocated — so a corrupted header that claims 10¹⁵ elements is an error, not
+//! an allocation failure. Only little-endian `float32` (`<f4`) and `float64` (`<f8`) data are
+//! read (what NumPy writes on every common platform); C and Fortran order are both accepted
+//! and returned in standard (C) layout. `.npz` archives are opened with the `zip` crate and
+//! each member goes through the same `.npy` path.
+//!
+//! Writing goes to a temporary file in the destination's folder which is flushed, synced and
+//! then renamed over the destination: an interrupted run leaves either the old file or the
+//! new one, never half of one.
+//!
+//! Errors: a file that cannot be read or written is [`Error::Io`]; a file that is not an
+//! `.npy`, or holds another dtype or rank, is [`Error::Motion`] naming the file (and the
+//! archive member for `.npz`).
+
+use crate::error::Error;
+use ndarray::{ArrayD, ArrayViewD, Dimension};
+use ndarray_npy::{
+    NpzWriter, ReadNpyExt, ReadableElement, ViewElement, ViewNpyError, ViewNpyExt,
+    WritableElement, WriteNpyExt,
+};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The float element types musculo reads and writes (`f32`, `f64`).
+pub trait NpyFloat:
+    ReadableElement + WritableElement + ViewElement + Copy + Into<f64> + 'static
+{
+    /// NumPy's type descriptor for the little-endian type (`<f4`, `<f8`).
+    const DESCR: &'static str;
+}
+
+impl NpyFloat for f32 {
+    const DESCR: &'static str = "<f4";
+}
+
+impl NpyFloat for f64 {
+    const DESCR: &'static str = "<f8";
+}
+
+fn motion_error(source: &str, location: &str, message: impl Into<String>) -> Error {
+    Error::Motion {
+        file: source.to_string(),
+        location: location.to_string(),
+        message: message.into(),
+    }
+}
+
+fn io_error(path: &Path, source: std::io::Error) -> Error {
+    Error::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// `(170, 22, 3)`, as NumPy prints a shape.
+pub fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// Refuses a header length field larger than the file before the crate allocates a buffer
+/// for it (`.npy` versions 2 and 3 store it as a 32-bit number, up to 4 GiB).
+fn check_header_length(bytes: &[u8], source: &str) -> crate::Result<()> {
+    // Layout: magic (6 bytes) · major, minor (2) · HEADER_LEN (u16 for v1, u32 for v2/v3).
+    if bytes.len() >= 12 && bytes.starts_with(b"\x93NUMPY") && bytes[6] >= 2 {
+        let len = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize;
+        if len > bytes.len() {
+            return Err(motion_error(
+                source,
+                "header",
+                format!(
+                    "header length {len} exceeds the file size ({} bytes): truncated or not an .npy file",
+                    bytes.len()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn view_error(e: ViewNpyError, source: &str, want: &str) -> Error {
+    let message = match e {
+        ViewNpyError::Io(e) => format!("not a complete .npy file ({e})"),
+        ViewNpyError::ParseHeader(e) => format!("not an .npy file: {e}"),
+        ViewNpyError::WrongDescriptor(d) => format!("dtype {d} where {want} is expected"),
+        ViewNpyError::NonNativeEndian => format!(
+            "big-endian data where little-endian {want} is expected (re-save it with NumPy's \
+             default byte order)"
+        ),
+        ViewNpyError::MissingBytes(n) => {
+            format!("truncated: {n} bytes of the array described in the header are missing")
+        }
+        ViewNpyError::ExtraBytes(n) => {
+            format!("{n} bytes beyond the array described in the header")
+        }
+        ViewNpyError::LengthOverflow => "the header's shape overflows the address space".into(),
+        e => e.to_string(),
+    };
+    motion_error(source, "header", message)
+}
+
+/// Views the array in place (which checks the header against the bytes present), then copies
+/// it out in standard layout.
+fn parse_as<A: NpyFloat>(bytes: &[u8]) -> Result<ArrayD<A>, ViewNpyError> {
+    match ArrayViewD::<A>::view_npy(bytes) {
+        Ok(view) => Ok(view.as_standard_layout().into_owned()),
+        // The length was checked before the alignment, so the crate's reader, which allocates
+        // what the header says, allocates no more than the file holds.
+        Err(ViewNpyError::MisalignedData) => ArrayD::<A>::read_npy(bytes)
+            .map(|a| a.as_standard_layout().into_owned())
+            .map_err(|e| ViewNpyError::InvalidData(e.to_string().into())),
+        Err(e) => Err(e),
+    }
+}
+
+/// Parses the bytes of an `.npy` file holding little-endian `A` (`f32` or `f64`) data, of
+/// any rank. `source` names the file in errors.
+pub fn parse_array<A: NpyFloat>(bytes: &[u8], source: &str) -> crate::Result<ArrayD<A>> {
+    check_header_length(bytes, source)?;
+    let want = if A::DESCR == "<f4" { "float32 ('<f4')" } else { "float64 ('<f8')" };
+    parse_as::<A>(bytes).map_err(|e| view_error(e, source, want))
+}
+
+/// Parses an `.npy` file of `float32` or `float64` data, widened to `f64` (exactly).
+pub fn parse_array_as_f64(bytes: &[u8], source: &str) -> crate::Result<ArrayD<f64>> {
+    check_header_length(bytes, source)?;
+    let want = "float32 ('<f4') or float64 ('<f8')";
+    match parse_as::<f64>(bytes) {
+        Err(ViewNpyError::WrongDescriptor(_)) => parse_as::<f32>(bytes)
+            .map(|a| a.mapv(f64::from))
+            .map_err(|e| view_error(e, source, want)),
+        r => r.map_err(|e| view_error(e, source, want)),
+    }
+}
+
+fn read_bytes(path: &Path) -> crate::Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| io_error(path, e))
+}
+
+/// Reads an `.npy` file of little-endian `A` (`f32` or `f64`) data of any rank.
+pub fn read_array<A: NpyFloat>(path: &Path) -> crate::Result<ArrayD<A>> {
+    parse_array(&read_bytes(path)?, &path.display().to_string())
+}
+
+/// Reads an `.npy` file of `float32` data of any rank.
+pub fn read_array_f32(path: &Path) -> crate::Result<ArrayD<f32>> {
+    read_array(path)
+}
+
+/// Reads an `.npy` file of `float64` data of any rank.
+pub fn read_array_f64(path: &Path) -> crate::Result<ArrayD<f64>> {
+    read_array(path)
+}
+
+/// Reads an `.npy` file of `float32` or `float64` data, widened to `f64` (exactly).
+pub fn read_array_as_f64(path: &Path) -> crate::Result<ArrayD<f64>> {
+    parse_array_as_f64(&read_bytes(path)?, &path.display().to_string())
+}
+
+/// Checks an array's rank, naming its shape in the error.
+pub fn expect_rank<'a, A, D: Dimension>(
+    array: ArrayViewD<'a, A>,
+    source: &str,
+) -> crate::Result<ndarray::ArrayView<'a, A, D>> {
+    let shape = array.shape().to_vec();
+    array.into_dimensionality::<D>().map_err(|_| {
+        motion_error(
+            source,
+            "array shape",
+            format!(
+                "shape {} has rank {} where rank {} is expected",
+                shape_text(&shape),
+                shape.len(),
+                D::NDIM.map_or("any".to_string(), |n| n.to_string())
+            ),
+        )
+    })
+}
+
+/// Every member of an `.npz` archive (NumPy's `savez`/`savez_compressed`), in archive order,
+/// named without the `.npy` suffix, each parsed with `parse` (e.g. [`parse_array::<f32>`]).
+fn read_npz_with<T>(
+    path: &Path,
+    parse: impl Fn(&[u8], &str) -> crate::Result<T>,
+) -> crate::Result<Vec<(String, T)>> {
+    let source = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
+    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file))
+        .map_err(|e| motion_error(&source, "archive", format!("not an .npz (zip) archive: {e}")))?;
+    let mut out = Vec::with_capacity(zip.len().min(1024));
+    let mut bytes = Vec::new();
+    for i in 0..zip.len() {
+        let mut member = zip
+            .by_index(i)
+            .map_err(|e| motion_error(&source, &format!("archive member {i}"), e.to_string()))?;
+        let name = member.name().to_string();
+        bytes.clear();
+        member
+            .read_to_end(&mut bytes)
+            .map_err(|e| motion_error(&source, &format!("archive member \"{name}\""), e.to_string()))?;
+        let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
+        let array = parse(&bytes, &format!("{source} [{name}]"))?;
+        out.push((key, array));
+    }
+    Ok(out)
+}
+
+/// Reads every array of an `.npz` archive holding little-endian `A` data.
+pub fn read_npz<A: NpyFloat>(path: &Path) -> crate::Result<Vec<(String, ArrayD<A>)>> {
+    read_npz_with(path, parse_array::<A>)
+}
+
+/// Reads every array of an `.npz` archive of `float32` data.
+pub fn read_npz_f32(path: &Path) -> crate::Result<Vec<(String, ArrayD<f32>)>> {
+    read_npz(path)
+}
+
+/// Reads every array of an `.npz` archive of `float32` or `float64` data, widened to `f64`.
+pub fn read_npz_as_f64(path: &Path) -> crate::Result<Vec<(String, ArrayD<f64>)>> {
+    read_npz_with(path, parse_array_as_f64)
+}
+
+/// A temporary file beside `path`, renamed over it by [`AtomicFile::commit`] and removed if
+/// dropped uncommitted.
+struct AtomicFile {
+    temp: PathBuf,
+    target: PathBuf,
+}
+
+impl AtomicFile {
+    fn create(target: &Path) -> crate::Result<(AtomicFile, std::fs::File)> {
+        static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let name = target.file_name().ok_or_else(|| {
+            io_error(
+                target,
+                std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
+            )
+        })?;
+        let mut temp_name = std::ffi::OsString::from(".");
+        temp_name.push(name);
+        temp_name.push(format!(
+            ".tmp-{}-{}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let temp = target.with_file_name(temp_name);
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&temp)
+            .map_err(|e| io_error(&temp, e))?;
+        let atomic = AtomicFile {
+            temp,
+            target: target.to_path_buf(),
+        };
+        Ok((atomic, file))
+    }
+
+    fn commit(mut self, file: std::fs::File) -> crate::Result<()> {
+        file.sync_all().map_err(|e| io_error(&self.temp, e))?;
+        drop(file);
+        std::fs::rename(&self.temp, &self.target).map_err(|e| io_error(&self.target, e))?;
+        self.temp = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.temp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.temp);
+        }
+    }
+}
+
+fn write_error(path: &Path, e: impl std::fmt::Display) -> Error {
+    io_error(path, std::io::Error::other(e.to_string()))
+}
+
+/// Writes `array` as an `.npy` file (little-endian, C order), atomically.
+pub fn write_npy<A: NpyFloat>(path: &Path, array: ArrayViewD<'_, A>) -> crate::Result<()> {
+    let (atomic, file) = AtomicFile::create(path)?;
+    let mut writer = std::io::BufWriter::new(file);
+    array
+        .as_standard_layout()
+        .write_npy(&mut writer)
+        .map_err(|e| write_error(path, e))?;
+    let file = writer.into_inner().map_err(|e| write_error(path, e.error()))?;
+    atomic.commit(file)
+}
+
+/// Writes named arrays as an `.npz` archive (NumPy's `savez`, or `savez_compressed` with
+/// `compressed`), atomically; `np.load(path)[name]` gives each array back.
+pub fn write_npz<A: NpyFloat>(
+    path: &Path,
+    arrays: &[(&str, ArrayViewD<'_, A>)],
+    compressed: bool,
+) -> crate::Result<()> {
+    for (i, (name, _)) in arrays.iter().enumerate() {
+        if name.is_empty() || arrays[..i].iter().any(|(n, _)| n == name) {
+            return Err(Error::invalid(
+                "arrays",
+                format!("array names must be unique and non-empty (\"{name}\")"),
+            ));
+        }
+    }
+    let (atomic, file) = AtomicFile::create(path)?;
+    let writer = std::io::BufWriter::new(file);
+    let mut npz = if compressed {
+        NpzWriter::new_compressed(writer)
+    } else {
+        NpzWriter::new(writer)
+    };
+    for (name, array) in arrays {
+        npz.add_array(*name, &array.as_standard_layout())
+            .map_err(|e| write_error(path, e))?;
+    }
+    let mut writer = npz.finish().map_err(|e| write_error(path, e))?;
+    writer.flush().map_err(|e| io_error(path, e))?;
+    let file = writer.into_inner().map_err(|e| write_error(path, e.error()))?;
+    atomic.commit(file)
+}
+
+/// Writes one `f32` array as `.npy` (see [`write_npy`]).
+pub fn write_npy_f32(path: &Path, array: ArrayViewD<'_, f32>) -> crate::Result<()> {
+    write_npy(path, array)
+}
