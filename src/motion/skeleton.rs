@@ -24,10 +24,15 @@
 //! - `source` lists the accepted names of one input joint (the first one present is used),
 //!   so one map serves the naming variants of a skeleton (CMU BVH conversions differ).
 //! - `weight` ≥ 0: the IK weight of that target.
+//! - `placed` (optional, default false): the input skeleton puts this joint by a convention
+//!   of its own (SMPL's pelvis joint lies above the hip centres, its spine joints are not the
+//!   model's vertebral joints), so fitting the model to a clip moves the model marker to the
+//!   clip's average position on the marker's body, as OpenSim's marker placement does.
 //! - `segments` (optional): `{ "name", "bodies": [model bodies], "pairs": [[a, b], …] }`,
 //!   where a and b are target (model marker) names: scaling a model to a clip multiplies
 //!   the bodies' dimensions by the median over frames of ‖x_a − x_b‖ divided by the same
-//!   distance on the model (see `solve::scale_from_clip`).
+//!   distance on the model (see `solve::scale_from_clip`); `"axes": ["z"]` limits the factor
+//!   to some body axes (a later segment overrides an earlier one there).
 //!
 //! [`SkeletonMap::apply`] turns a [`Motion`] into targets in the model's frame, one column
 //! per mapped target, with the IK marker tasks that pair them with the model's markers. A
@@ -54,6 +59,11 @@ pub struct MapTarget {
     /// Why this pairing (free text, for people).
     #[serde(default)]
     pub note: String,
+    /// The input skeleton places this joint by its own convention (SMPL's pelvis and spine
+    /// joints, a BVH's neck): when a model is fitted to a clip, the marker is moved to where
+    /// the clip puts it on its body (see `solve::scale_from_clip`).
+    #[serde(default)]
+    pub placed: bool,
 }
 
 /// A group of model bodies scaled together from target distances (for scaling a model to a
@@ -67,6 +77,14 @@ pub struct MapSegment {
     pub bodies: Vec<String>,
     /// Pairs of map targets (model marker names) whose distance measures the segment.
     pub pairs: Vec<[String; 2]>,
+    /// The body axes the factor applies to (`x`, `y`, `z`; default all three). A later
+    /// segment overrides an earlier one on the axes it names.
+    #[serde(default = "all_axes")]
+    pub axes: Vec<String>,
+}
+
+fn all_axes() -> Vec<String> {
+    vec!["x".into(), "y".into(), "z".into()]
 }
 
 /// A skeleton map (see the module documentation for the file format).
@@ -189,6 +207,12 @@ impl SkeletonMap {
                         format!("segment `{}`: `{name}` is not a target marker of the map", seg.name),
                     ));
                 }
+            }
+            if seg.axes.is_empty() || seg.axes.iter().any(|a| !["x", "y", "z"].contains(&a.as_str())) {
+                return Err(table_error(
+                    0,
+                    format!("segment `{}`: axes {:?} must be among x, y, z", seg.name, seg.axes),
+                ));
             }
             if seg.bodies.is_empty() || seg.pairs.is_empty() {
                 return Err(table_error(

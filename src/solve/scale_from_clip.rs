@@ -8,10 +8,22 @@
 //!   s = (1/|P|) Σ_{(a,b) ∈ P} median_t ‖x_a(t) − x_b(t)‖ / ‖p_a(q₀) − p_b(q₀)‖
 //!
 //! with x the clip's targets (in metres, frames where either is missing skipped) and p the
-//! model's markers at its default pose q₀; every body of B is scaled by s on all three axes
+//! model's markers at its default pose q₀; every body of B is scaled by s on the segment's
+//! axes (all three unless it names some; a later segment overrides an earlier one)
 //! ([`super::scale::scale_osim`]: joint frames, mass centres, inertias, muscle paths and
 //! lengths, markers). Masses are kept (the clip says nothing about them).
+//!
+//! Then the markers of the map's *placed* targets (joints the input skeleton puts by its
+//! own convention: SMPL's pelvis joint above the hip centres, its spine joints) are moved
+//! where the clip puts them, as OpenSim's marker placement moves markers onto a static
+//! trial, by block-coordinate descent on the IK objective over (poses, placed markers):
+//!
+//!   1. IK over the clip with the placed targets at a tenth of their weight;
+//!   2. each placed marker ← the per-component median over frames of R_bᵀ (x(t) − o_b(t)),
+//!      the target in its body's frame at the solved pose;
+//!   3. IK with every weight, and step 2 again, [`PLACEMENT_ROUNDS`] times in all.
 
+use super::ik::{self, IkSettings};
 use super::scale::{ScaleOptions, ScaleSet, ScaledModel, scale_osim};
 use crate::dynamics::{self, Data};
 use crate::error::Error;
@@ -20,13 +32,20 @@ use crate::motion::Motion;
 use crate::motion::skeleton::SkeletonMap;
 use crate::spatial::Vec3;
 
+/// Rounds of marker placement (IK, then placement).
+pub const PLACEMENT_ROUNDS: usize = 3;
+
 /// A model scaled to a clip.
 #[derive(Clone, Debug)]
 pub struct ClipScaling {
-    /// The scaled model (text and parsed).
+    /// The scaled model file, before marker placement.
     pub scaled: ScaledModel,
+    /// The scaled model with its placed markers moved: the model to run IK with.
+    pub model: Model,
     /// Per map segment: its name and factor.
     pub factors: Vec<(String, f64)>,
+    /// Per placed marker: its name and its location in its body before and after placement.
+    pub placed: Vec<(String, Vec3, Vec3)>,
 }
 
 impl ClipScaling {
@@ -152,7 +171,15 @@ pub fn scale_to_clip(
                     ),
                 ));
             }
-            scales.set(body, Vec3::new(*s, *s, *s));
+            let mut f = scales.get(body).unwrap_or(Vec3::new(1.0, 1.0, 1.0));
+            for axis in &seg.axes {
+                match axis.as_str() {
+                    "x" => f.x = *s,
+                    "y" => f.y = *s,
+                    _ => f.z = *s,
+                }
+            }
+            scales.set(body, f);
         }
     }
     let options = ScaleOptions {
@@ -160,5 +187,84 @@ pub fn scale_to_clip(
         ..ScaleOptions::default()
     };
     let scaled = scale_osim(xml, source, model, &scales, &options)?;
-    Ok(ClipScaling { scaled, factors })
+    let mut fitted = scaled.model.clone();
+    let placed = place_markers(&mut fitted, map, clip)?;
+    Ok(ClipScaling {
+        scaled,
+        model: fitted,
+        factors,
+        placed,
+    })
+}
+
+/// Moves the markers of the map's placed targets onto the clip (see the module
+/// documentation); returns (marker, location before, location after) for each.
+pub fn place_markers(
+    model: &mut Model,
+    map: &SkeletonMap,
+    clip: &Motion,
+) -> crate::Result<Vec<(String, Vec3, Vec3)>> {
+    let (targets, mut tasks) = map.apply(model, clip)?;
+    let placed: Vec<usize> = (0..map.targets.len())
+        .filter(|&k| map.targets[k].placed)
+        .collect();
+    if placed.is_empty() {
+        return Ok(Vec::new());
+    }
+    let before: Vec<Vec3> = placed
+        .iter()
+        .map(|&k| model.markers[tasks.markers[k].marker].location_in_body)
+        .collect();
+    let full_weights: Vec<f64> = tasks.markers.iter().map(|t| t.weight).collect();
+    let settings = IkSettings::default();
+    let mut data = Data::new(model);
+    let frames = targets.n_frames();
+    let mut samples: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(frames));
+    for round in 0..PLACEMENT_ROUNDS {
+        for (k, t) in tasks.markers.iter_mut().enumerate() {
+            t.weight = if round == 0 && map.targets[k].placed {
+                0.1 * full_weights[k]
+            } else {
+                full_weights[k]
+            };
+        }
+        let solution = ik::solve_motion(model, &targets, &tasks, &settings, &|_| {})?;
+        for &k in &placed {
+            let marker = tasks.markers[k].marker;
+            let body = model.markers[marker].body;
+            for s in &mut samples {
+                s.clear();
+            }
+            for f in 0..frames {
+                let x = targets.frame(f)[k];
+                if x.x.is_nan() {
+                    continue;
+                }
+                dynamics::forward_kinematics(model, &mut data, solution.frame(f))?;
+                let (rot, origin) = data.body_pose(body);
+                // the target in the body's frame: R_bᵀ (x − o_b)
+                let local = rot.transpose() * (x - origin);
+                for (s, v) in samples.iter_mut().zip(local.iter()) {
+                    s.push(*v);
+                }
+            }
+            if samples[0].is_empty() {
+                continue;
+            }
+            let location = Vec3::new(
+                median(&mut samples[0]),
+                median(&mut samples[1]),
+                median(&mut samples[2]),
+            );
+            model.markers[marker].location_in_body = location;
+        }
+    }
+    Ok(placed
+        .iter()
+        .zip(before)
+        .map(|(&k, b)| {
+            let m = &model.markers[tasks.markers[k].marker];
+            (m.name.clone(), b, m.location_in_body)
+        })
+        .collect())
 }

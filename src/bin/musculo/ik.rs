@@ -320,11 +320,12 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
             let scaling =
                 scale_from_clip::scale_to_clip(&base_xml, &base_source, &base_model, map, &clip)?;
             eprintln!(
-                "{}: segments scaled to the clip's bone lengths: {}",
+                "{}: segments scaled to the clip's bone lengths: {}; {} marker(s) placed",
                 path.display(),
-                scaling.summary()
+                scaling.summary(),
+                scaling.placed.len()
             );
-            scaling.scaled.model
+            scaling.model
         } else {
             base_model.clone()
         };
