@@ -29,6 +29,7 @@ Usage: scale_compare.py [--opensim-only] [--self-test] [--musculo-model M.osim
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -208,8 +209,11 @@ class Checker:
             print(f"  {quantity}: {count}/{total} over tolerance; worst: {shown}")
 
 
-def compare(a, b, label, enforce=True, scale_a=None, scale_b=None):
-    """Compares summary a (candidate) with summary b (OpenSim 4.6)."""
+def compare(a, b, label, enforce=True, scale_a=None, scale_b=None, placed=None):
+    """Compares summary a (candidate) with summary b (OpenSim 4.6).
+
+    placed: marker locations from OpenSim's placement at its converged static pose; when given,
+    the marker check is against those (the ScaleTool's own are shown for information)."""
     ck = Checker(label)
     missing = []
     for group in ("bodies", "joints", "markers", "muscles"):
@@ -248,9 +252,13 @@ def compare(a, b, label, enforce=True, scale_a=None, scale_b=None):
     wrong_body = [n for n in markers if a["markers"][n][0] != b["markers"][n][0]]
     if wrong_body:
         ck.failures.append(f"markers on other bodies: {wrong_body}")
-    ck.add("marker locations", list(
+    ck.add("marker locations" + (" (vs ScaleTool output)" if placed else ""), list(
         (np.linalg.norm(a["markers"][n][1] - b["markers"][n][1]), n) for n in markers),
-        POS, "m", enforce)
+        POS, "m", enforce and placed is None)
+    if placed:
+        ck.add("marker locations (vs OpenSim placed at acc. 1e-9)", list(
+            (np.linalg.norm(a["markers"][n][1] - placed[n][1]), n) for n in markers
+            if n in placed), POS, "m", enforce)
     ck.add("body origins in ground (default + 20 poses)", list(
         (float(np.max(np.linalg.norm(a["origins"][n] - b["origins"][n], axis=1))), n)
         for n in bodies), POS, "m", enforce)
@@ -267,6 +275,145 @@ def compare(a, b, label, enforce=True, scale_a=None, scale_b=None):
     for f in ck.failures:
         print(f"{'FAIL' if enforce else 'note'}: {f}")
     return ck
+
+
+class Placer:
+    """OpenSim's MarkerPlacer step, redone in OpenSim with a chosen accuracy.
+
+    As MarkerPlacer::processModel in 4.6: the static trial's markers averaged over the time
+    range (TimeSeriesTable::averageRow), converted to metres; marker weights from the placer's
+    IKTaskSet; coordinate tasks (default value = the coordinate's value in the default state,
+    manual value as is); one InverseKinematicsSolver::assemble from the default pose of the
+    scaled-only model; then every non-fixed marker observed in the trial is moved onto its
+    averaged observation, expressed in its own body frame. OpenSim's tool leaves the solver at
+    the AssemblySolver's default accuracy (1e-4).
+    """
+
+    def __init__(self, setup, scaled_only):
+        tool = osim.ScaleTool(setup)
+        placer = tool.getMarkerPlacer()
+        tasks = placer.getIKTaskSet()
+        time_range = placer.getTimeRange()
+        self.t0, t1 = time_range.get(0), time_range.get(1)
+        table = osim.TimeSeriesTableVec3(STATIC)
+        avg = table.averageRow(self.t0, t1)
+        for r in range(table.getNumRows() - 1, -1, -1):
+            table.removeRowAtIndex(r)
+        table.appendRow(self.t0, avg)
+        self.model = osim.Model(scaled_only)
+        self.state = self.model.initSystem()
+        weights = osim.SetMarkerWeights()
+        tasks.createMarkerWeightSet(weights)
+        self.ref = osim.MarkersReference(table, weights)
+        coords = self.model.getCoordinateSet()
+        self.names = [coords.get(i).getName() for i in range(coords.getSize())]
+        self.coord_refs = osim.SimTKArrayCoordinateReference()
+        self.coord_tasks = []
+        for i in range(tasks.getSize()):
+            task = tasks.get(i)
+            if task.getConcreteClassName() != "IKCoordinateTask" or not task.getApply():
+                continue
+            ct = osim.IKCoordinateTask.safeDownCast(task)
+            if ct.getValueType() == osim.IKCoordinateTask.FromFile:
+                sys.exit("MarkerPlacer coordinate tasks from a file are not handled")
+            value = (ct.getValue() if ct.getValueType() == osim.IKCoordinateTask.ManualValue
+                     else coords.get(ct.getName()).getValue(self.state))
+            ref = osim.CoordinateReference(ct.getName(), osim.Constant(value))
+            ref.setWeight(ct.getWeight())
+            self.coord_refs.push_back(ref)
+            self.coord_tasks.append((self.names.index(ct.getName()), ct.getWeight(), value))
+        names = self.ref.getNames()
+        w = osim.SimTKArrayDouble()
+        self.ref.getWeights(self.state, w)
+        vals = osim.SimTKArrayVec3()
+        self.ref.getValuesAtTime(self.t0, vals)
+        mset = self.model.getMarkerSet()
+        self.markers = [(names.getElt(j), w.getElt(j), vals.getElt(j).to_numpy().copy())
+                        for j in range(names.size()) if mset.contains(names.getElt(j))]
+
+    def set_pose(self, q):
+        coords = self.model.getCoordinateSet()
+        for n, v in zip(self.names, q):
+            coords.get(n).setValue(self.state, float(v), False)
+        self.model.realizePosition(self.state)
+
+    def objective(self, q):
+        """IK objective of the placer (as ik_compare.py's F) and OpenSim's total squared error."""
+        self.set_pose(q)
+        mset = self.model.getMarkerSet()
+        num = wsum = tse = 0.0
+        for n, w, obs in self.markers:
+            if not np.all(np.isfinite(obs)):
+                continue
+            e2 = float(np.sum((mset.get(n).getLocationInGround(self.state).to_numpy() - obs) ** 2))
+            num += w * e2
+            wsum += w
+            tse += e2
+        f = num / (2 * wsum)
+        for k, w, value in self.coord_tasks:
+            f += 0.5 * w * (q[k] - value) ** 2
+        return f, tse
+
+    def solve(self, accuracy):
+        state = self.model.initSystem()
+        state.setTime(self.t0)
+        solver = osim.InverseKinematicsSolver(self.model, self.ref, self.coord_refs, math.inf)
+        solver.setAccuracy(accuracy)
+        solver.assemble(state)
+        coords = self.model.getCoordinateSet()
+        q = np.array([coords.get(n).getValue(state) for n in self.names])
+        self.state = state
+        return q
+
+    def place(self, q):
+        """{marker: (body path, location)} after moving the markers at pose q."""
+        self.set_pose(q)
+        ground = self.model.getGround()
+        out = {}
+        for mk in self.model.getMarkerSet():
+            loc = mk.get_location().to_numpy().copy()
+            obs = dict((n, o) for n, _, o in self.markers).get(mk.getName())
+            if not mk.get_fixed() and obs is not None and np.all(np.isfinite(obs)):
+                loc = ground.findStationLocationInAnotherFrame(
+                    self.state, osim.Vec3(*obs), mk.getParentFrame()).to_numpy().copy()
+            out[mk.getName()] = (mk.getParentFrameName(), loc)
+        return out
+
+    def pose_of(self, mot):
+        _, cols = ov.read_motion(mot, self.model)
+        return np.array([float(cols[n][0]) for n in self.names])
+
+
+def placer_check(d, setup, mu_static):
+    """Static-pose objective of both, OpenSim's converged placement; returns (markers, report)."""
+    placer = Placer(setup, os.path.join(d, "opensim", "scaled_only.osim"))
+    q_os = placer.pose_of(os.path.join(d, "opensim", "static_output.mot"))
+    q_loose = placer.solve(1e-4)
+    q_tight = placer.solve(1e-9)
+    f_os, tse_os = placer.objective(q_os)
+    f_tight, _ = placer.objective(q_tight)
+    n = len(placer.markers)
+    print(f"\nmarker placer (static pose at t = {placer.t0:g} s, {n} markers): OpenSim's tool F = "
+          f"{f_os:.6e} (RMS {1000 * math.sqrt(tse_os / n):.2f} mm); redone here at accuracy 1e-4: "
+          f"pose within {np.max(np.abs(q_loose - q_os)) * ov.DEG:.1e} deg of the tool's; at "
+          f"accuracy 1e-9: F = {f_tight:.6e} ({(f_tight / f_os - 1) * 100:+.4f} %), pose "
+          f"{np.max(np.abs(q_tight - q_os)) * ov.DEG:.3f} deg from the tool's "
+          f"({placer.names[int(np.argmax(np.abs(q_tight - q_os)))]})")
+    rep = dict(f_opensim=f_os, f_opensim_tight=f_tight,
+               tight_vs_tool_deg=float(np.max(np.abs(q_tight - q_os)) * ov.DEG))
+    failures = []
+    if mu_static:
+        q_mu = placer.pose_of(mu_static)
+        f_mu, tse_mu = placer.objective(q_mu)
+        k = int(np.argmax(np.abs(q_mu - q_tight)))
+        print(f"musculo's static pose: F = {f_mu:.6e} (F/F(OpenSim's tool) = {f_mu / f_os:.6f}, "
+              f"RMS {1000 * math.sqrt(tse_mu / n):.2f} mm); "
+              f"{np.max(np.abs(q_mu - q_tight)) * ov.DEG:.2e} deg from OpenSim's converged pose "
+              f"({placer.names[k]})")
+        rep.update(f_musculo=f_mu, musculo_vs_tight_deg=float(np.max(np.abs(q_mu - q_tight)) * ov.DEG))
+        if f_mu > f_os * 1.001 + 1e-9:
+            failures.append(f"static-pose objective {f_mu / f_os:.6f} x OpenSim's")
+    return placer.place(q_tight), rep, failures
 
 
 def inertia_law(generic, stored, scaled46, scale46):
@@ -393,14 +540,18 @@ def main():
             report["failures"].append("musculo scale did not run")
     if cand:
         smu = summary(cand, poses)
+        static = os.path.join(os.path.dirname(cand), "static_output.mot")
+        placed, report["placer"], fails = placer_check(
+            d, setup, static if os.path.exists(static) and not args.self_test else None)
+        report["failures"] += fails
         ck = compare(smu, s46, "musculo's scaled model (loaded in OpenSim 4.6) vs OpenSim 4.6's",
-                     scale_a=read_scale_set(cand_scale) if cand_scale else None, scale_b=scale46)
+                     scale_a=read_scale_set(cand_scale) if cand_scale else None, scale_b=scale46,
+                     placed=None if args.self_test else placed)
         if not cand_scale:
             print("note: no scale-set file from musculo; scale factors compared through the "
                   "model quantities only")
         report["musculo"] = {r[0]: r[1] for r in ck.rows}
         report["failures"] += ck.failures
-        static = os.path.join(os.path.dirname(cand), "static_output.mot")
         if os.path.exists(static) and not args.self_test:
             report["static_pose"] = static_pose(os_model, os.path.join(d, "opensim",
                                                                       "static_output.mot"), static)
