@@ -182,10 +182,12 @@ pub fn coordinates_table(model: &Model, solution: &IkSolution) -> crate::Result<
     for f in 0..solution.n_frames() {
         dynamics::forward_kinematics(model, &mut data, solution.frame(f))?;
         for (c, v) in model.coordinates.iter().zip(data.coordinate_values(model)) {
-            values.push(if c.motion_type == MotionType::Translational {
-                *v
-            } else {
+            // OpenSim writes rotational coordinates in degrees, everything else as it is
+            // (coupled coordinates too: gait2392's pelvis translations are `coupled`).
+            values.push(if c.motion_type == MotionType::Rotational {
                 v.to_degrees()
+            } else {
+                *v
             });
         }
     }
