@@ -74,7 +74,10 @@ impl Channel {
     }
 
     pub fn is_rotation(self) -> bool {
-        matches!(self, Channel::Xrotation | Channel::Yrotation | Channel::Zrotation)
+        matches!(
+            self,
+            Channel::Xrotation | Channel::Yrotation | Channel::Zrotation
+        )
     }
 }
 
@@ -181,7 +184,9 @@ impl<'a> Parser<'a> {
     }
 
     fn line(&self) -> usize {
-        self.tokens.get(self.at.saturating_sub(1)).map_or(self.last_line, |t| t.line)
+        self.tokens
+            .get(self.at.saturating_sub(1))
+            .map_or(self.last_line, |t| t.line)
     }
 
     fn expect(&mut self, keyword: &str) -> crate::Result<()> {
@@ -245,7 +250,10 @@ impl Bvh {
         })?;
         let source = path.display().to_string();
         let text = std::str::from_utf8(&bytes).map_err(|e| {
-            let line = 1 + bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+            let line = 1 + bytes[..e.valid_up_to()]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
             Error::Motion {
                 file: source.clone(),
                 location: format!("line {line}"),
@@ -293,7 +301,12 @@ impl Bvh {
             [k, v] if is(k, "Frames:") => v.parse::<usize>().ok(),
             _ => None,
         }
-        .ok_or_else(|| p.error(n, format!("expected 'Frames: <count>', found '{}'", line.trim())))?;
+        .ok_or_else(|| {
+            p.error(
+                n,
+                format!("expected 'Frames: <count>', found '{}'", line.trim()),
+            )
+        })?;
         let (n, line) = header
             .next()
             .ok_or_else(|| p.error(n, "'Frames:' without 'Frame Time:' (truncated file?)"))?;
@@ -304,7 +317,13 @@ impl Bvh {
         }
         .filter(|dt| *dt > 0.0 && dt.is_finite())
         .ok_or_else(|| {
-            p.error(n, format!("expected 'Frame Time: <positive seconds>', found '{}'", line.trim()))
+            p.error(
+                n,
+                format!(
+                    "expected 'Frame Time: <positive seconds>', found '{}'",
+                    line.trim()
+                ),
+            )
         })?;
         if n_frames == 0 {
             return Err(p.error(n, "the file has no frames (Frames: 0)"));
@@ -347,7 +366,9 @@ impl Bvh {
                 return Err(Error::Motion {
                     file: source.to_string(),
                     location: format!("frame {frame} (line {n})"),
-                    message: format!("{count} values where the hierarchy has {n_channels} channels"),
+                    message: format!(
+                        "{count} values where the hierarchy has {n_channels} channels"
+                    ),
                 });
             }
             frame += 1;
@@ -355,7 +376,9 @@ impl Bvh {
         if frame < n_frames {
             return Err(p.error(
                 last,
-                format!("the file ends after {frame} of the {n_frames} frames declared (truncated?)"),
+                format!(
+                    "the file ends after {frame} of the {n_frames} frames declared (truncated?)"
+                ),
             ));
         }
         Ok(Bvh {
@@ -392,7 +415,10 @@ impl Bvh {
     pub fn rest_pose(&self) -> Vec<Vec3> {
         let mut out: Vec<Vec3> = Vec::with_capacity(self.joints.len());
         for j in &self.joints {
-            let base = j.parent.and_then(|p| out.get(p).copied()).unwrap_or_else(Vec3::zeros);
+            let base = j
+                .parent
+                .and_then(|p| out.get(p).copied())
+                .unwrap_or_else(Vec3::zeros);
             out.push(base + j.offset);
         }
         out
@@ -419,11 +445,18 @@ impl Bvh {
         if out.len() != n || rotations.len() != n {
             return Err(Error::invalid(
                 "out",
-                format!("{} positions and {} rotations for {n} joints", out.len(), rotations.len()),
+                format!(
+                    "{} positions and {} rotations for {n} joints",
+                    out.len(),
+                    rotations.len()
+                ),
             ));
         }
         if f >= self.n_frames() {
-            return Err(Error::invalid("f", format!("frame {f} of {}", self.n_frames())));
+            return Err(Error::invalid(
+                "f",
+                format!("frame {f} of {}", self.n_frames()),
+            ));
         }
         let values = self.frame(f);
         for (j, joint) in self.joints.iter().enumerate() {
@@ -462,10 +495,14 @@ impl Bvh {
     pub fn to_motion(&self, options: &BvhOptions) -> crate::Result<Motion> {
         let scale = options.unit.metres();
         if !(scale > 0.0 && scale.is_finite()) {
-            return Err(Error::invalid("unit", format!("{scale} m per unit must be positive")));
+            return Err(Error::invalid(
+                "unit",
+                format!("{scale} m per unit must be positive"),
+            ));
         }
         let height = self.implied_height() * scale;
-        check_plausible_height(&self.source, height, options.unit).map_err(|e| cmu_hint(e, height / scale))?;
+        check_plausible_height(&self.source, height, options.unit)
+            .map_err(|e| cmu_hint(e, height / scale))?;
         let keep: Vec<usize> = (0..self.joints.len())
             .filter(|&j| options.end_sites || !self.joints[j].end_site)
             .collect();
@@ -474,7 +511,13 @@ impl Bvh {
         let mut rotations = vec![Matrix3::identity(); self.joints.len()];
         let mut frame = vec![Vec3::zeros(); self.joints.len()];
         for f in 0..n_frames {
-            self.forward_kinematics(f, scale, options.position_channels, &mut rotations, &mut frame)?;
+            self.forward_kinematics(
+                f,
+                scale,
+                options.position_channels,
+                &mut rotations,
+                &mut frame,
+            )?;
             positions.extend(keep.iter().map(|&j| frame[j]));
         }
         let names = keep.iter().map(|&j| self.joints[j].name.clone()).collect();
@@ -487,7 +530,11 @@ fn cmu_hint(e: Error, raw_height: f64) -> Error {
     let [lo, hi] = PLAUSIBLE_HEIGHT_M;
     let cmu = raw_height * CMU_UNIT_M;
     match e {
-        Error::Motion { file, location, message } if (lo..=hi).contains(&cmu) => Error::Motion {
+        Error::Motion {
+            file,
+            location,
+            message,
+        } if (lo..=hi).contains(&cmu) => Error::Motion {
             file,
             location,
             message: format!(
@@ -514,7 +561,13 @@ fn channel_name(joints: &[Joint], column: usize) -> String {
     joints
         .iter()
         .find(|j| (j.first_channel..j.first_channel + j.channels.len()).contains(&column))
-        .map(|j| format!("joint \"{}\" {:?}", j.name, j.channels[column - j.first_channel]))
+        .map(|j| {
+            format!(
+                "joint \"{}\" {:?}",
+                j.name,
+                j.channels[column - j.first_channel]
+            )
+        })
         .unwrap_or_else(|| "beyond the hierarchy's channels".into())
 }
 
@@ -535,7 +588,11 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
             if root != open.is_empty() {
                 return Err(p.error(
                     line,
-                    if root { "ROOT inside a joint" } else { "JOINT outside a ROOT" },
+                    if root {
+                        "ROOT inside a joint"
+                    } else {
+                        "JOINT outside a ROOT"
+                    },
                 ));
             }
             let name = p.name(line)?;
@@ -549,7 +606,10 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
                 p.at += 1;
                 let count = p.next("the channel count")?;
                 let count: usize = count.parse().map_err(|_| {
-                    p.error(p.line(), format!("channel count '{count}' is not a whole number"))
+                    p.error(
+                        p.line(),
+                        format!("channel count '{count}' is not a whole number"),
+                    )
                 })?;
                 for _ in 0..count {
                     let c = p.next("a channel name")?;
@@ -610,7 +670,10 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
     if let Some(&j) = open.last() {
         return Err(p.error(
             p.last_line,
-            format!("joint \"{}\" (line {}) is not closed before MOTION", joints[j].name, joints[j].line),
+            format!(
+                "joint \"{}\" (line {}) is not closed before MOTION",
+                joints[j].name, joints[j].line
+            ),
         ));
     }
     if joints.is_empty() {

@@ -151,7 +151,11 @@ impl Normalization {
             let a = npy::read_array_as_f64(path)?;
             let v = npy::expect_rank::<f64, ndarray::Ix1>(a.view(), &source)?.to_vec();
             if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                return Err(motion_error(&source, format!("feature {k}"), "value is not finite"));
+                return Err(motion_error(
+                    &source,
+                    format!("feature {k}"),
+                    "value is not finite",
+                ));
             }
             Ok(v)
         };
@@ -210,7 +214,10 @@ pub(crate) fn feature_meaning(k: usize, names: &[&str]) -> String {
             names[1 + (k - 4) / 3],
             axis[(k - 4) % 3]
         ),
-        _ if k < rot => format!("feature {k} (joint \"{}\" rotation)", names[1 + (k - pos) / 6]),
+        _ if k < rot => format!(
+            "feature {k} (joint \"{}\" rotation)",
+            names[1 + (k - pos) / 6]
+        ),
         _ if k < vel => format!(
             "feature {k} (joint \"{}\" velocity {})",
             names[(k - rot) / 3],
@@ -246,7 +253,11 @@ pub(crate) fn joints_from_array_raw(
         return Err(shape_error(&shape));
     }
     if frames == 0 {
-        return Err(motion_error(source, "frames".into(), "the array has no frames"));
+        return Err(motion_error(
+            source,
+            "frames".into(),
+            "the array has no frames",
+        ));
     }
     let mut out = Vec::with_capacity(frames * joints);
     for f in 0..frames {
@@ -266,7 +277,8 @@ pub(crate) fn joints_from_array_raw(
 }
 
 /// HumanML3D's `recover_from_ric` (see the module documentation): joint positions, frame-major
-/// T×J, from T×(12 J − 1) features. No checks: see [`features_from_array_raw`].
+/// T×J, from T×(12 J − 1) features. No checks of shape or values: [`from_features`] does
+/// them.
 pub fn recover_from_ric(features: ArrayView2<'_, f64>, n_joints: usize) -> Vec<Vec3> {
     let frames = features.nrows();
     let mut out = Vec::with_capacity(frames * n_joints);
@@ -313,12 +325,18 @@ pub(crate) fn features_from_array_raw(
             ),
         )
     };
-    let a: ArrayView2<f64> = array.into_dimensionality::<Ix2>().map_err(|_| shape_error())?;
+    let a: ArrayView2<f64> = array
+        .into_dimensionality::<Ix2>()
+        .map_err(|_| shape_error())?;
     if a.ncols() != width {
         return Err(shape_error());
     }
     if a.nrows() == 0 {
-        return Err(motion_error(source, "frames".into(), "the array has no frames"));
+        return Err(motion_error(
+            source,
+            "frames".into(),
+            "the array has no frames",
+        ));
     }
     let denormalized;
     let a = a.view();
@@ -392,7 +410,10 @@ pub(crate) fn finish_motion(
 ) -> crate::Result<Motion> {
     let scale = unit.metres();
     if !(scale > 0.0 && scale.is_finite()) {
-        return Err(Error::invalid("unit", format!("{scale} m per unit must be positive")));
+        return Err(Error::invalid(
+            "unit",
+            format!("{scale} m per unit must be positive"),
+        ));
     }
     if !(rate_hz > 0.0 && rate_hz.is_finite()) {
         return Err(motion_error(
@@ -426,7 +447,13 @@ pub fn from_joints(
         ));
     }
     let positions = joints_from_array_raw(array, source, &JOINT_NAMES)?;
-    finish_motion(source, &JOINT_NAMES, options.rate_hz, options.unit, positions)
+    finish_motion(
+        source,
+        &JOINT_NAMES,
+        options.rate_hz,
+        options.unit,
+        positions,
+    )
 }
 
 /// A `new_joint_vecs` clip (T×263) from an array, joints recovered from the features.
@@ -437,7 +464,13 @@ pub fn from_features(
 ) -> crate::Result<Motion> {
     let positions =
         features_from_array_raw(array, source, &JOINT_NAMES, options.normalization.as_ref())?;
-    finish_motion(source, &JOINT_NAMES, options.rate_hz, options.unit, positions)
+    finish_motion(
+        source,
+        &JOINT_NAMES,
+        options.rate_hz,
+        options.unit,
+        positions,
+    )
 }
 
 /// Either form, told apart by the array's shape (T×22×3 joints or T×263 features).

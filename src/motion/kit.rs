@@ -3,8 +3,8 @@
 //! HumanML3D feature layout for 21 joints, recovered as in [`super::humanml3d`]).
 //!
 //! Joint order and names. The order is the one of HumanML3D's `paramUtil.py`
-//! (`kit_kinematic_chain` = [0,11,12,13,14,15], [0,16,17,18,19,20], [0,1,2,3,4], [3,5,6,7],
-//! [3,8,9,10]); the names are the Master Motor Map (MMM) reference model's joint names that
+//! (`kit_kinematic_chain` = `[0,11,12,13,14,15], [0,16,17,18,19,20], [0,1,2,3,4], [3,5,6,7],
+//! [3,8,9,10]`); the names are the Master Motor Map (MMM) reference model's joint names that
 //! KIT's data files use, in that order (as listed by the MDM and TEMOS projects, which read
 //! the same files; the joint positions came from MMM forward kinematics in the
 //! language2pose project):

@@ -21,8 +21,8 @@
 use crate::error::Error;
 use ndarray::{ArrayD, ArrayViewD, Dimension};
 use ndarray_npy::{
-    NpzWriter, ReadNpyExt, ReadableElement, ViewElement, ViewNpyError, ViewNpyExt,
-    WritableElement, WriteNpyExt,
+    NpzWriter, ReadNpyExt, ReadableElement, ViewElement, ViewNpyError, ViewNpyExt, WritableElement,
+    WriteNpyExt,
 };
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -133,7 +133,11 @@ fn parse_as<A: NpyFloat>(bytes: &[u8]) -> Result<ArrayD<A>, ViewNpyError> {
 /// any rank. `source` names the file in errors.
 pub fn parse_array<A: NpyFloat>(bytes: &[u8], source: &str) -> crate::Result<ArrayD<A>> {
     check_header_length(bytes, source)?;
-    let want = if A::DESCR == "<f4" { "float32 ('<f4')" } else { "float64 ('<f8')" };
+    let want = if A::DESCR == "<f4" {
+        "float32 ('<f4')"
+    } else {
+        "float64 ('<f8')"
+    };
     parse_as::<A>(bytes).map_err(|e| view_error(e, source, want))
 }
 
@@ -201,8 +205,13 @@ fn read_npz_with<T>(
 ) -> crate::Result<Vec<(String, T)>> {
     let source = path.display().to_string();
     let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
-    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file))
-        .map_err(|e| motion_error(&source, "archive", format!("not an .npz (zip) archive: {e}")))?;
+    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
+        motion_error(
+            &source,
+            "archive",
+            format!("not an .npz (zip) archive: {e}"),
+        )
+    })?;
     let mut out = Vec::with_capacity(zip.len().min(1024));
     let mut bytes = Vec::new();
     for i in 0..zip.len() {
@@ -211,9 +220,13 @@ fn read_npz_with<T>(
             .map_err(|e| motion_error(&source, &format!("archive member {i}"), e.to_string()))?;
         let name = member.name().to_string();
         bytes.clear();
-        member
-            .read_to_end(&mut bytes)
-            .map_err(|e| motion_error(&source, &format!("archive member \"{name}\""), e.to_string()))?;
+        member.read_to_end(&mut bytes).map_err(|e| {
+            motion_error(
+                &source,
+                &format!("archive member \"{name}\""),
+                e.to_string(),
+            )
+        })?;
         let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
         let array = parse(&bytes, &format!("{source} [{name}]"))?;
         out.push((key, array));
@@ -301,7 +314,9 @@ pub fn write_npy<A: NpyFloat>(path: &Path, array: ArrayViewD<'_, A>) -> crate::R
         .as_standard_layout()
         .write_npy(&mut writer)
         .map_err(|e| write_error(path, e))?;
-    let file = writer.into_inner().map_err(|e| write_error(path, e.error()))?;
+    let file = writer
+        .into_inner()
+        .map_err(|e| write_error(path, e.error()))?;
     atomic.commit(file)
 }
 
@@ -333,7 +348,9 @@ pub fn write_npz<A: NpyFloat>(
     }
     let mut writer = npz.finish().map_err(|e| write_error(path, e))?;
     writer.flush().map_err(|e| io_error(path, e))?;
-    let file = writer.into_inner().map_err(|e| write_error(path, e.error()))?;
+    let file = writer
+        .into_inner()
+        .map_err(|e| write_error(path, e.error()))?;
     atomic.commit(file)
 }
 
