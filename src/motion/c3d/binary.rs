@@ -105,7 +105,11 @@ pub(super) struct Parameters {
     pub list: Vec<Parameter>,
 }
 
-pub(super) fn error(source: &str, location: impl Into<String>, message: impl Into<String>) -> Error {
+pub(super) fn error(
+    source: &str,
+    location: impl Into<String>,
+    message: impl Into<String>,
+) -> Error {
     Error::Motion {
         file: source.to_string(),
         location: location.into(),
@@ -126,7 +130,10 @@ pub(super) fn read_header_and_parameters(
     if bytes.len() < BLOCK {
         return Err(err(
             "header",
-            format!("{} bytes: a C3D file has at least one 512-byte header block", bytes.len()),
+            format!(
+                "{} bytes: a C3D file has at least one 512-byte header block",
+                bytes.len()
+            ),
         ));
     }
     if bytes[1] != 0x50 {
@@ -232,11 +239,8 @@ fn parse_parameters(
             format!("{what} runs past the start of the data section: truncated or corrupt"),
         )
     };
-    loop {
-        let Some([len, id]) = take::<2>(section, pos) else {
-            // The section may simply end at a block boundary without a terminator.
-            break;
-        };
+    // The section may also end at a block boundary without a terminator.
+    while let Some([len, id]) = take::<2>(section, pos) {
         let (len, id) = (len as i8, id as i8);
         if len == 0 || id == 0 {
             break;
@@ -246,14 +250,18 @@ fn parse_parameters(
         let name_bytes = section
             .get(name_at..name_at + n)
             .ok_or_else(|| trunc("a record name", pos))?;
-        let name = String::from_utf8_lossy(name_bytes).trim().to_ascii_uppercase();
+        let name = String::from_utf8_lossy(name_bytes)
+            .trim()
+            .to_ascii_uppercase();
         let off_at = name_at + n;
         let offset = take::<2>(section, off_at)
             .map(|b| processor.u16(b) as usize)
             .ok_or_else(|| trunc("a record offset", pos))?;
         let body = off_at + 2;
         if id < 0 {
-            let d = *section.get(body).ok_or_else(|| trunc("a group description", pos))? as usize;
+            let d = *section
+                .get(body)
+                .ok_or_else(|| trunc("a group description", pos))? as usize;
             section
                 .get(body + 1..body + 1 + d)
                 .ok_or_else(|| trunc("a group description", pos))?;
@@ -343,7 +351,9 @@ fn parse_parameters(
 
 impl Parameters {
     pub(super) fn get(&self, group: &str, name: &str) -> Option<&Parameter> {
-        self.list.iter().find(|p| p.group == group && p.name == name)
+        self.list
+            .iter()
+            .find(|p| p.group == group && p.name == name)
     }
 
     pub(super) fn error(&self, group: &str, name: &str, message: impl Into<String>) -> Error {
@@ -397,7 +407,12 @@ impl Parameters {
     }
 
     /// The first value of an integer parameter.
-    pub(super) fn integer(&self, group: &str, name: &str, unsigned: bool) -> crate::Result<Option<i64>> {
+    pub(super) fn integer(
+        &self,
+        group: &str,
+        name: &str,
+        unsigned: bool,
+    ) -> crate::Result<Option<i64>> {
         match self.integers(group, name, unsigned)? {
             None => Ok(None),
             Some(v) => match v.first() {

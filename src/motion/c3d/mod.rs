@@ -40,8 +40,10 @@
 //!
 //! These are ezc3d's definitions (`ezc3d::Modules::ForcePlatform`, read by OpenSim's
 //! C3DFileAdapter), so [`ForcePlate`] values match `ezc3d.c3d(path,
-//! extract_forceplat_data=True)`: the force applied *to* the plate, the moment about the
-//! surface centre (not the transducer origin), at every analog sample, with no threshold on
+//! extract_forceplat_data=True)`: the force channels rotated into the lab frame and not
+//! negated (in the reference trials, and as OpenSim uses them, the ground reaction on the
+//! subject: +z, about body weight, in stance), the moment about the surface centre (not the
+//! transducer origin), at every analog sample, with no threshold on
 //! Fz (the COP of an unloaded plate is meaningless and can be metres away; it is NaN only
 //! where Fz is exactly 0). Two deliberate differences, for types the reference files do not
 //! contain: the type-1 moment has the physical sign (ezc3d 1.5 writes −(r × F + Tz)), and for
@@ -134,7 +136,10 @@ impl Analog {
     }
 
     pub fn n_samples(&self) -> usize {
-        self.values.len().checked_div(self.labels.len()).unwrap_or(0)
+        self.values
+            .len()
+            .checked_div(self.labels.len())
+            .unwrap_or(0)
     }
 
     /// Index of the named channel.
@@ -145,7 +150,12 @@ impl Analog {
     /// The samples of channel `c`.
     pub fn channel(&self, c: usize) -> Vec<f64> {
         let n = self.labels.len();
-        self.values.iter().skip(c).step_by(n.max(1)).copied().collect()
+        self.values
+            .iter()
+            .skip(c)
+            .step_by(n.max(1))
+            .copied()
+            .collect()
     }
 }
 
@@ -181,7 +191,11 @@ impl C3d {
         let data = &bytes[(header.data_start as usize - 1) * binary::BLOCK..];
         let frame_bytes = layout.frame_bytes();
         if frame_bytes == 0 {
-            return Err(error(source, "header", "the file holds neither points nor analog channels"));
+            return Err(error(
+                source,
+                "header",
+                "the file holds neither points nor analog channels",
+            ));
         }
         let complete = data.len() / frame_bytes;
         if complete < layout.frames {
@@ -202,7 +216,9 @@ impl C3d {
             n_channels: analog.n_channels(),
             n_samples: analog.n_samples(),
             values: &analog.values,
-            units: params.get("ANALOG", "UNITS").map(|_| analog.units.as_slice()),
+            units: params
+                .get("ANALOG", "UNITS")
+                .map(|_| analog.units.as_slice()),
         };
         let plates = plates::force_plates(&params, &view, layout.point_unit)?;
         Ok(C3d {
@@ -220,11 +236,12 @@ impl C3d {
 
     /// The force platforms as an OpenSim ground-reaction table at the analog rate, in
     /// OpenSim's y-up axes ([`lab_to_opensim`]) and SI units: per plate `i` (from 1) the
-    /// columns `plate{i}_force_vx/vy/vz` — the reaction on the subject, minus the force on
-    /// the plate —, `plate{i}_force_px/py/pz` — the centre of pressure — and
-    /// `plate{i}_torque_x/y/z` — minus the free moment; an ExternalForce reads them with
-    /// `force_identifier` `plate{i}_force_v`, `point_identifier` `plate{i}_force_p`,
-    /// `torque_identifier` `plate{i}_torque_`. Where the plate's normal load is below
+    /// columns `plate{i}_force_vx/vy/vz` (the force), `plate{i}_force_px/py/pz` (the centre
+    /// of pressure) and `plate{i}_torque_x/y/z` (the free moment), as OpenSim's
+    /// C3DFileAdapter passes ezc3d's values on (no sign change: in the reference trials the
+    /// force is the reaction on the subject, +y in stance). An ExternalForce reads them with
+    /// `force_identifier` `plate{i}_force_v`, `point_identifier` `plate{i}_force_p` and
+    /// `torque_identifier` `plate{i}_torque_`. Where the plate's normal load |F · n| is below
     /// `min_normal_force` (N, > 0) all nine values are 0, since the COP is then undefined.
     pub fn ground_reactions(&self, min_normal_force: f64) -> crate::Result<Table> {
         if !(min_normal_force > 0.0 && min_normal_force.is_finite()) {
@@ -234,7 +251,11 @@ impl C3d {
             ));
         }
         if self.plates.is_empty() {
-            return Err(error(&self.source, "FORCE_PLATFORM", "the file has no force platforms"));
+            return Err(error(
+                &self.source,
+                "FORCE_PLATFORM",
+                "the file has no force platforms",
+            ));
         }
         let mut labels = Vec::new();
         for i in 1..=self.plates.len() {
@@ -249,14 +270,14 @@ impl C3d {
         let mut values = Vec::with_capacity(n * labels.len());
         for s in 0..n {
             for plate in &self.plates {
-                let load = -plate.force[s].dot(&plate.surface_normal());
+                let load = plate.force[s].dot(&plate.surface_normal()).abs();
                 if load < min_normal_force || !plate.cop[s].x.is_finite() {
                     values.extend([0.0; 9]);
                     continue;
                 }
-                let f = lab_to_opensim(&-plate.force[s]);
+                let f = lab_to_opensim(&plate.force[s]);
                 let p = lab_to_opensim(&plate.cop[s]);
-                let t = lab_to_opensim(&-plate.free_moment[s]);
+                let t = lab_to_opensim(&plate.free_moment[s]);
                 values.extend(f.iter().chain(p.iter()).chain(t.iter()));
             }
         }
@@ -279,99 +300,147 @@ struct Layout {
 }
 
 /// Parameters naming points that are model outputs, not markers.
-const NON_MARKER_LISTS: [&str; 6] = ["ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "REACTIONS"];
+const NON_MARKER_LISTS: [&str; 6] = [
+    "ANGLES",
+    "FORCES",
+    "MOMENTS",
+    "POWERS",
+    "SCALARS",
+    "REACTIONS",
+];
 
 impl Layout {
     fn new(header: &binary::Header, params: &Parameters) -> crate::Result<Layout> {
         let source = &params.source;
         let float = header.scale < 0.0;
         let points = header.points as usize;
-        if let Some(used) = params.integer("POINT", "USED", true)? {
-            if used != points as i64 {
-                return Err(params.error(
-                    "POINT",
-                    "USED",
-                    format!("{used}, but the header says {points} points per frame"),
-                ));
-            }
+        if let Some(used) = params.integer("POINT", "USED", true)?
+            && used != points as i64
+        {
+            return Err(params.error(
+                "POINT",
+                "USED",
+                format!("{used}, but the header says {points} points per frame"),
+            ));
         }
-        let point_scale = match params.numbers("POINT", "SCALE")?.and_then(|v| v.first().copied()) {
+        let point_scale = match params
+            .numbers("POINT", "SCALE")?
+            .and_then(|v| v.first().copied())
+        {
             Some(s) if (s < 0.0) != float => {
                 return Err(params.error(
                     "POINT",
                     "SCALE",
-                    format!("{s} disagrees in sign (integer vs float storage) with the header's {}", header.scale),
+                    format!(
+                        "{s} disagrees in sign (integer vs float storage) with the header's {}",
+                        header.scale
+                    ),
                 ));
             }
             Some(s) => s.abs(),
             None => (header.scale as f64).abs(),
         };
         if !float && points > 0 && !(point_scale > 0.0 && point_scale.is_finite()) {
-            return Err(params.error("POINT", "SCALE", format!("{point_scale} must be positive for integer data")));
+            return Err(params.error(
+                "POINT",
+                "SCALE",
+                format!("{point_scale} must be positive for integer data"),
+            ));
         }
-        let rate = match params.numbers("POINT", "RATE")?.and_then(|v| v.first().copied()) {
+        let rate = match params
+            .numbers("POINT", "RATE")?
+            .and_then(|v| v.first().copied())
+        {
             Some(r) => {
                 let h = header.rate as f64;
                 if (r - h).abs() > 1e-4 * r.abs() {
-                    return Err(params.error("POINT", "RATE", format!("{r} Hz, but the header says {h} Hz")));
+                    return Err(params.error(
+                        "POINT",
+                        "RATE",
+                        format!("{r} Hz, but the header says {h} Hz"),
+                    ));
                 }
                 r
             }
             None => header.rate as f64,
         };
         if !(rate > 0.0 && rate.is_finite()) {
-            return Err(error(source, "header", format!("frame rate {rate} Hz must be positive")));
+            return Err(error(
+                source,
+                "header",
+                format!("frame rate {rate} Hz must be positive"),
+            ));
         }
         let (first, last) = (header.first_frame as usize, header.last_frame as usize);
         let mut frames = match last.checked_sub(first) {
             Some(d) => d + 1,
             None => {
-                return Err(error(source, "header", format!("last frame {last} precedes first frame {first}")));
+                return Err(error(
+                    source,
+                    "header",
+                    format!("last frame {last} precedes first frame {first}"),
+                ));
             }
         };
         if header.last_frame == u16::MAX {
             frames = long_frame_count(params)?.unwrap_or(frames);
         }
-        let (analog_total, subframes) = (header.analog_per_frame as usize, header.analog_subframes as usize);
+        let (analog_total, subframes) = (
+            header.analog_per_frame as usize,
+            header.analog_subframes as usize,
+        );
         let channels = if analog_total == 0 {
             0
         } else if subframes == 0 || analog_total % subframes != 0 {
             return Err(error(
                 source,
                 "header",
-                format!("{analog_total} analog values per frame is not a multiple of {subframes} samples per frame"),
+                format!(
+                    "{analog_total} analog values per frame is not a multiple of {subframes} samples per frame"
+                ),
             ));
         } else {
             analog_total / subframes
         };
-        if let Some(used) = params.integer("ANALOG", "USED", true)? {
-            if used != channels as i64 {
+        if let Some(used) = params.integer("ANALOG", "USED", true)?
+            && used != channels as i64
+        {
+            return Err(params.error(
+                "ANALOG",
+                "USED",
+                format!("{used} channels, but the header's layout holds {channels}"),
+            ));
+        }
+        let analog_rate = params
+            .numbers("ANALOG", "RATE")?
+            .and_then(|v| v.first().copied());
+        if let Some(r) = analog_rate.filter(|_| channels > 0) {
+            let expected = rate * subframes as f64;
+            if (r - expected).abs() > 1e-4 * expected {
                 return Err(params.error(
                     "ANALOG",
-                    "USED",
-                    format!("{used} channels, but the header's layout holds {channels}"),
+                    "RATE",
+                    format!(
+                        "{r} Hz, but {rate} Hz × {subframes} samples per frame is {expected} Hz"
+                    ),
                 ));
-            }
-        }
-        if channels > 0 {
-            if let Some(r) = params.numbers("ANALOG", "RATE")?.and_then(|v| v.first().copied()) {
-                let expected = rate * subframes as f64;
-                if (r - expected).abs() > 1e-4 * expected {
-                    return Err(params.error(
-                        "ANALOG",
-                        "RATE",
-                        format!("{r} Hz, but {rate} Hz × {subframes} samples per frame is {expected} Hz"),
-                    ));
-                }
             }
         }
         let unit_text = params
             .strings("POINT", "UNITS")?
             .and_then(|v| v.into_iter().next())
             .unwrap_or_default();
-        let point_unit = if unit_text.is_empty() { None } else { plates::length_unit(&unit_text) };
+        let point_unit = if unit_text.is_empty() {
+            None
+        } else {
+            plates::length_unit(&unit_text)
+        };
         if point_unit.is_none() && !unit_text.is_empty() {
-            return Err(params.error("POINT", "UNITS", format!("\"{unit_text}\" is not a length unit (mm, cm, m, in)")));
+            return Err(params.error(
+                "POINT",
+                "UNITS",
+                format!("\"{unit_text}\" is not a length unit (mm, cm, m, in)"),
+            ));
         }
         Ok(Layout {
             float,
@@ -426,20 +495,32 @@ impl Layout {
         let mut excluded: Vec<String> = Vec::new();
         for list in NON_MARKER_LISTS {
             if let Some(v) = params.continued(list, |n| match params.get("POINT", n) {
-                Some(p) if matches!(p.values, binary::Values::Char(_)) => params.strings("POINT", n),
+                Some(p) if matches!(p.values, binary::Values::Char(_)) => {
+                    params.strings("POINT", n)
+                }
                 _ => Ok(None),
             })? {
                 excluded.extend(v.into_iter().filter(|s| !s.is_empty()));
             }
         }
-        let kept: Vec<usize> = (0..self.points).filter(|&i| !excluded.contains(&labels[i])).collect();
+        let kept: Vec<usize> = (0..self.points)
+            .filter(|&i| !excluded.contains(&labels[i]))
+            .collect();
         if kept.is_empty() {
             return Ok(None);
         }
-        let metres = self
-            .point_unit
-            .ok_or_else(|| params.error("POINT", "UNITS", "missing: the marker positions need a length unit"))?;
-        let scale = if self.float { metres } else { metres * self.point_scale };
+        let metres = self.point_unit.ok_or_else(|| {
+            params.error(
+                "POINT",
+                "UNITS",
+                "missing: the marker positions need a length unit",
+            )
+        })?;
+        let scale = if self.float {
+            metres
+        } else {
+            metres * self.point_scale
+        };
         let w = self.word();
         let mut positions = Vec::with_capacity(self.frames * kept.len());
         for f in 0..self.frames {
@@ -448,7 +529,12 @@ impl Layout {
                 let at = frame + i * 4 * w;
                 // Missing: a negative residual word (the sign bit of the fourth value).
                 let missing = if self.float {
-                    self.processor.f32_sign([data[at + 12], data[at + 13], data[at + 14], data[at + 15]])
+                    self.processor.f32_sign([
+                        data[at + 12],
+                        data[at + 13],
+                        data[at + 14],
+                        data[at + 15],
+                    ])
                 } else {
                     self.processor.i16([data[at + 6], data[at + 7]]) < 0
                 };
@@ -456,12 +542,19 @@ impl Layout {
                     positions.push(Vec3::repeat(f64::NAN));
                     continue;
                 }
-                let p = Vec3::new(self.value(data, at), self.value(data, at + w), self.value(data, at + 2 * w));
+                let p = Vec3::new(
+                    self.value(data, at),
+                    self.value(data, at + w),
+                    self.value(data, at + 2 * w),
+                );
                 if !p.iter().all(|x| x.is_finite()) {
                     return Err(error(
                         &params.source,
                         format!("frame {f}, marker \"{}\"", labels[i]),
-                        format!("position ({}, {}, {}) is not finite but its residual says it is valid", p.x, p.y, p.z),
+                        format!(
+                            "position ({}, {}, {}) is not finite but its residual says it is valid",
+                            p.x, p.y, p.z
+                        ),
                     ));
                 }
                 positions.push(p * scale);
@@ -512,12 +605,18 @@ impl Layout {
             .numbers(g, "GEN_SCALE")?
             .and_then(|v| v.first().copied())
             .ok_or_else(|| params.error(g, "GEN_SCALE", "missing"))?;
-        let mut units = params.continued("UNITS", |k| params.strings(g, k))?.unwrap_or_default();
+        let mut units = params
+            .continued("UNITS", |k| params.strings(g, k))?
+            .unwrap_or_default();
         units.resize(n, String::new());
         units.truncate(n);
         let gain: Vec<f64> = scale[..n].iter().map(|s| s * gen_scale).collect();
         if let Some(c) = gain.iter().position(|g| !g.is_finite()) {
-            return Err(params.error(g, "SCALE", format!("channel {} scale × GEN_SCALE is not finite", c + 1)));
+            return Err(params.error(
+                g,
+                "SCALE",
+                format!("channel {} scale × GEN_SCALE is not finite", c + 1),
+            ));
         }
         let w = self.word();
         analog.values.reserve(self.frames * self.subframes * n);
@@ -564,7 +663,11 @@ fn long_frame_count(params: &Parameters) -> crate::Result<Option<usize>> {
         if e >= s {
             return Ok(Some((e - s + 1) as usize));
         }
-        return Err(params.error("TRIAL", "ACTUAL_END_FIELD", format!("{e} precedes ACTUAL_START_FIELD {s}")));
+        return Err(params.error(
+            "TRIAL",
+            "ACTUAL_END_FIELD",
+            format!("{e} precedes ACTUAL_START_FIELD {s}"),
+        ));
     }
     Ok(params
         .integers("POINT", "FRAMES", true)?

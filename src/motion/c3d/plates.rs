@@ -11,9 +11,11 @@ use nalgebra::{Matrix6, Vector6};
 /// One force platform and its signals, in SI units and the lab frame of the file.
 ///
 /// Every signal has one value per analog sample ([`super::Analog::rate_hz`]). The force is
-/// the force applied *to* the plate (a person standing on a z-up lab floor gives a
-/// negative z). The moment is that force's moment about the centre of the plate's working
-/// surface ([`ForcePlate::centre`]). The centre of pressure lies on the surface plane; the
+/// the plate's force channels rotated into the lab frame, with the sign the file gives them
+/// (as ezc3d and OpenSim report it; in the reference trials the ground reaction on the
+/// subject, +z in stance). The moment is that force's moment about the centre of the
+/// plate's working surface ([`ForcePlate::centre`]) when it acts at the centre of pressure,
+/// plus the free moment. The centre of pressure lies on the surface plane; the
 /// free moment is the moment about the centre of pressure (along the plate normal).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ForcePlate {
@@ -35,7 +37,7 @@ pub struct ForcePlate {
     pub channels: Vec<usize>,
     /// FORCE_PLATFORM:CAL_MATRIX of a type-4 plate (row = output, column = channel).
     pub calibration: Option<Matrix6<f64>>,
-    /// Force applied to the plate (N).
+    /// Force (N), lab frame.
     pub force: Vec<Vec3>,
     /// Moment of that force about [`ForcePlate::centre`] (N·m).
     pub moment: Vec<Vec3>,
@@ -61,7 +63,9 @@ impl ForcePlate {
 
 /// Metres per unit of a length unit written in the file (`mm`, `cm`, `m`, `in`).
 pub(super) fn length_unit(text: &str) -> Option<f64> {
-    LengthUnit::parse(text).filter(|u| !matches!(u, LengthUnit::Custom(_))).map(|u| u.metres())
+    LengthUnit::parse(text)
+        .filter(|u| !matches!(u, LengthUnit::Custom(_)))
+        .map(|u| u.metres())
 }
 
 fn squash(text: &str) -> String {
@@ -104,24 +108,40 @@ pub(super) fn force_plates(
         return Ok(Vec::new());
     }
     let need = |name: &str| -> crate::Result<Vec<f64>> {
-        params
-            .numbers(G, name)?
-            .ok_or_else(|| params.error(G, name, format!("missing, but FORCE_PLATFORM:USED is {used}")))
+        params.numbers(G, name)?.ok_or_else(|| {
+            params.error(
+                G,
+                name,
+                format!("missing, but FORCE_PLATFORM:USED is {used}"),
+            )
+        })
     };
-    let types = params
-        .integers(G, "TYPE", false)?
-        .ok_or_else(|| params.error(G, "TYPE", format!("missing, but FORCE_PLATFORM:USED is {used}")))?;
+    let types = params.integers(G, "TYPE", false)?.ok_or_else(|| {
+        params.error(
+            G,
+            "TYPE",
+            format!("missing, but FORCE_PLATFORM:USED is {used}"),
+        )
+    })?;
     let corners = need("CORNERS")?;
     let origins = need("ORIGIN")?;
-    let channel_param = params
-        .get(G, "CHANNEL")
-        .ok_or_else(|| params.error(G, "CHANNEL", format!("missing, but FORCE_PLATFORM:USED is {used}")))?;
+    let channel_param = params.get(G, "CHANNEL").ok_or_else(|| {
+        params.error(
+            G,
+            "CHANNEL",
+            format!("missing, but FORCE_PLATFORM:USED is {used}"),
+        )
+    })?;
     let channel_rows = channel_param.dims.first().copied().unwrap_or(1).max(1);
     let channel_values = params.integers(G, "CHANNEL", false)?.unwrap_or_default();
     let cal = params.numbers(G, "CAL_MATRIX")?;
     let cop_poly = params.numbers(G, "FPCOPPOLY")?;
     let metres = point_unit.ok_or_else(|| {
-        params.error("POINT", "UNITS", "missing: the force-platform CORNERS and ORIGIN need a length unit")
+        params.error(
+            "POINT",
+            "UNITS",
+            "missing: the force-platform CORNERS and ORIGIN need a length unit",
+        )
     })?;
     if types.len() < used || corners.len() < 12 * used || origins.len() < 3 * used {
         return Err(params.error(
@@ -178,7 +198,11 @@ pub(super) fn force_plates(
         };
         let corners = [corner(0), corner(1), corner(2), corner(3)];
         let origin = Vec3::new(origins[3 * p], origins[3 * p + 1], origins[3 * p + 2]) * metres;
-        if corners.iter().chain([&origin]).any(|v| !v.iter().all(|x| x.is_finite())) {
+        if corners
+            .iter()
+            .chain([&origin])
+            .any(|v| !v.iter().all(|x| x.is_finite()))
+        {
             return Err(at("CORNERS or ORIGIN is not finite".into()));
         }
         let centre = (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
@@ -187,7 +211,9 @@ pub(super) fn force_plates(
         let z = x.cross(&(corners[0] - corners[3]));
         let y = z.cross(&x);
         if !(x.norm() > 0.0 && z.norm() > 0.0) {
-            return Err(at("CORNERS do not span a plane (coincident or collinear corners)".into()));
+            return Err(at(
+                "CORNERS do not span a plane (coincident or collinear corners)".into(),
+            ));
         }
         let plate_to_lab = Mat3::from_columns(&[x.normalize(), y.normalize(), z.normalize()]);
         let calibration = if kind == 4 {
@@ -204,7 +230,11 @@ pub(super) fn force_plates(
             None
         };
         let unit_of = |ch: usize| -> &str {
-            analog.units.and_then(|u| u.get(channels[ch])).map(String::as_str).unwrap_or("")
+            analog
+                .units
+                .and_then(|u| u.get(channels[ch]))
+                .map(String::as_str)
+                .unwrap_or("")
         };
         // Force channels in N; moments in the channel's unit, or N × POINT:UNITS when it has
         // none (ezc3d's assumption, also used for the outputs of a calibration matrix).
@@ -213,19 +243,20 @@ pub(super) fn force_plates(
             match unit_of(ch) {
                 u if u.trim().is_empty() || kind == 4 => Ok(metres),
                 u => moment_unit(u).ok_or_else(|| {
-                    at(format!("analog channel {} has unit \"{u}\", not a moment unit (N·m, N·mm)", channels[ch] + 1))
+                    at(format!(
+                        "analog channel {} has unit \"{u}\", not a moment unit (N·m, N·mm)",
+                        channels[ch] + 1
+                    ))
                 }),
             }
         };
         let force_channels = if kind == 3 { 0..8 } else { 0..3 };
-        if kind != 4 {
-            if let Some(ch) = force_channels.clone().find(|&c| !force_ok(c)) {
-                return Err(at(format!(
-                    "analog channel {} has unit \"{}\", not N",
-                    channels[ch] + 1,
-                    unit_of(ch)
-                )));
-            }
+        if let Some(ch) = force_channels.clone().find(|&c| kind != 4 && !force_ok(c)) {
+            return Err(at(format!(
+                "analog channel {} has unit \"{}\", not N",
+                channels[ch] + 1,
+                unit_of(ch)
+            )));
         }
         let poly: Option<[f64; 12]> = match (&cop_poly, kind) {
             (Some(v), 3) if v.len() >= 12 * (p + 1) => v[12 * p..12 * (p + 1)].try_into().ok(),
@@ -236,7 +267,10 @@ pub(super) fn force_plates(
                 let len_scale = match unit_of(3) {
                     u if u.trim().is_empty() => metres,
                     u => length_unit(u).ok_or_else(|| {
-                        at(format!("analog channel {} has unit \"{u}\", not a length", channels[3] + 1))
+                        at(format!(
+                            "analog channel {} has unit \"{u}\", not a length",
+                            channels[3] + 1
+                        ))
                     })?,
                 };
                 Conversion::Type1 {
@@ -306,9 +340,19 @@ enum Conversion {
     /// Fx, Fy, Fz, Mx, My, Mz about the transducer origin.
     Type2 { moment: f64, origin: Vec3 },
     /// Kistler: fx12, fx34, fy14, fy23, fz1, fz2, fz3, fz4 with sensors at (±a, ±b).
-    Type3 { a: f64, b: f64, height: f64, poly: Option<[f64; 12]>, metres: f64 },
+    Type3 {
+        a: f64,
+        b: f64,
+        height: f64,
+        poly: Option<[f64; 12]>,
+        metres: f64,
+    },
     /// Six channels through the calibration matrix to Fx…Mz about the transducer origin.
-    Type4 { cal: Matrix6<f64>, moment: f64, origin: Vec3 },
+    Type4 {
+        cal: Matrix6<f64>,
+        moment: f64,
+        origin: Vec3,
+    },
 }
 
 /// Force, moment about the surface centre, and centre of pressure (from the surface
@@ -334,13 +378,23 @@ impl Conversion {
                 let m_origin = Vec3::new(ch[3], ch[4], ch[5]) * moment;
                 centred(force, m_origin, origin)
             }
-            Conversion::Type4 { cal, moment, origin } => {
+            Conversion::Type4 {
+                cal,
+                moment,
+                origin,
+            } => {
                 let out = cal * Vector6::new(ch[0], ch[1], ch[2], ch[3], ch[4], ch[5]);
                 let force = Vec3::new(out[0], out[1], out[2]);
                 let m_origin = Vec3::new(out[3], out[4], out[5]) * moment;
                 centred(force, m_origin, origin)
             }
-            Conversion::Type3 { a, b, height, poly, metres } => {
+            Conversion::Type3 {
+                a,
+                b,
+                height,
+                poly,
+                metres,
+            } => {
                 let [fx12, fx34, fy14, fy23, fz1, fz2, fz3, fz4] = *ch;
                 let force = Vec3::new(fx12 + fx34, fy14 + fy23, fz1 + fz2 + fz3 + fz4);
                 // Kistler: Mx = b (fz1 + fz2 − fz3 − fz4), My = a (−fz1 + fz2 + fz3 − fz4),
@@ -385,5 +439,10 @@ fn centred(force: Vec3, m_origin: Vec3, r: Vec3) -> Wrench {
 fn lab_signals(w: &Wrench, plate: &ForcePlate) -> (Vec3, Vec3, Vec3, Vec3) {
     let r = &plate.plate_to_lab;
     let free = w.moment + w.force.cross(&w.cop);
-    (r * w.force, r * w.moment, r * w.cop + plate.centre, r * free)
+    (
+        r * w.force,
+        r * w.moment,
+        r * w.cop + plate.centre,
+        r * free,
+    )
 }
