@@ -371,6 +371,9 @@ fn bvh_cmu_implied_height_is_plausible_in_the_cmu_unit_only() {
                 message.contains("implied body height") && message.contains("0.056444"),
                 "{message}"
             );
+            if file == CMU[0] && unit == LengthUnit::Centimetres {
+                eprintln!("read in cm: {e}");
+            }
         }
     }
 }

@@ -89,7 +89,7 @@ fn npy_reads_fortran_order_and_misaligned_buffers() {
     let a = ramp(&[3, 4]);
     // A transposed view is Fortran-contiguous: the crate writes it with fortran_order True.
     let t = a.t();
-    assert!(t.is_standard_layout() == false);
+    assert!(!t.is_standard_layout());
     let mut bytes = Vec::new();
     t.write_npy(&mut bytes).unwrap();
     assert!(String::from_utf8_lossy(&bytes[..128]).contains("'fortran_order': True"));
@@ -263,8 +263,13 @@ fn humanml3d_both_forms_of_the_reference_clip_give_the_same_joints() {
         return;
     };
     let options = humanml3d::Options::default();
+    let start = std::time::Instant::now();
     let a = humanml3d::read_joints(&joints, &options).unwrap();
     let b = humanml3d::read_features(&vecs, &options).unwrap();
+    eprintln!(
+        "HumanML3D 012314: both forms read (170 frames each) in {:.2} ms",
+        start.elapsed().as_secs_f64() * 1e3
+    );
     assert_eq!((a.n_frames(), a.n_targets(), a.rate_hz), (170, 22, 20.0));
     assert_eq!(a.names, b.names);
     assert_eq!(a.names, humanml3d::JOINT_NAMES.map(String::from));
