@@ -371,6 +371,9 @@ fn model_scaler(
     Ok(out)
 }
 
+/// A visitor of a set's members.
+type Visit<'v> = dyn FnMut(&Reader, Node, &mut Vec<SetupWarning>) -> crate::Result<()> + 'v;
+
 /// Visits the members of a set element (`<objects>` children), reading them from the file
 /// named by a `file` attribute when there is one, as OpenSim does.
 fn with_set(
@@ -378,7 +381,7 @@ fn with_set(
     set: Node,
     base: &Path,
     warnings: &mut Vec<SetupWarning>,
-    visit: &mut dyn FnMut(&Reader, Node, &mut Vec<SetupWarning>) -> crate::Result<()>,
+    visit: &mut Visit,
 ) -> crate::Result<()> {
     if let Some(file) = set
         .attribute("file")
@@ -417,7 +420,7 @@ fn members(
     r: &Reader,
     set: Node,
     warnings: &mut Vec<SetupWarning>,
-    visit: &mut dyn FnMut(&Reader, Node, &mut Vec<SetupWarning>) -> crate::Result<()>,
+    visit: &mut Visit,
 ) -> crate::Result<()> {
     for c in set.children().filter(Node::is_element) {
         match c.tag_name().name() {

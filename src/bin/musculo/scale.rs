@@ -75,7 +75,11 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     }
     println!(
         "{}: generic model {} ({:.3} kg)",
-        if result.name.is_empty() { "scale" } else { &result.name },
+        if result.name.is_empty() {
+            "scale"
+        } else {
+            &result.name
+        },
         result.generic_file.display(),
         result.generic.total_mass()
     );
@@ -99,7 +103,10 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             "body", "x", "y", "z", "mass (kg)", "scaled"
         );
         for s in &set.scales {
-            let before = result.generic.body_index(&s.body).map(|b| result.generic.bodies[b].mass);
+            let before = result
+                .generic
+                .body_index(&s.body)
+                .map(|b| result.generic.bodies[b].mass);
             let after = (result.scaled.model.body_index(&s.body))
                 .map(|b| result.scaled.model.bodies[b].mass);
             println!(

@@ -13,7 +13,7 @@
 //! Apart from the marker set, the text of the model is kept byte for byte.
 
 use super::ScaleSet;
-use super::apply::{Frames, child, component_path, text_node};
+use super::frames::{Frames, child, component_path, text_node};
 use crate::error::Error;
 use crate::io::scale_setup::{MarkerDef, MarkerParent};
 use crate::model::Model;

@@ -104,7 +104,7 @@ pub fn measure(
             })?;
         }
         let d_model = (markers_at_default[model_idx[0]] - markers_at_default[model_idx[1]]).norm();
-        if !(d_model > 0.0) {
+        if d_model.is_nan() || d_model <= 0.0 {
             return Err(pair.place.error(format!(
                 "markers \"{}\" and \"{}\" coincide on the model (distance {d_model} m): \
                  no scale factor can be measured",

@@ -35,7 +35,8 @@
 //! OpenSim wraps a translation function in a `MultiplierFunction`, musculo multiplies the
 //! function's values instead (the same function).
 
-pub mod apply;
+mod apply;
+mod frames;
 pub mod markers;
 pub mod measure;
 pub mod place;

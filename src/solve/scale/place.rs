@@ -7,7 +7,9 @@
 //! 3. One frame of inverse kinematics ([`crate::solve::ik`]) from the default pose: the
 //!    IKTaskSet's applied marker tasks with their weights (all trial markers with weight 1
 //!    when it lists none), its coordinate tasks (target: the default value, the task's
-//!    value, or the `coordinate_file` at t₀), clamped coordinates held in their ranges.
+//!    value, or the `coordinate_file` at t₀), clamped coordinates held in their ranges, and
+//!    OpenSim's objective Σ_i (w_i / Σ w) ‖e_i‖² + Σ_c w_c (q_c − r_c)² (the marker goal a
+//!    weighted mean over the markers present, the coordinate goals not).
 //! 4. Each non-fixed model marker moves onto its experimental position averaged over
 //!    OpenSim's frame window (`MarkerData::averageFrames`, which skips missing samples),
 //!    expressed in the marker's own frame at the solved pose.
@@ -126,8 +128,10 @@ pub fn place_markers(
         time: vec![t0],
         positions: target,
     };
+    // OpenSim's objective: the marker goal a weighted mean, coordinate goals not
     let settings = IkSettings {
         bounds: Bounds::Clamped,
+        normalize_marker_weights: true,
         ..IkSettings::default()
     };
     let solution = ik::solve_motion(&model, &targets, &tasks, &settings, &|_| {})?;

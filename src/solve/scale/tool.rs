@@ -174,36 +174,36 @@ pub fn run(setup: &ScaleSetup, options: &ToolOptions) -> crate::Result<ScaleTool
         },
     };
     let mut placement = None;
-    if let Some(placer) = setup.marker_placer.as_ref().filter(|p| p.apply) {
-        if !options.skip_placement {
-            let p = super::place::place_markers(&scaled.xml, &source, placer, &options.load)?;
-            warnings.extend(p.warnings.iter().cloned());
-            for (kind, path, text) in [
-                (
-                    OutputKind::PlacedModel,
-                    &placer.output_model_file,
-                    Some(&p.xml),
-                ),
-                (OutputKind::MarkerSet, &placer.output_marker_file, None),
-                (
-                    OutputKind::StaticPose,
-                    &placer.output_motion_file,
-                    Some(&p.static_pose),
-                ),
-            ] {
-                let Some(path) = path else { continue };
-                let text = match text {
-                    Some(t) => t.clone(),
-                    None => markers::marker_set_file(&p.xml, &source)?,
-                };
-                outputs.push(Output {
-                    kind,
-                    path: path.clone(),
-                    text,
-                });
-            }
-            placement = Some(p);
+    if let Some(placer) = setup.marker_placer.as_ref().filter(|p| p.apply)
+        && !options.skip_placement
+    {
+        let p = super::place::place_markers(&scaled.xml, &source, placer, &options.load)?;
+        warnings.extend(p.warnings.iter().cloned());
+        for (kind, path, text) in [
+            (
+                OutputKind::PlacedModel,
+                &placer.output_model_file,
+                Some(&p.xml),
+            ),
+            (OutputKind::MarkerSet, &placer.output_marker_file, None),
+            (
+                OutputKind::StaticPose,
+                &placer.output_motion_file,
+                Some(&p.static_pose),
+            ),
+        ] {
+            let Some(path) = path else { continue };
+            let text = match text {
+                Some(t) => t.clone(),
+                None => markers::marker_set_file(&p.xml, &source)?,
+            };
+            outputs.push(Output {
+                kind,
+                path: path.clone(),
+                text,
+            });
         }
+        placement = Some(p);
     }
     Ok(ScaleToolResult {
         name: setup.name.clone(),
