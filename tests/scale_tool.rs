@@ -1159,3 +1159,16 @@ fn the_cli_writes_what_the_setup_asks_where_it_is_told() {
     assert_eq!(kinds, [OutputKind::ScaledModel, OutputKind::ScaleSet]);
     let _ = read_trial;
 }
+
+#[test]
+fn the_measurement_window_is_opensims_frame_search() {
+    use musculo::solve::scale::measure::frame_range;
+    let t = [0.0, 0.5, 1.0, 1.5, 2.0];
+    // from the last frame at or before the start to the first at or after the end
+    assert_eq!(frame_range(&t, 0.7, 1.2), (1, 3));
+    assert_eq!(frame_range(&t, 1.0, 1.5), (2, 3));
+    // OpenSim's default range −1 −1: the first frame alone
+    assert_eq!(frame_range(&t, -1.0, -1.0), (0, 0));
+    // past the end: the last frame
+    assert_eq!(frame_range(&t, 0.2, 9.0), (0, 4));
+}
