@@ -30,6 +30,11 @@
 //!     correction `FPCOPPOLY` is applied when present;
 //!   - type 4: (F, M) = `CAL_MATRIX` · channels (first index of `CAL_MATRIX` = row).
 //!
+//!   Force channels must be in N (or have no unit); moment channels in N·m, N·cm or N·mm,
+//!   or without a unit, then taken as N × `POINT:UNITS` (ezc3d's assumption, also made for
+//!   the outputs of a type-4 calibration matrix); type-1 COP channels in a length unit or
+//!   `POINT:UNITS`. `CORNERS` and `ORIGIN` are in `POINT:UNITS`.
+//!
 //!   The moment is moved from the transducer origin to the centre of the working surface:
 //!   M_c = M_o + F × r, with r = −`ORIGIN` when `ORIGIN`'s z is positive (the C3D
 //!   convention: plate z points down, the origin lies below the surface) and `ORIGIN` as
@@ -62,8 +67,8 @@
 //! Every problem is an [`Error::Motion`] naming the file and where: `header`,
 //! `parameter section, byte N`, `parameter POINT:LABELS`, `force platform 2`, `frame 812`
 //! (0-based, as in [`Motion`]). A truncated file is an error naming the first incomplete
-//! frame, never a shorter motion; no input makes the reader panic or allocate more than the
-//! file's length can hold.
+//! frame, never a shorter motion; no input makes the reader panic, and what it allocates is
+//! at most a fixed multiple (about 50) of the file's length.
 //!
 //! # Why not the `c3dio` crate
 //!

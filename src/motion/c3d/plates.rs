@@ -107,6 +107,18 @@ pub(super) fn force_plates(
     if used == 0 {
         return Ok(Vec::new());
     }
+    // More plates than channels cannot be (each reads six or eight); the bound also keeps the
+    // output (96 bytes per plate and sample) a fixed multiple of the file's length.
+    if used > analog.n_channels {
+        return Err(params.error(
+            G,
+            "USED",
+            format!(
+                "{used} platforms, but the file has {} analog channels",
+                analog.n_channels
+            ),
+        ));
+    }
     let need = |name: &str| -> crate::Result<Vec<f64>> {
         params.numbers(G, name)?.ok_or_else(|| {
             params.error(
@@ -238,7 +250,12 @@ pub(super) fn force_plates(
         };
         // Force channels in N; moments in the channel's unit, or N × POINT:UNITS when it has
         // none (ezc3d's assumption, also used for the outputs of a calibration matrix).
-        let force_ok = |ch: usize| matches!(squash(unit_of(ch)).as_str(), "" | "n");
+        let force_ok = |ch: usize| {
+            matches!(
+                squash(unit_of(ch)).as_str(),
+                "" | "n" | "newton" | "newtons"
+            )
+        };
         let moment_scale = |ch: usize| -> crate::Result<f64> {
             match unit_of(ch) {
                 u if u.trim().is_empty() || kind == 4 => Ok(metres),
