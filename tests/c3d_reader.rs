@@ -184,7 +184,9 @@ fn reference_trials_match_the_ezc3d_exports() {
         let Some((bytes, markers, plates)) = trial(name) else {
             return;
         };
+        let start = std::time::Instant::now();
         let c = C3d::parse(&bytes, name).unwrap();
+        let read_ms = start.elapsed().as_secs_f64() * 1e3;
         assert_eq!(c.processor, Processor::Intel);
         assert_eq!(c.rate_hz, 250.0);
         assert_eq!(c.marker_units, "mm");
@@ -236,8 +238,9 @@ fn reference_trials_match_the_ezc3d_exports() {
         }
         let worst = compare_plates(&c, &plates, &[0, 1], 0.0, name);
         eprintln!(
-            "{name}: {} frames × {} markers, {gaps} gap samples, max marker difference {max:.2e} mm; \
+            "{name} ({} bytes, read in {read_ms:.1} ms): {} frames × {} markers, {gaps} gap samples, max marker difference {max:.2e} mm; \
              plates: max relative difference force {:.1e}, moment {:.1e}, COP {:.1e}, free moment {:.1e}",
+            bytes.len(),
             c.n_frames,
             m.n_targets(),
             worst[0],
