@@ -16,8 +16,10 @@
 //!   free set F = { j : not (q_j = lo_j and g_j > 0) and not (q_j = hi_j and g_j < 0) },
 //!   (H_FF + μ diag H_FF) δ_F = −g_F,   q ← clamp(q + δ),
 //!
-//! accepting a step when f decreases (μ ÷ 3) and rejecting it otherwise (μ × 4). It stops
-//! when the projected gradient or the relative decrease of f falls below the tolerance. Each
+//! accepting a step when f decreases (μ ÷ 3) and rejecting it otherwise (μ × 4). A frame
+//! ends when an accepted step moves no coordinate by more than the tolerance, when f falls
+//! by less than [`RELATIVE_DECREASE`] of itself, or when the projected gradient vanishes.
+//! The damping μ carries over from frame to frame. Each
 //! frame starts from the previous frame's solution (the first from `initial_q` or the
 //! model's default pose), so frames within a clip are sequential; clips run in parallel
 //! ([`solve_motions`]) and the result does not depend on the thread count.
@@ -31,6 +33,11 @@ use crate::motion::Motion;
 use crate::spatial::Vec3;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+
+/// A frame ends when an accepted step lowers f by less than this fraction of f: the
+/// remaining decrease of a Gauss–Newton iteration is then of the same order, far below
+/// what moves a well-determined coordinate by 10⁻⁴ degree.
+pub const RELATIVE_DECREASE: f64 = 1e-9;
 
 /// A model marker that follows a target column of the motion.
 #[derive(Clone, Debug, PartialEq)]
@@ -80,7 +87,7 @@ pub struct IkSettings {
     pub smoothness: f64,
     /// Iterations per frame (first frame: ten times as many); default 100.
     pub max_iterations: usize,
-    /// Relative decrease of f and projected-gradient size that end a frame; default 1e-10.
+    /// The largest coordinate step (rad or m) that ends a frame; default 1e-6 (6e-5 degree).
     pub tolerance: f64,
     /// The first frame's starting point (default: the model's default coordinates).
     pub initial_q: Option<Vec<f64>>,
@@ -97,7 +104,7 @@ impl Default for IkSettings {
             bounds: Bounds::Range,
             smoothness: 0.0,
             max_iterations: 100,
-            tolerance: 1e-10,
+            tolerance: 1e-6,
             initial_q: None,
             normalize_marker_weights: false,
         }
@@ -251,13 +258,18 @@ pub struct IkWorkspace {
     data: Data,
     jac: DMatrix<f64>,
     hessian: DMatrix<f64>,
-    chol: DMatrix<f64>,
+    chol: Vec<f64>,
+    packed: Vec<f64>,
     gradient: DVector<f64>,
     step: DVector<f64>,
     q: Vec<f64>,
     q_trial: Vec<f64>,
     q_prev: Vec<f64>,
     free: Vec<bool>,
+    cols: Vec<usize>,
+    jcols: Vec<[f64; 3]>,
+    /// Marquardt's damping, carried from frame to frame.
+    mu: f64,
     lo: Vec<f64>,
     hi: Vec<f64>,
 }
@@ -270,13 +282,17 @@ impl IkWorkspace {
             data: Data::new(model),
             jac: DMatrix::zeros(3, n),
             hessian: DMatrix::zeros(n, n),
-            chol: DMatrix::zeros(n, n),
+            chol: vec![0.0; n * n],
+            packed: vec![0.0; n],
             gradient: DVector::zeros(n),
             step: DVector::zeros(n),
             q: vec![0.0; n],
             q_trial: vec![0.0; n],
             q_prev: vec![0.0; n],
             free: vec![true; n],
+            cols: Vec::with_capacity(n),
+            jcols: Vec::with_capacity(n),
+            mu: 1e-3,
             lo,
             hi,
         }
@@ -346,16 +362,25 @@ fn normal_equations(
         dynamics::point_jacobian(model, &ws.data, m.body, &m.location_in_body, &mut ws.jac)?;
         let r = ws.data.point_position(m.body, &m.location_in_body) - x;
         let w = frame.marker_scale * t.weight;
-        // H += w Jᵀ J (upper triangle; columns of zeros skipped),  g += w Jᵀ r
+        // The columns this marker moves with (those of the joints between it and ground),
+        // gathered with their Jacobian columns.
+        let jac = ws.jac.as_slice(); // column-major 3 × n
+        ws.cols.clear();
+        ws.jcols.clear();
         for a in 0..n {
-            let ja = [ws.jac[(0, a)], ws.jac[(1, a)], ws.jac[(2, a)]];
-            if ja == [0.0; 3] {
-                continue;
+            let c = [jac[3 * a], jac[3 * a + 1], jac[3 * a + 2]];
+            if c != [0.0; 3] {
+                ws.cols.push(a);
+                ws.jcols.push(c);
             }
+        }
+        // H += w Jᵀ J (upper triangle),  g += w Jᵀ r
+        let h = ws.hessian.as_mut_slice();
+        for (i, (&a, ja)) in ws.cols.iter().zip(&ws.jcols).enumerate() {
             ws.gradient[a] += w * (ja[0] * r.x + ja[1] * r.y + ja[2] * r.z);
-            for b in a..n {
-                let jb = [ws.jac[(0, b)], ws.jac[(1, b)], ws.jac[(2, b)]];
-                ws.hessian[(a, b)] += w * (ja[0] * jb[0] + ja[1] * jb[1] + ja[2] * jb[2]);
+            let wa = [w * ja[0], w * ja[1], w * ja[2]];
+            for (&b, jb) in ws.cols[i..].iter().zip(&ws.jcols[i..]) {
+                h[a + b * n] += wa[0] * jb[0] + wa[1] * jb[1] + wa[2] * jb[2];
             }
         }
     }
@@ -378,65 +403,64 @@ fn normal_equations(
     Ok(())
 }
 
-/// Solves (H_FF + μ diag H_FF + ε I) δ_F = −g_F by Cholesky (L Lᵀ, L in `chol`), δ = 0 off
-/// the free set; false when the damped matrix is not positive definite.
+/// Solves (H_FF + μ D_FF + ε I) δ_F = −g_F by Cholesky (L Lᵀ) on the free
+/// coordinates packed together (`chol`, m × m row-major), δ = 0 off the free set; false when
+/// the damped matrix is not positive definite.
 fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     let n = ws.gradient.len();
-    let (h, l, free) = (&ws.hessian, &mut ws.chol, &ws.free);
+    ws.cols.clear();
+    ws.cols.extend((0..n).filter(|&j| ws.free[j]));
+    let m = ws.cols.len();
+    let h = ws.hessian.as_slice(); // column-major n × n, symmetric
+    // Marquardt's scaling D = diag H, floored at 10⁻² of its largest entry so that poorly
+    // determined coordinates (a forearm's roll seen by one joint centre) cannot take long
+    // steps that the next iterations must walk back.
+    let floor = 1e-2 * (0..n).map(|j| h[j + j * n]).fold(0.0f64, f64::max);
+    let l = &mut ws.chol[..m * m];
     // L_ik = (A_ik − Σ_{p<k} L_ip L_kp) / L_kk,  L_ii = √(A_ii − Σ_{p<i} L_ip²)
-    for i in 0..n {
-        if !free[i] {
-            continue;
-        }
+    for i in 0..m {
+        let gi = ws.cols[i];
         for k in 0..=i {
-            if !free[k] {
-                continue;
-            }
+            let gk = ws.cols[k];
+            let a = h[gi + gk * n];
             let mut s = if k == i {
-                h[(i, i)] * (1.0 + mu) + 1e-12 * (1.0 + h[(i, i)])
+                a + mu * a.max(floor) + 1e-12 * (1.0 + a)
             } else {
-                h[(i, k)]
+                a
             };
+            let (ri, rk) = (i * m, k * m);
             for p in 0..k {
-                if free[p] {
-                    s -= l[(i, p)] * l[(k, p)];
-                }
+                s -= l[ri + p] * l[rk + p];
             }
             if k == i {
                 if !(s > 0.0 && s.is_finite()) {
                     return false;
                 }
-                l[(i, i)] = s.sqrt();
+                l[ri + i] = s.sqrt();
             } else {
-                l[(i, k)] = s / l[(k, k)];
+                l[ri + k] = s / l[rk + k];
             }
         }
     }
-    // L y = −g,  Lᵀ δ = y (δ overwrites y in `step`)
-    for i in 0..n {
-        if !free[i] {
-            ws.step[i] = 0.0;
-            continue;
-        }
-        let mut s = -ws.gradient[i];
+    // L y = −g,  Lᵀ δ = y (y and δ packed in `packed`)
+    let y = &mut ws.packed[..m];
+    for i in 0..m {
+        let mut s = -ws.gradient[ws.cols[i]];
         for p in 0..i {
-            if free[p] {
-                s -= l[(i, p)] * ws.step[p];
-            }
+            s -= l[i * m + p] * y[p];
         }
-        ws.step[i] = s / l[(i, i)];
+        y[i] = s / l[i * m + i];
     }
-    for i in (0..n).rev() {
-        if !free[i] {
-            continue;
+    for i in (0..m).rev() {
+        let mut s = y[i];
+        for p in i + 1..m {
+            s -= l[p * m + i] * y[p];
         }
-        let mut s = ws.step[i];
-        for p in i + 1..n {
-            if free[p] {
-                s -= l[(p, i)] * ws.step[p];
-            }
-        }
-        ws.step[i] = s / l[(i, i)];
+        y[i] = s / l[i * m + i];
+    }
+    ws.step.fill(0.0);
+    for (i, &g) in ws.cols.iter().enumerate() {
+        ws.step[g] = y[i];
     }
     true
 }
@@ -467,21 +491,22 @@ fn solve_frame(
     tolerance: f64,
 ) -> crate::Result<(f64, u32)> {
     let mut f = objective(model, &mut ws.data, tasks, frame, &ws.q, &ws.q_prev)?;
-    let mut mu = 1e-3;
+    let mut mu = ws.mu;
     let mut iterations = 0u32;
     normal_equations(model, ws, tasks, frame)?;
     while (iterations as usize) < max_iterations {
         iterations += 1;
-        // Scale for the gradient test: the objective's size, at least a (1 mm)² error.
         let pg = update_free_set(ws);
-        if pg <= tolerance * (f + 1e-6).sqrt() * 1e-2 {
+        if pg <= 1e-15 {
             break;
         }
         let mut accepted = false;
         while mu < 1e12 {
             if damped_step(ws, mu) {
+                let mut largest = 0.0f64;
                 for j in 0..ws.q.len() {
                     ws.q_trial[j] = (ws.q[j] + ws.step[j]).clamp(ws.lo[j], ws.hi[j]);
+                    largest = largest.max((ws.q_trial[j] - ws.q[j]).abs());
                 }
                 let f_trial =
                     objective(model, &mut ws.data, tasks, frame, &ws.q_trial, &ws.q_prev)?;
@@ -490,8 +515,9 @@ fn solve_frame(
                     let decrease = f - f_trial;
                     f = f_trial;
                     mu = (mu / 3.0).max(1e-12);
+                    ws.mu = mu;
                     accepted = true;
-                    if decrease <= tolerance * f.max(1e-12) {
+                    if largest <= tolerance || decrease <= RELATIVE_DECREASE * f {
                         return Ok((f, iterations));
                     }
                     break;
