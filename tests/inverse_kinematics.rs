@@ -33,6 +33,10 @@ fn smooth_motion(model: &Model, frames: usize, rate: f64, seed: u64) -> Vec<f64>
             if coord.name.starts_with("pelvis_t") {
                 (lo, hi) = (-0.3, 0.3);
             }
+            // The heading's range spans several turns; a pose repeats every turn.
+            if coord.name == "pelvis_rotation" {
+                (lo, hi) = (-1.5, 1.5);
+            }
             if coord.name.starts_with("elbow_flex") {
                 (lo, hi) = (0.4, 2.2);
             }

@@ -259,6 +259,7 @@ pub struct IkWorkspace {
     jac: DMatrix<f64>,
     hessian: DMatrix<f64>,
     chol: Vec<f64>,
+    inv_diag: Vec<f64>,
     packed: Vec<f64>,
     gradient: DVector<f64>,
     step: DVector<f64>,
@@ -283,6 +284,7 @@ impl IkWorkspace {
             jac: DMatrix::zeros(3, n),
             hessian: DMatrix::zeros(n, n),
             chol: vec![0.0; n * n],
+            inv_diag: vec![0.0; n],
             packed: vec![0.0; n],
             gradient: DVector::zeros(n),
             step: DVector::zeros(n),
@@ -418,45 +420,41 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     let floor = 1e-2 * (0..n).map(|j| h[j + j * n]).fold(0.0f64, f64::max);
     let l = &mut ws.chol[..m * m];
     // L_ik = (A_ik − Σ_{p<k} L_ip L_kp) / L_kk,  L_ii = √(A_ii − Σ_{p<i} L_ip²)
+    // (row-major L; the reciprocals 1/L_kk kept in `inv_diag` to avoid divisions)
+    let inv = &mut ws.inv_diag[..m];
     for i in 0..m {
         let gi = ws.cols[i];
+        let (done, row) = l.split_at_mut(i * m);
+        let row = &mut row[..m];
         for k in 0..=i {
             let gk = ws.cols[k];
             let a = h[gi + gk * n];
-            let mut s = if k == i {
-                a + mu * a.max(floor) + 1e-12 * (1.0 + a)
-            } else {
-                a
-            };
-            let (ri, rk) = (i * m, k * m);
-            for p in 0..k {
-                s -= l[ri + p] * l[rk + p];
-            }
+            let lk: &[f64] = if k == i { &row[..k] } else { &done[k * m..k * m + k] };
+            let dot: f64 = row[..k].iter().zip(lk).map(|(x, y)| x * y).sum();
             if k == i {
+                let s = a + mu * a.max(floor) + 1e-12 * (1.0 + a) - dot;
                 if !(s > 0.0 && s.is_finite()) {
                     return false;
                 }
-                l[ri + i] = s.sqrt();
+                row[i] = s.sqrt();
+                inv[i] = 1.0 / row[i];
             } else {
-                l[ri + k] = s / l[rk + k];
+                row[k] = (a - dot) * inv[k];
             }
         }
     }
     // L y = −g,  Lᵀ δ = y (y and δ packed in `packed`)
     let y = &mut ws.packed[..m];
     for i in 0..m {
-        let mut s = -ws.gradient[ws.cols[i]];
-        for p in 0..i {
-            s -= l[i * m + p] * y[p];
-        }
-        y[i] = s / l[i * m + i];
+        let dot: f64 = l[i * m..i * m + i].iter().zip(&y[..i]).map(|(a, b)| a * b).sum();
+        y[i] = (-ws.gradient[ws.cols[i]] - dot) * inv[i];
     }
     for i in (0..m).rev() {
         let mut s = y[i];
         for p in i + 1..m {
             s -= l[p * m + i] * y[p];
         }
-        y[i] = s / l[i * m + i];
+        y[i] = s * inv[i];
     }
     ws.step.fill(0.0);
     for (i, &g) in ws.cols.iter().enumerate() {
