@@ -201,3 +201,77 @@ pub fn spatial_transform(axes: [(&str, [f64; 3], &str); 6]) -> String {
 
 pub const ZERO: &str = "<Constant><value>0</value></Constant>";
 pub const IDENTITY: &str = "<LinearFunction><coefficients>1 0</coefficients></LinearFunction>";
+
+/// A fresh directory under the system temp folder for one test's files (named after the
+/// test and the process), removed when dropped.
+pub struct ScratchDir(pub PathBuf);
+
+impl ScratchDir {
+    pub fn new(test: &str) -> ScratchDir {
+        let d = std::env::temp_dir().join(format!("musculo-{test}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("create a scratch directory");
+        ScratchDir(d)
+    }
+
+    pub fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Runs the `musculo` binary: (exit status success, stdout, stderr).
+pub fn run_musculo<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> (bool, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_musculo"))
+        .args(args)
+        .output()
+        .expect("run musculo");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Runs `musculo` with the whitespace-separated arguments of `pattern`, each `{}` replaced by
+/// the next of `paths` (which may contain spaces): (success, stdout, stderr).
+pub fn musculo_cli(pattern: &str, paths: &[&std::path::Path]) -> (bool, String, String) {
+    let mut paths = paths.iter();
+    let args: Vec<std::ffi::OsString> = pattern
+        .split_whitespace()
+        .map(|a| match a {
+            "{}" => paths.next().expect("a path per {}").as_os_str().to_owned(),
+            _ => a.into(),
+        })
+        .collect();
+    assert!(
+        paths.next().is_none(),
+        "more paths than {{}} in `{pattern}`"
+    );
+    run_musculo(&args)
+}
+
+/// The (file, location, message) of an `Error::Motion`; panics on any other error.
+pub fn expect_motion_error(e: musculo::Error) -> (String, String, String) {
+    match e {
+        musculo::Error::Motion {
+            file,
+            location,
+            message,
+        } => (file, location, message),
+        other => panic!("expected Error::Motion, got {other:?}"),
+    }
+}
+
+/// The (argument, message) of an `Error::InvalidArgument`; panics on any other error.
+pub fn expect_invalid_argument(e: musculo::Error) -> (&'static str, String) {
+    match e {
+        musculo::Error::InvalidArgument { argument, message } => (argument, message),
+        other => panic!("expected Error::InvalidArgument, got {other:?}"),
+    }
+}

@@ -1,0 +1,606 @@
+//! Inverse kinematics of motion datasets onto the default full-body model: the HumanML3D
+//! sample in both of its forms and the CMU BVH files of the reference data, each scaled to
+//! the clip (`--scale auto`) and fitted with the default settings (every coordinate bounded
+//! by its range), through the library and through `musculo ik`.
+//!
+//! Checked independently of the solver's own bookkeeping:
+//! - every reported marker error, per-frame RMSE and objective is recomputed here by forward
+//!   kinematics from the solved coordinates;
+//! - every independent coordinate lies within `model.coordinates[c].range`;
+//! - every frame is a local minimum: moving any one coordinate by ±10⁻⁴ (rad or m) inside its
+//!   range does not lower the objective Σ w_i ‖p_i(q) − x_i‖²;
+//! - both HumanML3D forms give the same coordinates; the thread count changes no bit.
+//!
+//! The fit figures are printed (`--nocapture`). The issue's targets for the HumanML3D sample
+//! are RMSE ≤ 1.5 cm and worst joint ≤ 3 cm; the default model does not reach them on this
+//! clip (see `humanml3d_sample_fits_the_default_model`), so the asserted limits are the
+//! measured figures with a margin, as regression guards.
+
+mod common;
+
+use common::{ScratchDir, musculo_cli, reference_file};
+use musculo::dynamics::{self, Data};
+use musculo::io::Table;
+use musculo::model::MotionType;
+use musculo::motion::skeleton::SkeletonMap;
+use musculo::motion::{self, LengthUnit, Motion, ReadOptions};
+use musculo::solve::ik::{self, Bounds, IkSettings, IkSolution, IkTasks};
+use musculo::solve::scale_from_clip::{self, ClipScaling};
+use musculo::spatial::Vec3;
+use musculo::{DEFAULT_MODEL_OSIM, Model};
+use std::path::Path;
+use std::time::Instant;
+
+const HML_JOINTS: &str = "humanml3d/new_joints_012314.npy";
+const HML_VECS: &str = "humanml3d/new_joint_vecs_012314.npy";
+const BVH_FILES: [&str; 3] = ["bvh/131_01.bvh", "bvh/131_03.bvh", "bvh/cmu_01_01.bvh"];
+/// The CMU skeletons' unit, 1/0.45 inch, in metres.
+const CMU: Option<LengthUnit> = Some(LengthUnit::Custom(0.056444));
+
+fn read(path: &Path, unit: Option<LengthUnit>) -> Motion {
+    motion::read(path, None, &ReadOptions { length_unit: unit }).unwrap()
+}
+
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+/// A clip scaled to, mapped and solved.
+#[derive(Clone)]
+struct Run {
+    scaling: ClipScaling,
+    targets: Motion,
+    tasks: IkTasks,
+    solution: IkSolution,
+    seconds: f64,
+}
+
+impl Run {
+    fn model(&self) -> &Model {
+        &self.scaling.model
+    }
+
+    /// The model's markers of every task at the solved pose, frame-major.
+    fn fitted(&self) -> Vec<Vec3> {
+        let m = self.model();
+        let mut data = Data::new(m);
+        let mut out = Vec::new();
+        for f in 0..self.solution.n_frames() {
+            dynamics::forward_kinematics(m, &mut data, self.solution.frame(f)).unwrap();
+            for t in &self.tasks.markers {
+                let k = &m.markers[t.marker];
+                out.push(data.point_position(k.body, &k.location_in_body));
+            }
+        }
+        out
+    }
+
+    /// The same targets solved again with other bounds.
+    fn resolved(&self, bounds: Bounds) -> Run {
+        let mut run = self.clone();
+        (run.solution, run.seconds) = solve(self.model(), &self.targets, &self.tasks, bounds);
+        run
+    }
+}
+
+/// `--scale auto`, then IK with `bounds` (other settings default), as `musculo ik` does.
+fn scale_and_solve(clip: &Motion, map: &SkeletonMap) -> Run {
+    let base = Model::default_fullbody();
+    let source = "models/musculo_fullbody.osim";
+    let scaling =
+        scale_from_clip::scale_to_clip(DEFAULT_MODEL_OSIM, source, &base, map, clip).unwrap();
+    let (targets, tasks) = map.apply(&scaling.model, clip).unwrap();
+    let (solution, seconds) = solve(&scaling.model, &targets, &tasks, Bounds::Range);
+    Run {
+        scaling,
+        targets,
+        tasks,
+        solution,
+        seconds,
+    }
+}
+
+fn solve(model: &Model, targets: &Motion, tasks: &IkTasks, bounds: Bounds) -> (IkSolution, f64) {
+    let settings = IkSettings {
+        bounds,
+        ..IkSettings::default()
+    };
+    let t0 = Instant::now();
+    let s = ik::solve_motion(model, targets, tasks, &settings, &|_| {}).unwrap();
+    (s, t0.elapsed().as_secs_f64())
+}
+
+/// Σ_i w_i ‖p_i(q) − x_i‖², with the errors ‖p_i(q) − x_i‖ in `errors`.
+fn objective(run: &Run, data: &mut Data, x: &[Vec3], q: &[f64], errors: &mut Vec<f64>) -> f64 {
+    let model = run.model();
+    dynamics::forward_kinematics(model, data, q).unwrap();
+    errors.clear();
+    let mut f = 0.0;
+    for t in &run.tasks.markers {
+        let m = &model.markers[t.marker];
+        let e = (data.point_position(m.body, &m.location_in_body) - x[t.target]).norm();
+        errors.push(e);
+        f += t.weight * e * e;
+    }
+    f
+}
+
+/// The fit of a solution, over every frame and joint, per joint and per frame.
+struct Fit {
+    overall: f64,
+    median_frame: f64,
+    /// (error, frame, joint)
+    worst: (f64, usize, String),
+    over_20mm: Vec<usize>,
+}
+
+/// Checks what the solver guarantees (see the module documentation), prints the fit, and
+/// returns it with the largest relative decrease of f found by the ±10⁻⁴ probes.
+fn evaluate(title: &str, run: &Run, bounds: Bounds) -> (Fit, f64) {
+    let (model, sol, tasks) = (run.model(), &run.solution, &run.tasks);
+    let (n, nm, frames) = (model.nq(), tasks.markers.len(), sol.n_frames());
+    assert_eq!(frames, run.targets.n_frames(), "{title}: frames");
+    assert!(
+        sol.q.iter().all(|v| v.is_finite()),
+        "{title}: a coordinate is not finite"
+    );
+    let range = |j: usize| model.coordinates[model.reduction.independent[j]].range;
+    let mut data = Data::new(model);
+    let (mut errors, mut scratch) = (Vec::new(), Vec::new());
+    let (mut probe_decrease, mut outside) = (0.0f64, vec![0usize; n]);
+    let mut at_bound = vec![0usize; n];
+    for f in 0..frames {
+        let (q, x) = (sol.frame(f), run.targets.frame(f));
+        let f0 = objective(run, &mut data, x, q, &mut errors);
+        assert!(max_abs_diff(&errors, &sol.marker_error[f * nm..(f + 1) * nm]) <= 1e-12);
+        let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / nm as f64).sqrt();
+        assert!(
+            (rmse - sol.rmse[f]).abs() <= 1e-12,
+            "{title}: frame {f} RMSE"
+        );
+        assert!(
+            (f0 - sol.objective[f]).abs() <= 1e-12 * f0.max(1e-3),
+            "{title}: frame {f}"
+        );
+        assert!(sol.iterations[f] as usize <= if f == 0 { 1000 } else { 100 });
+        let mut bound_here = Vec::new();
+        for j in 0..n {
+            let [lo, hi] = range(j);
+            outside[j] += usize::from(q[j] < lo || q[j] > hi);
+            if q[j] == lo || q[j] == hi {
+                at_bound[j] += 1;
+                bound_here.push(j);
+            }
+        }
+        if bounds == Bounds::Range {
+            assert_eq!(sol.at_limit[f], bound_here, "{title}: frame {f} at a bound");
+        }
+        // Local minimum: no single-coordinate move of ±δ inside the bounds lowers f.
+        let mut probe = q.to_vec();
+        for j in 0..n {
+            let [lo, hi] = range(j);
+            for v in [q[j] + 1e-4, q[j] - 1e-4] {
+                if bounds == Bounds::Range && (v < lo || v > hi) {
+                    continue;
+                }
+                probe[j] = v;
+                let fp = objective(run, &mut data, x, &probe, &mut scratch);
+                probe_decrease = probe_decrease.max((f0 - fp) / f0.max(1e-12));
+            }
+            probe[j] = q[j];
+        }
+    }
+    let outside_total: usize = outside.iter().sum();
+    if bounds == Bounds::Range {
+        assert_eq!(outside_total, 0, "{title}: coordinates outside their range");
+    }
+
+    let name = |k: usize| model.markers[tasks.markers[k].marker].name.clone();
+    let mut sum = vec![0.0; nm];
+    let mut worst = (0.0, 0, String::new());
+    for (i, e) in sol.marker_error.iter().enumerate() {
+        sum[i % nm] += e * e;
+        if *e > worst.0 {
+            worst = (*e, i / nm, name(i % nm));
+        }
+    }
+    let mut rmse = sol.rmse.clone();
+    rmse.sort_by(f64::total_cmp);
+    let fit = Fit {
+        overall: (sum.iter().sum::<f64>() / (frames * nm) as f64).sqrt(),
+        median_frame: 0.5 * (rmse[(frames - 1) / 2] + rmse[frames / 2]),
+        worst,
+        over_20mm: (0..frames).filter(|&f| sol.rmse[f] > 0.020).collect(),
+    };
+
+    let per_coordinate = |counts: &[usize]| -> String {
+        let names = model.q_names();
+        let list = (0..n).filter(|&j| counts[j] > 0);
+        list.map(|j| format!("{} ({})", names[j], counts[j]))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!(
+        "\n{title}: {frames} frames, {nm} joints, solved in {:.3} s ({:.0} frames/s)",
+        run.seconds,
+        frames as f64 / run.seconds
+    );
+    println!(
+        "  RMSE over all frames and joints {:.2} mm; per-frame RMSE median {:.2} mm, largest \
+         {:.2} mm; worst joint error {:.2} mm ({} at frame {})",
+        fit.overall * 1e3,
+        fit.median_frame * 1e3,
+        rmse[frames - 1] * 1e3,
+        fit.worst.0 * 1e3,
+        fit.worst.2,
+        fit.worst.1
+    );
+    println!(
+        "  {} frame(s) with RMSE > 20 mm: {}",
+        fit.over_20mm.len(),
+        runs(&fit.over_20mm)
+    );
+    let joints: Vec<String> = (0..nm)
+        .map(|k| format!("{} {:.1}", name(k), (sum[k] / frames as f64).sqrt() * 1e3))
+        .collect();
+    println!("  per-joint RMSE (mm): {}", joints.join(", "));
+    println!(
+        "  {} frame(s) with a coordinate at a bound: {}",
+        sol.frames_at_limit(),
+        per_coordinate(&at_bound)
+    );
+    if outside_total > 0 {
+        println!(
+            "  frames outside the range, per coordinate: {}",
+            per_coordinate(&outside)
+        );
+    }
+    println!("  largest relative decrease of f by a ±1e-4 coordinate probe: {probe_decrease:.1e}");
+    assert!(
+        probe_decrease <= 1e-6,
+        "{title}: a frame is not a local minimum"
+    );
+    (fit, probe_decrease)
+}
+
+/// Runs of consecutive frames, `11–24, 26–47`.
+fn runs(frames: &[usize]) -> String {
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < frames.len() {
+        let mut j = i;
+        while j + 1 < frames.len() && frames[j + 1] == frames[j] + 1 {
+            j += 1;
+        }
+        out.push(match i == j {
+            true => format!("{}", frames[i]),
+            false => format!("{}–{}", frames[i], frames[j]),
+        });
+        i = j + 1;
+    }
+    out.join(", ")
+}
+
+/// The HumanML3D sample in both forms (joints agreeing to 3e-7 m), each scaled and solved.
+fn humanml3d_runs() -> Option<(Run, Run)> {
+    let (jp, vp) = (reference_file(HML_JOINTS)?, reference_file(HML_VECS)?);
+    let (joints, vecs) = (read(&jp, None), read(&vp, None));
+    assert_eq!((joints.n_frames(), joints.n_targets()), (170, 22));
+    assert_eq!(vecs.names, joints.names);
+    let joint_gap = max_point_gap(&joints.positions, &vecs.positions);
+    println!("HumanML3D joints vs features-recovered joints: largest difference {joint_gap:.2e} m");
+    assert!(joint_gap <= 3e-7, "{joint_gap}");
+    let map = SkeletonMap::builtin("humanml3d").unwrap();
+    Some((scale_and_solve(&joints, &map), scale_and_solve(&vecs, &map)))
+}
+
+fn max_point_gap(a: &[Vec3], b: &[Vec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, r)| (p - r).amax())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn humanml3d_both_forms_give_the_same_coordinates() {
+    let Some((a, b)) = humanml3d_runs() else {
+        return;
+    };
+    // The float32 joints of the two forms differ by ~2e-7 m. The solver ends a frame when f
+    // stops falling (by < 1e-9 f a step), so what it guarantees is the objective and hence
+    // the fitted joints: those must agree to the input's precision. A coordinate moves by the
+    // input's difference over its lever arm (the largest marker displacement per unit of it),
+    // and along directions in which f is flat it is only determined as far as f is: the
+    // forearm's roll (pro_sup, a lever of ~1.6 cm: the wrist centre lies almost on its axis),
+    // the humerus' roll with a straight elbow, and frames 14–15 (both arms overhead at their
+    // bounds), where one more iteration can move coordinates by ~6e-5 rad and f by < 1e-9 f.
+    // Asserted: fitted joints ≤ 5 µm, objectives within their bound, every coordinate
+    // ≤ 2e-4 rad, and the others than those rolls and the elbow ≤ 1e-6 outside frames 14–15.
+    let (n, frames) = (a.solution.nq, a.solution.n_frames());
+    let names = a.model().q_names();
+    let mut worst = (0.0f64, 0, 0);
+    for f in 0..frames {
+        for j in 0..n {
+            let d = (a.solution.frame(f)[j] - b.solution.frame(f)[j]).abs();
+            if d > worst.0 {
+                worst = (d, j, f);
+            }
+        }
+    }
+    let firm = |f: usize| {
+        let mut d = 0.0f64;
+        for j in (0..n).filter(|&j| {
+            !["arm_rot", "elbow_flex", "pro_sup"]
+                .iter()
+                .any(|p| names[j].starts_with(p))
+        }) {
+            d = d.max((a.solution.frame(f)[j] - b.solution.frame(f)[j]).abs());
+        }
+        d
+    };
+    let firm_all = (0..frames).map(firm).fold(0.0, f64::max);
+    let firm_outside_14_15 = (0..frames)
+        .filter(|f| !(14..=15).contains(f))
+        .map(firm)
+        .fold(0.0, f64::max);
+    let fit_gap = max_point_gap(&a.fitted(), &b.fitted());
+    // Both are minima of their own objective, so with δ the largest target difference and
+    // W = Σ w_i: |f_a − f_b| ≤ 2 √(f W) δ + W δ² (Cauchy–Schwarz on f_b(q_a) − f_a(q_a)).
+    let w: f64 = a.tasks.markers.iter().map(|t| t.weight).sum();
+    let delta = (a.targets.positions.iter().zip(&b.targets.positions))
+        .map(|(p, r)| (p - r).norm())
+        .fold(0.0, f64::max);
+    let objective_gap = (0..frames)
+        .map(|f| {
+            let (fa, fb) = (a.solution.objective[f], b.solution.objective[f]);
+            (fa - fb).abs() / (2.0 * (fa.max(fb) * w).sqrt() * delta + w * delta * delta)
+        })
+        .fold(0.0, f64::max);
+    println!(
+        "two forms: fitted joints differ by ≤ {fit_gap:.2e} m, per-frame objectives by ≤ \
+         {objective_gap:.2} of their bound; coordinates by ≤ {:.2e} ({} at frame {}); other than \
+         arm_rot, elbow_flex and pro_sup by ≤ {firm_all:.2e}, and by ≤ {firm_outside_14_15:.2e} \
+         outside frames 14–15",
+        worst.0, names[worst.1], worst.2
+    );
+    assert!(
+        fit_gap <= 5e-6 && objective_gap <= 1.0,
+        "{fit_gap} {objective_gap}"
+    );
+    assert!(worst.0 <= 2e-4, "{worst:?}");
+    assert!(firm_outside_14_15 <= 1e-6, "{firm_outside_14_15}");
+}
+
+#[test]
+fn humanml3d_sample_fits_the_default_model() {
+    let Some((a, b)) = humanml3d_runs() else {
+        return;
+    };
+    println!("segment factors: {}", a.scaling.summary());
+    let (fa, _) = evaluate(
+        "HumanML3D new_joints_012314, scaled, Bounds::Range",
+        &a,
+        Bounds::Range,
+    );
+    let (fb, _) = evaluate(
+        "HumanML3D new_joint_vecs, scaled, Bounds::Range",
+        &b,
+        Bounds::Range,
+    );
+    assert!((fa.overall - fb.overall).abs() < 1e-6);
+    // The issue's targets are RMSE ≤ 15 mm and worst joint ≤ 30 mm. Measured: RMSE 22.4 mm,
+    // median per-frame RMSE 11.8 mm, worst joint 176 mm (right_elbow, frame 35); asserted
+    // with a margin as a regression guard. The targets are not met: every frame with an
+    // RMSE over 20 mm lies in 11–47, where both arms are raised overhead beyond the default
+    // model's shoulder ranges (arm_flex ≤ 70°, abduction ≤ 120°, no scapula), and SMPL moves
+    // its head, neck and collars relative to the spine while the model's torso is rigid
+    // (head and shoulders have the largest per-joint RMSE after the right arm). The
+    // Bounds::None run below separates range limits from the model's structure.
+    assert!(
+        fa.overall <= 0.025 && fa.median_frame <= 0.013,
+        "{:.4}",
+        fa.overall
+    );
+    assert!(fa.worst.0 <= 0.20, "worst joint {:.4}", fa.worst.0);
+    let outside_11_47 = fa
+        .over_20mm
+        .iter()
+        .filter(|f| !(11..=47).contains(*f))
+        .count();
+    assert_eq!(outside_11_47, 0, "frames over 20 mm: {:?}", fa.over_20mm);
+
+    // Without bounds. Measured: RMSE 15.4 mm, median 11.6 mm, worst 112 mm (left_shoulder,
+    // frame 19): even unbounded, the rigid torso leaves the head and shoulders ~3 cm off.
+    let free = a.resolved(Bounds::None);
+    let (ff, _) = evaluate(
+        "HumanML3D new_joints_012314, scaled, Bounds::None",
+        &free,
+        Bounds::None,
+    );
+    assert!(
+        ff.overall < fa.overall,
+        "unbounded fit worse: {}",
+        ff.overall
+    );
+    assert!(
+        ff.overall <= 0.017 && ff.worst.0 <= 0.13,
+        "unbounded fit {:.4}",
+        ff.overall
+    );
+}
+
+#[test]
+fn cmu_bvh_files_fit_the_default_model() {
+    let map = SkeletonMap::builtin("cmu_bvh").unwrap();
+    // Measured (overall RMSE, worst joint): 11.1 / 74 mm, 9.3 / 96 mm, 7.8 / 49 mm; the
+    // limits add a margin (regression guards).
+    let limits = [(0.013, 0.09), (0.011, 0.115), (0.009, 0.06)];
+    for (file, (rmse_limit, worst_limit)) in BVH_FILES.into_iter().zip(limits) {
+        let Some(path) = reference_file(file) else {
+            return;
+        };
+        let run = scale_and_solve(&read(&path, CMU), &map);
+        println!("\n{file}: segment factors {}", run.scaling.summary());
+        let (f, _) = evaluate(
+            &format!("{file}, scaled, Bounds::Range"),
+            &run,
+            Bounds::Range,
+        );
+        assert!(f.overall.is_finite() && f.worst.0.is_finite(), "{file}");
+        assert!(
+            f.overall <= rmse_limit,
+            "{file}: overall RMSE {:.4}",
+            f.overall
+        );
+        assert!(
+            f.worst.0 <= worst_limit,
+            "{file}: worst joint {:.4}",
+            f.worst.0
+        );
+    }
+}
+
+#[test]
+fn solve_motions_is_bit_identical_whatever_the_thread_count() {
+    let (Some(jp), Some(bp)) = (reference_file(HML_JOINTS), reference_file(BVH_FILES[0])) else {
+        return;
+    };
+    let model = Model::default_fullbody();
+    let hml = SkeletonMap::builtin("humanml3d").unwrap();
+    let cmu = SkeletonMap::builtin("cmu_bvh").unwrap();
+    let joints = read(&jp, None);
+    let bvh = read(&bp, CMU);
+    let bvh = bvh.time_window(0.0, bvh.time[299]).unwrap();
+    let mut clips = vec![
+        hml.apply(&model, &joints).unwrap(),
+        cmu.apply(&model, &bvh).unwrap(),
+    ];
+    for (a, b) in [(0, 60), (50, 169), (100, 169)] {
+        let w = joints.time_window(joints.time[a], joints.time[b]).unwrap();
+        clips.push(hml.apply(&model, &w).unwrap());
+    }
+    let settings = IkSettings {
+        smoothness: 1e-4,
+        ..IkSettings::default()
+    };
+    let in_pool = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let out = pool.install(|| ik::solve_motions(&model, &clips, &settings, &|_| {}));
+        out.into_iter().map(Result::unwrap).collect::<Vec<_>>()
+    };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let key = |s: &IkSolution| {
+        let floats = [&s.q, &s.marker_error, &s.objective, &s.rmse].map(|v| bits(v));
+        (floats, s.iterations.clone(), s.at_limit.clone())
+    };
+    let pools = [in_pool(1), in_pool(2), in_pool(4)];
+    for (k, (m, tasks)) in clips.iter().enumerate() {
+        let alone = key(&ik::solve_motion(&model, m, tasks, &settings, &|_| {}).unwrap());
+        for (pool, threads) in pools.iter().zip([1, 2, 4]) {
+            assert!(
+                key(&pool[k]) == alone,
+                "clip {k}, {threads} thread(s): not bit-identical"
+            );
+        }
+    }
+    let frames: usize = clips.iter().map(|c| c.0.n_frames()).sum();
+    println!(
+        "{} clips, {frames} frames: bit-identical with 1, 2 and 4 threads",
+        clips.len()
+    );
+}
+
+#[test]
+fn musculo_ik_cli_writes_the_motion_and_the_marker_errors() {
+    let (Some(jp), Some(vp)) = (reference_file(HML_JOINTS), reference_file(HML_VECS)) else {
+        return;
+    };
+    let dir = ScratchDir::new("ik-datasets-cli");
+    let mot = dir.join("clip.mot");
+    let (ok, _, err) = musculo_cli("ik --input {} --scale auto -o {}", &[&jp, &mot]);
+    assert!(ok, "musculo ik failed:\n{err}");
+    println!("musculo ik stderr:\n{err}");
+    let model = Model::default_fullbody();
+    let table = Table::read(&mot).unwrap();
+    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!((names.len(), table.n_rows()), (45, 170));
+    assert_eq!(table.labels, names);
+    assert_eq!(table.in_degrees, Some(true));
+    assert!((table.time[169] - 169.0 / 20.0).abs() < 1e-12);
+    let errors = Table::read(&dir.join("clip_ik_marker_errors.sto")).unwrap();
+    let columns = [
+        "total_squared_error",
+        "marker_error_RMS",
+        "marker_error_max",
+    ];
+    assert_eq!(
+        (errors.n_rows(), &errors.labels[..]),
+        (170, &columns.map(String::from)[..])
+    );
+    let by_marker = Table::read(&dir.join("clip_ik_marker_errors_by_marker.sto")).unwrap();
+    assert_eq!((by_marker.n_rows(), by_marker.n_columns()), (170, 22));
+
+    // The same as the library's pipeline (scale to the clip, map, default settings).
+    let run = scale_and_solve(
+        &read(&jp, None),
+        &SkeletonMap::builtin("humanml3d").unwrap(),
+    );
+    let m = run.model();
+    let mut data = Data::new(m);
+    let mut worst = 0.0f64;
+    for f in 0..170 {
+        dynamics::forward_kinematics(m, &mut data, run.solution.frame(f)).unwrap();
+        for (c, (coord, v)) in m
+            .coordinates
+            .iter()
+            .zip(data.coordinate_values(m))
+            .enumerate()
+        {
+            let rotational = coord.motion_type == MotionType::Rotational;
+            let v = if rotational { v.to_degrees() } else { *v };
+            worst = worst.max((table.value(f, c).unwrap() - v).abs());
+        }
+        let e = &run.solution.marker_error[f * 22..(f + 1) * 22];
+        let total: f64 = e.iter().map(|x| x * x).sum();
+        let max = e.iter().copied().fold(0.0, f64::max);
+        let expected = [total, (total / 22.0).sqrt(), max];
+        assert!(
+            max_abs_diff(errors.row(f).unwrap(), &expected) <= 1e-12,
+            "frame {f}"
+        );
+        assert!(
+            max_abs_diff(by_marker.row(f).unwrap(), e) <= 1e-12,
+            "frame {f}"
+        );
+    }
+    assert!(
+        worst <= 1e-9,
+        "the CLI's .mot differs from the library's by {worst}"
+    );
+
+    // Two inputs and a folder: one .mot each, named after the inputs.
+    let out = dir.join("both");
+    let (ok, _, err) = musculo_cli("ik --input {} {} --scale auto -o {}", &[&jp, &vp, &out]);
+    assert!(ok, "musculo ik with two inputs failed:\n{err}");
+    let a = Table::read(&out.join("new_joints_012314.mot")).unwrap();
+    let b = Table::read(&out.join("new_joint_vecs_012314.mot")).unwrap();
+    assert!(
+        out.join("new_joint_vecs_012314_ik_marker_errors.sto")
+            .exists()
+    );
+    assert_eq!((a.n_rows(), b.n_rows()), (170, 170));
+    assert!(
+        a.values == table.values,
+        "the first clip differs from the single-input run"
+    );
+    // Degrees: pro_sup differs by up to 8.5e-5 rad (humanml3d_sample_fits_the_default_model).
+    let gap = max_abs_diff(&a.values, &b.values);
+    assert!(gap <= 0.01, "the two forms differ by {gap} (degrees or m)");
+}
