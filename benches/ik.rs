@@ -114,16 +114,16 @@ fn musculo_lm(model: &Model, targets: &Motion, tasks: &IkTasks, q0: &[f64]) -> (
     let start = Instant::now();
     let solution = ik::solve_motion(model, targets, tasks, &settings, &|_| {}).expect("IK runs");
     let seconds = start.elapsed().as_secs_f64();
+    let per_frame = |v: &[u32]| v.iter().map(|&k| k as f64).sum::<f64>() / v.len() as f64;
     ITERATIONS.with(|i| {
-        *i.borrow_mut() = solution.iterations.iter().map(|&k| k as f64).sum::<f64>()
-            / solution.iterations.len() as f64
+        *i.borrow_mut() = (per_frame(&solution.iterations), per_frame(&solution.evaluations))
     });
     (seconds, solution.objective)
 }
 
 thread_local! {
-    /// Mean iterations per frame of the last musculo run.
-    static ITERATIONS: RefCell<f64> = const { RefCell::new(0.0) };
+    /// Mean iterations and evaluations of f per frame of the last musculo run.
+    static ITERATIONS: RefCell<(f64, f64)> = const { RefCell::new((0.0, 0.0)) };
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -163,10 +163,11 @@ fn report(name: &str, model: &Model, targets: &Motion, tasks: &IkTasks) {
     if std::env::var_os("IK_BENCH_NO_PEER").is_some() {
         // For profiling musculo alone.
         let (t_mus, _) = best_of(50, || musculo_lm(model, targets, tasks, &q0));
+        let (it, ev) = ITERATIONS.with(|i| *i.borrow());
         println!(
-            "{name:<34} musculo {:>9.0} frames/s, {:.1} iterations/frame",
-            frames / t_mus,
-            ITERATIONS.with(|i| *i.borrow())
+            "{name:<34} musculo {:>9.0} frames/s, {it:.1} iterations and {ev:.1} evaluations of f \
+             per frame",
+            frames / t_mus
         );
         return;
     }
@@ -179,14 +180,15 @@ fn report(name: &str, model: &Model, targets: &Motion, tasks: &IkTasks) {
     println!(
         "{name:<34} {:>6} frames | musculo {:>9.0} frames/s | argmin L-BFGS {:>8.0} frames/s | \
          speed ratio {:>6.1}× | objective argmin/musculo: median {:.4}, min {:.4} | musculo \
-         {:.1} iterations/frame",
+         {:.1} iterations, {:.1} evaluations of f per frame",
         targets.n_frames(),
         frames / t_mus,
         frames / t_arg,
         t_arg / t_mus,
         median(ratio.clone()),
         ratio.iter().cloned().fold(f64::INFINITY, f64::min),
-        ITERATIONS.with(|i| *i.borrow())
+        ITERATIONS.with(|i| i.borrow().0),
+        ITERATIONS.with(|i| i.borrow().1)
     );
 }
 

@@ -206,9 +206,6 @@ fn missing_markers_drop_out_of_their_frames_and_are_reported() {
 }
 
 #[test]
-#[ignore = "bug: src/solve/ik.rs solve_motion (uncommitted constant-velocity start): a frame \
-            with every marker missing is not solved and returns the extrapolated start \
-            q(f−1) + r (q(f−1) − q(f−2)), here 0.126 rad from frame 29, not frame 29's pose"]
 fn a_frame_with_every_marker_missing_keeps_the_previous_pose() {
     let dir = ScratchDir::new("ik-bad-empty-frame");
     let (Some((_, model)), Some((_, markers))) = (gait_model(), walk_with_gaps(&dir)) else {
@@ -356,8 +353,6 @@ fn an_npy_of_neither_dataset_shape_is_an_error_naming_its_shape() {
 }
 
 #[test]
-#[ignore = "bug: src/motion/mod.rs:79, the Format::detect message has 30 spaces before \
-            `give --format` (a string line break without a backslash)"]
 fn the_shape_message_has_no_run_of_spaces() {
     let Some(hml) = reference_file(HML_JOINTS) else {
         return;
@@ -377,7 +372,7 @@ fn wrong_length_units_are_refused_with_the_implied_height() {
     println!("HumanML3D ×100: {location}: {message}");
     assert_eq!((file, location.as_str()), (path_text(&cm), "skeleton"));
     assert!(
-        message.contains("implied body height") && message.contains("read in cm"),
+        message.contains("implied body height") && message.contains("centimetres (cm)"),
         "{message}"
     );
     let (ok, _, err) = musculo_cli("ik --input {} -o {}", &[&cm, &dir.join("o.mot")]);
@@ -457,8 +452,6 @@ fn malformed_skeleton_maps_are_table_errors_naming_the_file() {
 }
 
 #[test]
-#[ignore = "bug: src/solve/scale_from_clip.rs:91 panics (`expect`) when a map segment names a \
-            target the map lacks and the map did not come through SkeletonMap::parse"]
 fn a_map_edited_in_code_is_an_error_when_scaling_not_a_panic() {
     let Some(hml) = reference_file(HML_JOINTS) else {
         return;
@@ -618,8 +611,6 @@ fn ik_setups_naming_markers_the_model_lacks_warn_or_fail() {
 }
 
 #[test]
-#[ignore = "bug: src/bin/musculo/ik.rs:335, several inputs with the same file stem write the \
-            same <stem>.mot, the later one silently replacing the earlier (exit 0)"]
 fn inputs_with_the_same_stem_do_not_overwrite_each_other() {
     let Some(hml) = reference_file(HML_JOINTS) else {
         return;

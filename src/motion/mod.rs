@@ -76,7 +76,8 @@ impl Format {
                         file: path.display().to_string(),
                         location: "array shape".into(),
                         message: format!(
-                            "{}: neither HumanML3D (T×22×3, T×{}) nor KIT-ML (T×21×3, T×{});                              give --format",
+                            "{}: neither HumanML3D (T×22×3, T×{}) nor KIT-ML (T×21×3, T×{}); \
+                             give --format",
                             npy::shape_text(shape),
                             humanml3d::N_FEATURES,
                             kit::N_FEATURES
@@ -405,15 +406,17 @@ pub fn check_plausible_height(source: &str, height: f64, unit: LengthUnit) -> cr
         return Ok(());
     }
     let raw = height / unit.metres();
+    // The unit that makes the skeleton closest to an adult's 1.7 m.
     let suggestion = [
-        ("m", 1.0),
-        ("cm", 0.01),
-        ("mm", 0.001),
-        ("in", 0.0254),
-        ("0.056444 (CMU BVH)", 0.056444),
+        ("metres (m)", 1.0),
+        ("centimetres (cm)", 0.01),
+        ("millimetres (mm)", 0.001),
+        ("inches (in)", 0.0254),
+        ("the CMU unit, 1/0.45 inch (0.056444)", 0.056444),
     ]
     .iter()
-    .find(|(_, m)| (lo..=hi).contains(&(raw * m)))
+    .filter(|(_, m)| (lo..=hi).contains(&(raw * m)))
+    .min_by(|a, b| ((raw * a.1) / 1.7).ln().abs().total_cmp(&((raw * b.1) / 1.7).ln().abs()))
     .map(|(name, m)| format!("; read in {name} it would be {:.2} m", raw * m))
     .unwrap_or_default();
     Err(Error::Motion {

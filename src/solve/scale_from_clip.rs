@@ -88,7 +88,16 @@ pub fn segment_factors(
             .targets
             .iter()
             .position(|t| t.marker == marker)
-            .expect("segments name map targets (checked when the map was read)");
+            .ok_or_else(|| {
+                Error::invalid(
+                    "map",
+                    format!(
+                        "a segment of the skeleton map {} names `{marker}`, which is not one of \
+                         its targets",
+                        map.source
+                    ),
+                )
+            })?;
         columns[k].ok_or_else(|| Error::Motion {
             file: clip.source.clone(),
             location: "skeleton".into(),
@@ -176,7 +185,13 @@ pub fn scale_to_clip(
                 match axis.as_str() {
                     "x" => f.x = *s,
                     "y" => f.y = *s,
-                    _ => f.z = *s,
+                    "z" => f.z = *s,
+                    other => {
+                        return Err(Error::invalid(
+                            "map",
+                            format!("segment `{}`: axis `{other}` is not x, y or z", seg.name),
+                        ));
+                    }
                 }
             }
             scales.set(body, f);

@@ -302,6 +302,20 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         }
     };
     let several = args.input.len() > 1;
+    if several {
+        let mut stems: Vec<_> = args.input.iter().map(|p| p.file_stem()).collect();
+        stems.sort();
+        if let Some(w) = stems.windows(2).find(|w| w[0] == w[1]) {
+            return Err(invalid(
+                "--input",
+                format!(
+                    "two inputs are named {}: their outputs would overwrite each other in {}",
+                    w[0].unwrap_or_default().to_string_lossy(),
+                    output.display()
+                ),
+            ));
+        }
+    }
     let mut jobs = Vec::new();
     for path in &args.input {
         let format = match args.format {
