@@ -32,7 +32,6 @@ fn thelen_tendon_force_reproduces_arm26_cmc_actuator_forces_within_1_percent_of_
     let set = MuscleSet::new(&model).unwrap();
     let opts = ReadOptions {
         repeated_time: RepeatedTime::KeepLast,
-        ..Default::default()
     };
     let states = Table::read_with(&states_file, &opts).unwrap();
     let forces = Table::read_with(&force_file, &opts).unwrap();
@@ -42,8 +41,8 @@ fn thelen_tendon_force_reproduces_arm26_cmc_actuator_forces_within_1_percent_of_
     let qcols: Vec<usize> = model.q_names().iter().map(|n| col(&states, n)).collect();
     let mut worst = Vec::new();
     eprintln!(
-        "  {:<9} {:>10} {:>10} {:>8}   {}",
-        "muscle", "peak F", "max |ΔF|", "% peak", "(today's Thelen curve: % peak)"
+        "  {:<9} {:>10} {:>10} {:>8}   (today's Thelen curve: % peak)",
+        "muscle", "peak F", "max |ΔF|", "% peak"
     );
     for (k, m) in set.muscles.iter().enumerate() {
         let (a_col, l_col, f_col) = (

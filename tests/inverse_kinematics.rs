@@ -42,7 +42,7 @@ fn smooth_motion(model: &Model, frames: usize, rate: f64, seed: u64) -> Vec<f64>
             }
             let mid = 0.5 * (lo + hi);
             let amp = 0.35 * (hi - lo);
-            (mid + rng.uniform(-0.3, 0.3) * amp, 0.6 * amp, rng.uniform(0.5, 2.0), rng.uniform(0.0, 6.28))
+            (mid + rng.uniform(-0.3, 0.3) * amp, 0.6 * amp, rng.uniform(0.5, 2.0), rng.uniform(0.0, std::f64::consts::TAU))
         })
         .collect();
     let mut q = Vec::with_capacity(frames * n);

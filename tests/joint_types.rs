@@ -3,9 +3,7 @@
 
 mod common;
 use common::*;
-use musculo::spatial::{
-    Mat3, Transform, Vec3, rotation_about_axis, rotation_body_fixed_xyz, rotation_vector,
-};
+use musculo::spatial::{Mat3, Transform, Vec3, rotation_about_axis, rotation_vector};
 use musculo::{Data, Model, dynamics};
 use nalgebra::{DMatrix, DVector};
 

@@ -519,9 +519,9 @@ fn couplings(model: &Model, notes: &mut Vec<String>) -> (String, Vec<Option<[f64
             let exact = (theta0[d] - q0[*j]).abs() < 1e-15
                 && matches!(&model.dofs[d].function, super::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
                 && model.dofs[d].args == [c];
-            if exact && reference[*j].is_none_or(|p| !matches!(&model.dofs[p].function, super::Function::Linear(k) if k[0] == 1.0 && k[1] == 0.0)) {
-                reference[*j] = Some(d);
-            } else if reference[*j].is_none() {
+            if (exact && reference[*j].is_none_or(|p| !matches!(&model.dofs[p].function, super::Function::Linear(k) if k[0] == 1.0 && k[1] == 0.0)))
+                || reference[*j].is_none()
+            {
                 reference[*j] = Some(d);
             }
         }

@@ -130,8 +130,8 @@ fn to_text(model: &Model) -> String {
 
     let _ = writeln!(
         s,
-        "\nBODIES\n  {:<20} {:>10}  {:<20} {}",
-        "name", "mass (kg)", "joint", "parent"
+        "\nBODIES\n  {:<20} {:>10}  {:<20} parent",
+        "name", "mass (kg)", "joint"
     );
     for b in model.bodies.iter().skip(1) {
         let joint = b
@@ -150,8 +150,8 @@ fn to_text(model: &Model) -> String {
     }
     let _ = writeln!(
         s,
-        "\nJOINTS\n  {:<22} {:<15} {:<28} {}",
-        "name", "type", "parent -> child", "coordinates"
+        "\nJOINTS\n  {:<22} {:<15} {:<28} coordinates",
+        "name", "type", "parent -> child"
     );
     for j in &model.joints {
         let coords: Vec<&str> = j
@@ -173,8 +173,8 @@ fn to_text(model: &Model) -> String {
     }
     let _ = writeln!(
         s,
-        "\nCOORDINATES\n  {:<22} {:<14} {:>10}  {:<24} {}",
-        "name", "motion", "default", "range", "role"
+        "\nCOORDINATES\n  {:<22} {:<14} {:>10}  {:<24} role",
+        "name", "motion", "default", "range"
     );
     for c in &model.coordinates {
         let _ = writeln!(

@@ -103,7 +103,7 @@ pub fn mass_properties(tables: &ModelTables) -> Result<Vec<(String, MassProperti
         let a = Vec3::new(row.proximal_x, row.proximal_y, row.proximal_z) * s;
         let b = Vec3::new(row.distal_x, row.distal_y, row.distal_z) * s;
         let length = (b - a).norm();
-        if !(length > 0.0) || !(row.share > 0.0 && row.share <= 1.0) {
+        if !(length > 0.0 && row.share > 0.0 && row.share <= 1.0) {
             return Err(inconsistent(
                 "bodies.csv",
                 format!(

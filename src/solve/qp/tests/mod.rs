@@ -357,7 +357,9 @@ fn trajectory(rng: &mut Rng, n: usize, m: usize, reserves: usize, frames: usize)
             0.0
         }
     });
-    let phase: Vec<f64> = (0..m).map(|_| rng.range(0.0, 6.28)).collect();
+    let phase: Vec<f64> = (0..m)
+        .map(|_| rng.range(0.0, std::f64::consts::TAU))
+        .collect();
     (0..frames)
         .map(|f| {
             let t = f as f64 * 0.01;
