@@ -104,7 +104,7 @@ pub fn rotation_body_fixed_xyz(angles: Vec3) -> Mat3 {
 }
 
 /// Rotation by `angle` about the unit vector `axis` (Rodrigues' formula):
-/// R = I + sinθ [a]× + (1 − cosθ) [a]×².
+/// R = I + sinθ \[a\]× + (1 − cosθ) \[a\]×².
 #[inline]
 pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
     let (s, c) = angle.sin_cos();
@@ -176,7 +176,7 @@ pub fn rotation_vector(r: &Mat3) -> Vec3 {
     axis * theta
 }
 
-/// The cross-product matrix [v]× with [v]× w = v × w.
+/// The cross-product matrix \[v\]× with \[v\]× w = v × w.
 pub fn skew(v: &Vec3) -> Mat3 {
     Mat3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }

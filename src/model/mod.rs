@@ -124,7 +124,7 @@ pub struct Dof {
     /// Unit axis in the frame that precedes this step in the joint's chain (F for slides;
     /// for hinges the frame after the previous rotations, i.e. body-fixed).
     pub axis: Vec3,
-    /// θ = function(coordinates[args]).
+    /// θ = function(coordinates\[args\]).
     pub function: Function,
     /// Arguments of `function` (indices into `Model::coordinates`).
     pub args: Vec<usize>,
@@ -185,8 +185,8 @@ pub struct Coordinate {
     pub line: u32,
 }
 
-/// OpenSim CoordinateCouplerConstraint: coordinates[dependent] =
-/// scale · function(coordinates[independents]).
+/// OpenSim CoordinateCouplerConstraint: coordinates\[dependent\] =
+/// scale · function(coordinates\[independents\]).
 #[derive(Clone, Debug)]
 pub struct CouplerConstraint {
     pub name: String,

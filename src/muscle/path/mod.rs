@@ -5,8 +5,8 @@
 //! lies in their range (±1e-5, OpenSim's tolerance), moving points whose location is a
 //! function of a coordinate (clamped to the coordinate's range, as OpenSim does) — with the
 //! tangent points of its wrap objects inserted by OpenSim's algorithm (see
-//! [`apply_wrap_objects`]). Its length is the sum of the straight segments plus the surface
-//! lengths between each wrap object's two tangent points.
+//! `wrapping::apply_wrap_objects`). Its length is the sum of the straight segments plus the
+//! surface lengths between each wrap object's two tangent points.
 //!
 //! Moment arms come from the tension the path transmits, not from finite differences:
 //!   ℓ̇ = Σ_segments û_k·(v_{k+1} − v_k) = Σ_nodes v_k·(û_{k−1} − û_k),
