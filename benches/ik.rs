@@ -68,9 +68,7 @@ impl Gradient for Frame<'_> {
             dynamics::point_jacobian(self.model, &data, m.body, &m.location_in_body, &mut jac)?;
             let r = data.point_position(m.body, &m.location_in_body) - self.targets[t.target];
             for (j, gj) in g.iter_mut().enumerate() {
-                *gj += 2.0
-                    * t.weight
-                    * (jac[(0, j)] * r.x + jac[(1, j)] * r.y + jac[(2, j)] * r.z);
+                *gj += 2.0 * t.weight * (jac[(0, j)] * r.x + jac[(1, j)] * r.y + jac[(2, j)] * r.z);
             }
         }
         Ok(g)
@@ -99,7 +97,11 @@ fn argmin_lbfgs(model: &Model, targets: &Motion, tasks: &IkTasks, q0: &[f64]) ->
             .configure(|s| s.param(q.clone()).max_iters(1000))
             .run()
             .expect("L-BFGS runs");
-        q = result.state().get_best_param().expect("a best point").clone();
+        q = result
+            .state()
+            .get_best_param()
+            .expect("a best point")
+            .clone();
         objective.push(result.state().get_best_cost());
     }
     (start.elapsed().as_secs_f64(), objective)
@@ -116,7 +118,10 @@ fn musculo_lm(model: &Model, targets: &Motion, tasks: &IkTasks, q0: &[f64]) -> (
     let seconds = start.elapsed().as_secs_f64();
     let per_frame = |v: &[u32]| v.iter().map(|&k| k as f64).sum::<f64>() / v.len() as f64;
     ITERATIONS.with(|i| {
-        *i.borrow_mut() = (per_frame(&solution.iterations), per_frame(&solution.evaluations))
+        *i.borrow_mut() = (
+            per_frame(&solution.iterations),
+            per_frame(&solution.evaluations),
+        )
     });
     (seconds, solution.objective)
 }
@@ -148,7 +153,9 @@ fn report(name: &str, model: &Model, targets: &Motion, tasks: &IkTasks) {
     // first frame's long search from the default pose.
     let first = ik::solve_motion(
         model,
-        &targets.time_window(targets.time[0], targets.time[0]).expect("frame 0"),
+        &targets
+            .time_window(targets.time[0], targets.time[0])
+            .expect("frame 0"),
         tasks,
         &IkSettings {
             bounds: Bounds::None,
@@ -199,7 +206,13 @@ fn synthetic(model: &Model, frames: usize) -> (Motion, IkTasks) {
     let names: Vec<String> = map.targets.iter().map(|t| t.marker.clone()).collect();
     let markers: Vec<usize> = names
         .iter()
-        .map(|n| model.markers.iter().position(|m| &m.name == n).expect("marker"))
+        .map(|n| {
+            model
+                .markers
+                .iter()
+                .position(|m| &m.name == n)
+                .expect("marker")
+        })
         .collect();
     let mut data = Data::new(model);
     let mut positions = Vec::with_capacity(frames * names.len());
@@ -256,7 +269,10 @@ fn main() {
         let (targets, tasks) = map.apply(&fitted, &clip).expect("map");
         report("HumanML3D 012314 (scaled, real)", &fitted, &targets, &tasks);
     } else {
-        println!("(HumanML3D sample not found under {}: skipped)", path.display());
+        println!(
+            "(HumanML3D sample not found under {}: skipped)",
+            path.display()
+        );
     }
     let (targets, tasks) = synthetic(&model, 600);
     report("synthetic smooth motion (exact)", &model, &targets, &tasks);

@@ -4,18 +4,36 @@
 mod common;
 
 use common::Rng;
+use musculo::Model;
 use musculo::dynamics::{self, Data};
+use musculo::model::MotionType;
 use musculo::motion::Motion;
 use musculo::solve::ik::{self, IkSettings};
-use musculo::Model;
-use musculo::model::MotionType;
 
 /// The 22 SMPL joint-centre markers of the default model.
 const SMPL: [&str; 22] = [
-    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
-    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
-    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
-    "left_wrist", "right_wrist",
+    "pelvis",
+    "left_hip",
+    "right_hip",
+    "spine1",
+    "left_knee",
+    "right_knee",
+    "spine2",
+    "left_ankle",
+    "right_ankle",
+    "spine3",
+    "left_foot",
+    "right_foot",
+    "neck",
+    "left_collar",
+    "right_collar",
+    "head",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
 ];
 
 /// A smooth motion inside the middle 70 % of every coordinate's range (elbows kept bent so
@@ -42,7 +60,12 @@ fn smooth_motion(model: &Model, frames: usize, rate: f64, seed: u64) -> Vec<f64>
             }
             let mid = 0.5 * (lo + hi);
             let amp = 0.35 * (hi - lo);
-            (mid + rng.uniform(-0.3, 0.3) * amp, 0.6 * amp, rng.uniform(0.5, 2.0), rng.uniform(0.0, std::f64::consts::TAU))
+            (
+                mid + rng.uniform(-0.3, 0.3) * amp,
+                0.6 * amp,
+                rng.uniform(0.5, 2.0),
+                rng.uniform(0.0, std::f64::consts::TAU),
+            )
         })
         .collect();
     let mut q = Vec::with_capacity(frames * n);
@@ -74,7 +97,13 @@ fn synthetic_targets(model: &Model, names: &[&str], q: &[f64], rate: f64) -> Mot
             pos.push(data.point_position(m.body, &m.location_in_body));
         }
     }
-    Motion::uniform("synthetic", names.iter().map(|s| s.to_string()).collect(), rate, pos).unwrap()
+    Motion::uniform(
+        "synthetic",
+        names.iter().map(|s| s.to_string()).collect(),
+        rate,
+        pos,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -99,13 +128,24 @@ fn joint_centre_round_trip_recovers_the_default_model_coordinates() {
     for j in 0..n {
         let c = model.reduction.independent[j];
         let translational = model.coordinates[c].motion_type == MotionType::Translational;
-        let (lim, unit, scale) = if translational { (0.5e-3, "mm", 1e3) } else { (0.1f64.to_radians(), "deg", 57.29577951308232) };
-        println!("{:>20}: max error {:.2e} {unit}", names[j], worst[j] * scale);
+        let (lim, unit, scale) = if translational {
+            (0.5e-3, "mm", 1e3)
+        } else {
+            (0.1f64.to_radians(), "deg", 57.29577951308232)
+        };
+        println!(
+            "{:>20}: max error {:.2e} {unit}",
+            names[j],
+            worst[j] * scale
+        );
         if worst[j] > lim {
             failures.push(names[j]);
         }
     }
     let rmse = sol.rmse.iter().cloned().fold(0.0, f64::max);
-    println!("worst frame marker RMSE {rmse:.2e} m, iterations {:?}", &sol.iterations[..5]);
+    println!(
+        "worst frame marker RMSE {rmse:.2e} m, iterations {:?}",
+        &sol.iterations[..5]
+    );
     assert!(failures.is_empty(), "not recovered: {failures:?}");
 }

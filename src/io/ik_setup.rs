@@ -183,7 +183,10 @@ fn read_tasks(r: &Reader, set: Node, s: &mut IkSetup) -> crate::Result<()> {
             continue;
         }
         if name.is_empty() {
-            return Err(r.error(task, "a task needs a name (the marker or coordinate)".into()));
+            return Err(r.error(
+                task,
+                "a task needs a name (the marker or coordinate)".into(),
+            ));
         }
         let (mut apply, mut weight, mut value_type, mut value) = (true, 0.0, None, None);
         for c in task.children().filter(Node::is_element) {
@@ -199,7 +202,9 @@ fn read_tasks(r: &Reader, set: Node, s: &mut IkSetup) -> crate::Result<()> {
                     value_type = Some((c, n_text(c)));
                 }
                 "value" if kind == "IKCoordinateTask" => value = Some(r.number(c)?),
-                _ => s.warnings.push(r.warning(c, "unknown task setting, ignored")),
+                _ => s
+                    .warnings
+                    .push(r.warning(c, "unknown task setting, ignored")),
             }
         }
         let line = r.line(task);
@@ -214,7 +219,9 @@ fn read_tasks(r: &Reader, set: Node, s: &mut IkSetup) -> crate::Result<()> {
             let value = match value_type {
                 None => CoordinateValue::Default,
                 Some((_, t)) if t == "default_value" => CoordinateValue::Default,
-                Some((_, t)) if t == "manual_value" => CoordinateValue::Manual(value.unwrap_or(0.0)),
+                Some((_, t)) if t == "manual_value" => {
+                    CoordinateValue::Manual(value.unwrap_or(0.0))
+                }
                 Some((_, t)) if t == "from_file" => CoordinateValue::FromFile,
                 Some((node, t)) => {
                     return Err(r.error(

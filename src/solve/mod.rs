@@ -10,6 +10,6 @@ pub mod ik_tool;
 pub mod inverse_dynamics;
 pub mod kinematics;
 pub mod qp;
-pub mod scale_from_clip;
 pub mod scale;
+pub mod scale_from_clip;
 pub mod static_optimization;
