@@ -290,7 +290,10 @@ impl Motion {
             if p.iter().any(|v| v.is_infinite()) || (nan != 0 && nan != 3) {
                 return Err(self.error(
                     format!("frame {}, target \"{}\"", k / n, self.names[k % n]),
-                    format!("position ({}, {}, {}) is infinite or partly missing", p.x, p.y, p.z),
+                    format!(
+                        "position ({}, {}, {}) is infinite or partly missing",
+                        p.x, p.y, p.z
+                    ),
                 ));
             }
         }
@@ -416,7 +419,12 @@ pub fn check_plausible_height(source: &str, height: f64, unit: LengthUnit) -> cr
     ]
     .iter()
     .filter(|(_, m)| (lo..=hi).contains(&(raw * m)))
-    .min_by(|a, b| ((raw * a.1) / 1.7).ln().abs().total_cmp(&((raw * b.1) / 1.7).ln().abs()))
+    .min_by(|a, b| {
+        ((raw * a.1) / 1.7)
+            .ln()
+            .abs()
+            .total_cmp(&((raw * b.1) / 1.7).ln().abs())
+    })
     .map(|(name, m)| format!("; read in {name} it would be {:.2} m", raw * m))
     .unwrap_or_default();
     Err(Error::Motion {

@@ -177,7 +177,10 @@ impl SkeletonMap {
             ));
         }
         if !(map.scale > 0.0 && map.scale.is_finite()) {
-            return Err(table_error(0, format!("scale {} must be positive", map.scale)));
+            return Err(table_error(
+                0,
+                format!("scale {} must be positive", map.scale),
+            ));
         }
         if map.targets.is_empty() {
             return Err(table_error(0, "no targets".into()));
@@ -189,7 +192,10 @@ impl SkeletonMap {
             if !(t.weight >= 0.0 && t.weight.is_finite()) {
                 return Err(table_error(
                     0,
-                    format!("target {i} (`{}`): weight {} must be ≥ 0", t.marker, t.weight),
+                    format!(
+                        "target {i} (`{}`): weight {} must be ≥ 0",
+                        t.marker, t.weight
+                    ),
                 ));
             }
             if let Some(j) = map.targets[..i].iter().position(|o| o.marker == t.marker) {
@@ -204,14 +210,25 @@ impl SkeletonMap {
                 if !map.targets.iter().any(|t| &t.marker == name) {
                     return Err(table_error(
                         0,
-                        format!("segment `{}`: `{name}` is not a target marker of the map", seg.name),
+                        format!(
+                            "segment `{}`: `{name}` is not a target marker of the map",
+                            seg.name
+                        ),
                     ));
                 }
             }
-            if seg.axes.is_empty() || seg.axes.iter().any(|a| !["x", "y", "z"].contains(&a.as_str())) {
+            if seg.axes.is_empty()
+                || seg
+                    .axes
+                    .iter()
+                    .any(|a| !["x", "y", "z"].contains(&a.as_str()))
+            {
                 return Err(table_error(
                     0,
-                    format!("segment `{}`: axes {:?} must be among x, y, z", seg.name, seg.axes),
+                    format!(
+                        "segment `{}`: axes {:?} must be among x, y, z",
+                        seg.name, seg.axes
+                    ),
                 ));
             }
             if seg.bodies.is_empty() || seg.pairs.is_empty() {

@@ -228,13 +228,20 @@ fn check_tasks(model: &Model, targets: &Motion, tasks: &IkTasks) -> crate::Resul
         if t.q >= model.nq() {
             return Err(Error::invalid(
                 "tasks",
-                format!("coordinate task q[{}] out of range (nq = {})", t.q, model.nq()),
+                format!(
+                    "coordinate task q[{}] out of range (nq = {})",
+                    t.q,
+                    model.nq()
+                ),
             ));
         }
         if !(t.weight >= 0.0 && t.weight.is_finite()) {
             return Err(Error::invalid(
                 "tasks",
-                format!("coordinate task q[{}]: weight {} must be ≥ 0", t.q, t.weight),
+                format!(
+                    "coordinate task q[{}]: weight {} must be ≥ 0",
+                    t.q, t.weight
+                ),
             ));
         }
         if t.value.len() != 1 && t.value.len() != frames {
@@ -438,7 +445,11 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
         for k in 0..=i {
             let gk = ws.cols[k];
             let a = h[gi + gk * n];
-            let lk: &[f64] = if k == i { &row[..k] } else { &done[k * m..k * m + k] };
+            let lk: &[f64] = if k == i {
+                &row[..k]
+            } else {
+                &done[k * m..k * m + k]
+            };
             let dot: f64 = row[..k].iter().zip(lk).map(|(x, y)| x * y).sum();
             if k == i {
                 let s = a + mu * a.max(floor) + 1e-12 * (1.0 + a) - dot;
@@ -455,7 +466,11 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     // L y = −g,  Lᵀ δ = y (y and δ packed in `packed`)
     let y = &mut ws.packed[..m];
     for i in 0..m {
-        let dot: f64 = l[i * m..i * m + i].iter().zip(&y[..i]).map(|(a, b)| a * b).sum();
+        let dot: f64 = l[i * m..i * m + i]
+            .iter()
+            .zip(&y[..i])
+            .map(|(a, b)| a * b)
+            .sum();
         y[i] = (-ws.gradient[ws.cols[i]] - dot) * inv[i];
     }
     for i in (0..m).rev() {
@@ -566,7 +581,11 @@ fn solve_frame(
                     let decrease = f - f_trial;
                     f = f_trial;
                     // Nielsen's update from the gain ratio ρ = actual / predicted decrease.
-                    let rho = if predicted > 0.0 { decrease / predicted } else { 1.0 };
+                    let rho = if predicted > 0.0 {
+                        decrease / predicted
+                    } else {
+                        1.0
+                    };
                     mu = (mu * (1.0 / 3.0f64).max(1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-10);
                     ws.mu = mu;
                     accepted = true;
@@ -673,8 +692,14 @@ pub fn solve_motion(
             settings.max_iterations
         };
         ws.evaluations = 0;
-        let (value, iterations) =
-            solve_frame(model, &mut ws, tasks, &frame, max_iterations, settings.tolerance)?;
+        let (value, iterations) = solve_frame(
+            model,
+            &mut ws,
+            tasks,
+            &frame,
+            max_iterations,
+            settings.tolerance,
+        )?;
         out.evaluations.push(ws.evaluations);
         out.q.extend_from_slice(&ws.q);
         out.objective.push(value);

@@ -138,7 +138,10 @@ pub fn tasks_from_setup(
                 let column = table.column_index(&t.name).ok_or_else(|| {
                     Error::invalid(
                         "coordinate_file",
-                        format!("no column \"{}\" for the IKCoordinateTask at {file}:{}", t.name, t.line),
+                        format!(
+                            "no column \"{}\" for the IKCoordinateTask at {file}:{}",
+                            t.name, t.line
+                        ),
                     )
                 })?;
                 let to_si = if table.in_degrees != Some(false)
@@ -203,7 +206,10 @@ pub fn marker_errors_table(solution: &IkSolution, tasks: &IkTasks) -> crate::Res
     for f in 0..solution.n_frames() {
         let errors = &solution.marker_error[f * nm..(f + 1) * nm];
         let total: f64 = errors.iter().filter(|e| !e.is_nan()).map(|e| e * e).sum();
-        let max = errors.iter().filter(|e| !e.is_nan()).fold(0.0f64, |a, &e| a.max(e));
+        let max = errors
+            .iter()
+            .filter(|e| !e.is_nan())
+            .fold(0.0f64, |a, &e| a.max(e));
         values.extend([total, (total / nm.max(1) as f64).sqrt(), max]);
     }
     let mut table = Table::new(

@@ -79,7 +79,10 @@ pub fn segment_factors(
     if map.segments.is_empty() {
         return Err(Error::invalid(
             "map",
-            format!("the skeleton map {} has no segments to scale by", map.source),
+            format!(
+                "the skeleton map {} has no segments to scale by",
+                map.source
+            ),
         ));
     }
     let columns = map.source_columns(clip);
@@ -109,12 +112,19 @@ pub fn segment_factors(
         })
     };
     let marker_point = |name: &str| -> crate::Result<(usize, Vec3)> {
-        let m = model.markers.iter().find(|m| m.name == name).ok_or_else(|| {
-            Error::invalid(
-                "model",
-                format!("model `{}` has no marker `{name}` that the map needs", model.name),
-            )
-        })?;
+        let m = model
+            .markers
+            .iter()
+            .find(|m| m.name == name)
+            .ok_or_else(|| {
+                Error::invalid(
+                    "model",
+                    format!(
+                        "model `{}` has no marker `{name}` that the map needs",
+                        model.name
+                    ),
+                )
+            })?;
         Ok((m.body, m.location_in_body))
     };
     let mut data = Data::new(model);
@@ -142,7 +152,8 @@ pub fn segment_factors(
             }
             let (ba, pa) = marker_point(a)?;
             let (bb, pb) = marker_point(b)?;
-            let model_distance = (data.point_position(ba, &pa) - data.point_position(bb, &pb)).norm();
+            let model_distance =
+                (data.point_position(ba, &pa) - data.point_position(bb, &pb)).norm();
             if !(model_distance > 1e-6) {
                 return Err(Error::invalid(
                     "map",

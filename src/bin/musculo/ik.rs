@@ -97,7 +97,8 @@ fn write_outputs(
 ) -> Result<(), musculo::Error> {
     create_parent_dir(output)?;
     ik_tool::coordinates_table(model, solution)?.write(output)?;
-    ik_tool::marker_errors_table(solution, tasks)?.write(&beside(output, "_ik_marker_errors.sto"))?;
+    ik_tool::marker_errors_table(solution, tasks)?
+        .write(&beside(output, "_ik_marker_errors.sto"))?;
     ik_tool::marker_errors_by_marker(model, solution, tasks)?
         .write(&beside(output, "_ik_marker_errors_by_marker.sto"))?;
     Ok(())
@@ -105,7 +106,12 @@ fn write_outputs(
 
 fn summarize(model: &Model, solution: &IkSolution, tasks: &IkTasks, output: &Path, seconds: f64) {
     let frames = solution.n_frames();
-    let mut rmse: Vec<f64> = solution.rmse.iter().copied().filter(|v| !v.is_nan()).collect();
+    let mut rmse: Vec<f64> = solution
+        .rmse
+        .iter()
+        .copied()
+        .filter(|v| !v.is_nan())
+        .collect();
     rmse.sort_by(f64::total_cmp);
     let median = rmse.get(rmse.len() / 2).copied().unwrap_or(f64::NAN);
     let worst = solution
@@ -152,7 +158,10 @@ fn summarize(model: &Model, solution: &IkSolution, tasks: &IkTasks, output: &Pat
         .map(|(t, m)| format!("{} ({m})", model.markers[t.marker].name))
         .collect();
     if !gaps.is_empty() {
-        eprintln!("markers missing in some frames (left out there): {}", gaps.join(", "));
+        eprintln!(
+            "markers missing in some frames (left out there): {}",
+            gaps.join(", ")
+        );
     }
 }
 
@@ -194,7 +203,8 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
         .as_deref()
         .map(Table::read)
         .transpose()?;
-    let (tasks, warnings) = ik_tool::tasks_from_setup(&model, &setup, &markers, coordinates.as_ref())?;
+    let (tasks, warnings) =
+        ik_tool::tasks_from_setup(&model, &setup, &markers, coordinates.as_ref())?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
@@ -286,7 +296,10 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
             .as_deref()
             .map(|u| {
                 motion::LengthUnit::parse(u).ok_or_else(|| {
-                    invalid("--length-unit", format!("`{u}`: use m, cm, mm, in or a number"))
+                    invalid(
+                        "--length-unit",
+                        format!("`{u}`: use m, cm, mm, in or a number"),
+                    )
                 })
             })
             .transpose()?,
@@ -328,9 +341,9 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         }
         let map = choose_map(args, format)?;
         let model = if auto_scale {
-            let map = map.as_ref().ok_or_else(|| {
-                invalid("--scale", "auto scaling needs a skeleton map")
-            })?;
+            let map = map
+                .as_ref()
+                .ok_or_else(|| invalid("--scale", "auto scaling needs a skeleton map"))?;
             let scaling =
                 scale_from_clip::scale_to_clip(&base_xml, &base_source, &base_model, map, &clip)?;
             eprintln!(
