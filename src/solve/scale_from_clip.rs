@@ -42,6 +42,8 @@ pub struct ClipScaling {
     pub scaled: ScaledModel,
     /// The scaled model with its placed markers moved: the model to run IK with.
     pub model: Model,
+    /// `model` as an OpenSim file: the scaled text with the placed markers' locations.
+    pub xml: String,
     /// Per map segment: its name and factor.
     pub factors: Vec<(String, f64)>,
     /// Per placed marker: its name and its location in its body before and after placement.
@@ -215,9 +217,23 @@ pub fn scale_to_clip(
     let scaled = scale_osim(xml, source, model, &scales, &options)?;
     let mut fitted = scaled.model.clone();
     let placed = place_markers(&mut fitted, map, clip)?;
+    // Each placed location goes back into the text in the marker's own frame.
+    let frames = super::scale::markers::marker_frames(&scaled.xml, source)?;
+    let mut locations = Vec::with_capacity(placed.len());
+    for (name, _, in_body) in &placed {
+        let frame = frames.iter().find(|(n, _)| n == name).ok_or_else(|| {
+            Error::invalid(
+                "model",
+                format!("marker `{name}` is not in the model file {source}"),
+            )
+        })?;
+        locations.push((name.clone(), frame.1.inverse().apply_point(in_body)));
+    }
+    let xml = super::scale::markers::set_marker_locations(&scaled.xml, source, &locations)?;
     Ok(ClipScaling {
         scaled,
         model: fitted,
+        xml,
         factors,
         placed,
     })

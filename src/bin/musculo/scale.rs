@@ -1,5 +1,7 @@
 //! `musculo scale --setup Scale.xml`: OpenSim's Scale tool (generic model and marker set,
 //! measured and manual scale factors, mass scaling, marker placement on a static trial).
+//! `musculo scale --from-clip FILE -o scaled.osim`: a model (the default one unless
+//! `--model`) scaled to a joint-centre clip's bone lengths, its convention markers placed.
 
 use musculo::io::scale_setup::ScaleSetup;
 use musculo::solve::scale::tool::{self, OutputKind, ToolOptions};
@@ -9,8 +11,22 @@ use std::path::{Path, PathBuf};
 pub struct Args {
     /// OpenSim ScaleTool setup file (.xml, OpenSim 3 or 4). Its file names are relative to
     /// its folder.
+    #[arg(long, required_unless_present = "from_clip", conflicts_with = "from_clip")]
+    setup: Option<PathBuf>,
+    /// Instead of a setup: scale the model (default: the built-in full-body model) to this
+    /// clip's bone lengths (HumanML3D, KIT-ML, BVH: median over frames, as `ik --scale auto`)
+    /// and write it to -o.
+    #[arg(long, value_name = "FILE")]
+    from_clip: Option<PathBuf>,
+    /// With --from-clip: the input format (default: from the file).
+    #[arg(long, value_parser = musculo::motion::Format::parse)]
+    format: Option<musculo::motion::Format>,
+    /// With --from-clip: the skeleton map, built-in name or JSON file (default: the format's).
     #[arg(long)]
-    setup: PathBuf,
+    map: Option<String>,
+    /// With --from-clip: length unit of BVH and KIT files (m, cm, mm, in, or metres per unit).
+    #[arg(long)]
+    length_unit: Option<String>,
     /// Generic model to scale, instead of the setup's GenericModelMaker model_file.
     #[arg(long)]
     model: Option<PathBuf>,
@@ -62,8 +78,86 @@ fn kind_name(kind: OutputKind) -> &'static str {
     }
 }
 
+/// `--from-clip`: the model scaled to a clip, written to -o.
+fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
+    use musculo::motion::{self, Format, LengthUnit, ReadOptions, skeleton::SkeletonMap};
+    let invalid = |argument: &'static str, message: String| musculo::Error::InvalidArgument {
+        argument,
+        message,
+    };
+    let output = args.output.clone().ok_or_else(|| {
+        invalid("--output", "--from-clip writes the scaled model to -o FILE".into())
+    })?;
+    let length_unit = match args.length_unit.as_deref() {
+        Some(u) => Some(LengthUnit::parse(u).ok_or_else(|| {
+            invalid("--length-unit", format!("`{u}`: use m, cm, mm, in or a number"))
+        })?),
+        None => None,
+    };
+    let format = match args.format {
+        Some(f) => f,
+        None => Format::detect(clip_path)?,
+    };
+    let clip = motion::read(clip_path, Some(format), &ReadOptions { length_unit })?;
+    let map = match args.map.as_deref() {
+        Some(name) if name.ends_with(".json") || Path::new(name).exists() => {
+            SkeletonMap::read(Path::new(name))?
+        }
+        Some(name) => SkeletonMap::builtin(name)?,
+        None => SkeletonMap::builtin(format.default_map().ok_or_else(|| {
+            invalid(
+                "--map",
+                "markers have no bone lengths to scale by: give a skeleton map, or scale with \
+                 --setup"
+                    .into(),
+            )
+        })?)?,
+    };
+    let (xml, source) = match &args.model {
+        Some(p) => (
+            std::fs::read_to_string(p).map_err(|source| musculo::Error::Io {
+                path: p.clone(),
+                source,
+            })?,
+            p.display().to_string(),
+        ),
+        None => (
+            musculo::DEFAULT_MODEL_OSIM.to_string(),
+            "models/musculo_fullbody.osim".to_string(),
+        ),
+    };
+    let model = musculo::Model::from_osim_str(&xml, &source)?;
+    let scaling =
+        musculo::solve::scale_from_clip::scale_to_clip(&xml, &source, &model, &map, &clip)?;
+    write_atomically(&output, &scaling.xml)?;
+    for (segment, factor) in &scaling.factors {
+        println!("{segment:<18} ×{factor:.4}");
+    }
+    for (marker, before, after) in &scaling.placed {
+        println!(
+            "marker {marker:<16} placed {:.1} mm from its scaled location",
+            1e3 * (after - before).norm()
+        );
+    }
+    eprintln!(
+        "wrote {} ({} scaled to {}, {:.1} kg)",
+        output.display(),
+        source,
+        clip_path.display(),
+        scaling.model.total_mass()
+    );
+    Ok(())
+}
+
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
-    let setup = ScaleSetup::read(&args.setup)?;
+    if let Some(clip) = &args.from_clip {
+        return run_from_clip(args, clip);
+    }
+    let setup_path = args.setup.as_ref().ok_or_else(|| musculo::Error::InvalidArgument {
+        argument: "--setup",
+        message: "give a Scale setup file or --from-clip".into(),
+    })?;
+    let setup = ScaleSetup::read(setup_path)?;
     let options = ToolOptions {
         model_file: args.model.clone(),
         skip_placement: args.skip_placement,
