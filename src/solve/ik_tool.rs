@@ -7,7 +7,9 @@
 //!   file that the model has, with weight 1;
 //! - coordinate tasks (`apply` true) on independent coordinates, towards the default value,
 //!   the manual value (in the coordinate's units), or the coordinate file's column
-//!   (degrees converted for rotational coordinates; interpolated at the frame times);
+//!   (degrees converted for rotational coordinates; linearly interpolated at the frame
+//!   times — OpenSim fits a quintic GCV spline; the two agree where the file's times are
+//!   the frames', as in OpenSim's pipelines);
 //! - the objective Σ_i (w_i / Σ_present w) ‖e_i‖² + Σ_c w_c (q_c − r_c)², i.e. twice
 //!   OpenSim's assembler goal (its marker goal is a weighted mean over the markers present
 //!   in the frame), with only `clamped` coordinates bounded;
