@@ -10,31 +10,8 @@ use musculo::model::MotionType;
 use musculo::motion::Motion;
 use musculo::solve::ik::{self, IkSettings};
 
-/// The 22 SMPL joint-centre markers of the default model.
-const SMPL: [&str; 22] = [
-    "pelvis",
-    "left_hip",
-    "right_hip",
-    "spine1",
-    "left_knee",
-    "right_knee",
-    "spine2",
-    "left_ankle",
-    "right_ankle",
-    "spine3",
-    "left_foot",
-    "right_foot",
-    "neck",
-    "left_collar",
-    "right_collar",
-    "head",
-    "left_shoulder",
-    "right_shoulder",
-    "left_elbow",
-    "right_elbow",
-    "left_wrist",
-    "right_wrist",
-];
+/// The 22 SMPL joint-centre markers of the default model (named as HumanML3D's joints).
+const SMPL: [&str; 22] = musculo::motion::humanml3d::JOINT_NAMES;
 
 /// A smooth motion inside the middle 70 % of every coordinate's range (elbows kept bent so
 /// the humerus' axial rotation is seen by the wrist).

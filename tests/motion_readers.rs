@@ -397,7 +397,7 @@ fn humanml3d_bad_input_is_an_error_naming_file_frame_and_joint() {
     let (_, _, message) =
         motion_message(&humanml3d::from_joints(cm.view(), "cm.npy", &options).unwrap_err());
     assert!(
-        message.contains("implied body height") && message.contains("read in cm"),
+        message.contains("implied body height") && message.contains("read in centimetres (cm)"),
         "{message}"
     );
     // ... and read with the unit it has, it is the same clip.

@@ -32,8 +32,8 @@ fn segment_factors_are_median_bone_lengths_over_the_model_s() {
     let clip = motion::read(&path, None, &ReadOptions::default()).unwrap();
     let model = Model::default_fullbody();
     let map = SkeletonMap::builtin("humanml3d").unwrap();
-    let scaling = scale_to_clip(musculo::DEFAULT_MODEL_OSIM, "default", &model, &map, &clip)
-        .unwrap();
+    let scaling =
+        scale_to_clip(musculo::DEFAULT_MODEL_OSIM, "default", &model, &map, &clip).unwrap();
     let mut data = Data::new(&model);
     dynamics::forward_kinematics(&model, &mut data, &model.default_q()).unwrap();
     let marker = |name: &str| {
@@ -50,9 +50,17 @@ fn segment_factors_are_median_bone_lengths_over_the_model_s() {
             .map(|f| (clip.frame(f)[ia] - clip.frame(f)[ib]).norm())
             .collect();
         let expected = median(lengths) / (marker(a) - marker(b)).norm();
-        let got = scaling.factors.iter().find(|(n, _)| n == segment).unwrap().1;
+        let got = scaling
+            .factors
+            .iter()
+            .find(|(n, _)| n == segment)
+            .unwrap()
+            .1;
         println!("{segment}: factor {got:.6} (by hand {expected:.6})");
-        assert!((got - expected).abs() < 1e-12, "{segment}: {got} vs {expected}");
+        assert!(
+            (got - expected).abs() < 1e-12,
+            "{segment}: {got} vs {expected}"
+        );
     }
     // The scaled femur's length (hip centre to knee centre in the default pose) is the clip's.
     let scaled = &scaling.model;

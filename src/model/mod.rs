@@ -20,6 +20,7 @@ pub mod natural_spline;
 mod osim;
 pub(crate) mod reduction;
 
+pub use frames::resolve_path;
 pub use function::{Arity, Function};
 pub use osim::{ForceSetFiles, LoadOptions};
 pub use reduction::Reduction;

@@ -3,7 +3,7 @@
 //! it. Either an OpenSim InverseKinematicsTool setup (`--setup`), or a motion dataset file
 //! mapped onto a model's markers by a skeleton map.
 
-use crate::tool::{FrameProgress, create_parent_dir, missing};
+use crate::tool::{FrameProgress, create_parent_dir, missing, model_text, skeleton_map};
 use musculo::io::Table;
 use musculo::io::ik_setup::IkSetup;
 use musculo::model::{LoadOptions, Model};
@@ -228,18 +228,6 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
     Ok(())
 }
 
-/// The map for a motion: the one asked for, else the format's built-in one, else markers by
-/// name (None).
-fn choose_map(args: &Args, format: Format) -> Result<Option<SkeletonMap>, musculo::Error> {
-    match args.map.as_deref() {
-        Some(name) if name.ends_with(".json") || Path::new(name).exists() => {
-            Ok(Some(SkeletonMap::read(Path::new(name))?))
-        }
-        Some(name) => Ok(Some(SkeletonMap::builtin(name)?)),
-        None => format.default_map().map(SkeletonMap::builtin).transpose(),
-    }
-}
-
 /// One clip's targets in the model frame and its tasks (markers by name when no map).
 fn targets_and_tasks(
     model: &Model,
@@ -276,19 +264,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
     let load = LoadOptions {
         allow_nonphysical_inertia: args.allow_nonphysical_inertia,
     };
-    let (base_xml, base_source) = match &args.model {
-        Some(p) => (
-            std::fs::read_to_string(p).map_err(|source| musculo::Error::Io {
-                path: p.clone(),
-                source,
-            })?,
-            p.display().to_string(),
-        ),
-        None => (
-            musculo::DEFAULT_MODEL_OSIM.to_string(),
-            "models/musculo_fullbody.osim".to_string(),
-        ),
-    };
+    let (base_xml, base_source) = model_text(args.model.as_deref())?;
     let base_model = Model::from_osim_str_with(&base_xml, &base_source, &load)?;
     let options = ReadOptions {
         length_unit: args
@@ -339,7 +315,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         if let Some(r) = &args.time_range {
             clip = clip.time_window(r[0], r[1])?;
         }
-        let map = choose_map(args, format)?;
+        let map = skeleton_map(args.map.as_deref(), format)?;
         let model = if auto_scale {
             let map = map
                 .as_ref()

@@ -11,7 +11,11 @@ use std::path::{Path, PathBuf};
 pub struct Args {
     /// OpenSim ScaleTool setup file (.xml, OpenSim 3 or 4). Its file names are relative to
     /// its folder.
-    #[arg(long, required_unless_present = "from_clip", conflicts_with = "from_clip")]
+    #[arg(
+        long,
+        required_unless_present = "from_clip",
+        conflicts_with = "from_clip"
+    )]
     setup: Option<PathBuf>,
     /// Instead of a setup: scale the model (default: the built-in full-body model) to this
     /// clip's bone lengths (HumanML3D, KIT-ML, BVH: median over frames, as `ik --scale auto`)
@@ -80,17 +84,23 @@ fn kind_name(kind: OutputKind) -> &'static str {
 
 /// `--from-clip`: the model scaled to a clip, written to -o.
 fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
-    use musculo::motion::{self, Format, LengthUnit, ReadOptions, skeleton::SkeletonMap};
+    use musculo::motion::{self, Format, LengthUnit, ReadOptions};
     let invalid = |argument: &'static str, message: String| musculo::Error::InvalidArgument {
         argument,
         message,
     };
     let output = args.output.clone().ok_or_else(|| {
-        invalid("--output", "--from-clip writes the scaled model to -o FILE".into())
+        invalid(
+            "--output",
+            "--from-clip writes the scaled model to -o FILE".into(),
+        )
     })?;
     let length_unit = match args.length_unit.as_deref() {
         Some(u) => Some(LengthUnit::parse(u).ok_or_else(|| {
-            invalid("--length-unit", format!("`{u}`: use m, cm, mm, in or a number"))
+            invalid(
+                "--length-unit",
+                format!("`{u}`: use m, cm, mm, in or a number"),
+            )
         })?),
         None => None,
     };
@@ -99,33 +109,15 @@ fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
         None => Format::detect(clip_path)?,
     };
     let clip = motion::read(clip_path, Some(format), &ReadOptions { length_unit })?;
-    let map = match args.map.as_deref() {
-        Some(name) if name.ends_with(".json") || Path::new(name).exists() => {
-            SkeletonMap::read(Path::new(name))?
-        }
-        Some(name) => SkeletonMap::builtin(name)?,
-        None => SkeletonMap::builtin(format.default_map().ok_or_else(|| {
-            invalid(
-                "--map",
-                "markers have no bone lengths to scale by: give a skeleton map, or scale with \
-                 --setup"
-                    .into(),
-            )
-        })?)?,
-    };
-    let (xml, source) = match &args.model {
-        Some(p) => (
-            std::fs::read_to_string(p).map_err(|source| musculo::Error::Io {
-                path: p.clone(),
-                source,
-            })?,
-            p.display().to_string(),
-        ),
-        None => (
-            musculo::DEFAULT_MODEL_OSIM.to_string(),
-            "models/musculo_fullbody.osim".to_string(),
-        ),
-    };
+    let map = crate::tool::skeleton_map(args.map.as_deref(), format)?.ok_or_else(|| {
+        invalid(
+            "--map",
+            "markers have no bone lengths to scale by: give a skeleton map, or scale with \
+             --setup"
+                .into(),
+        )
+    })?;
+    let (xml, source) = crate::tool::model_text(args.model.as_deref())?;
     let model = musculo::Model::from_osim_str(&xml, &source)?;
     let scaling =
         musculo::solve::scale_from_clip::scale_to_clip(&xml, &source, &model, &map, &clip)?;
@@ -153,10 +145,13 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     if let Some(clip) = &args.from_clip {
         return run_from_clip(args, clip);
     }
-    let setup_path = args.setup.as_ref().ok_or_else(|| musculo::Error::InvalidArgument {
-        argument: "--setup",
-        message: "give a Scale setup file or --from-clip".into(),
-    })?;
+    let setup_path = args
+        .setup
+        .as_ref()
+        .ok_or_else(|| musculo::Error::InvalidArgument {
+            argument: "--setup",
+            message: "give a Scale setup file or --from-clip".into(),
+        })?;
     let setup = ScaleSetup::read(setup_path)?;
     let options = ToolOptions {
         model_file: args.model.clone(),

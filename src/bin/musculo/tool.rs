@@ -77,3 +77,36 @@ pub fn read_coordinates(
     }
     Ok(table)
 }
+
+/// The text of `--model FILE` and its name for messages, or the built-in default model's.
+pub fn model_text(model: Option<&Path>) -> Result<(String, String), musculo::Error> {
+    match model {
+        Some(p) => Ok((
+            std::fs::read_to_string(p).map_err(|source| musculo::Error::Io {
+                path: p.to_path_buf(),
+                source,
+            })?,
+            p.display().to_string(),
+        )),
+        None => Ok((
+            musculo::DEFAULT_MODEL_OSIM.to_string(),
+            "models/musculo_fullbody.osim".to_string(),
+        )),
+    }
+}
+
+/// `--map`: a JSON file, else a built-in map's name; without it, the format's built-in map
+/// (None for marker formats, matched by name).
+pub fn skeleton_map(
+    map: Option<&str>,
+    format: musculo::motion::Format,
+) -> Result<Option<musculo::motion::skeleton::SkeletonMap>, musculo::Error> {
+    use musculo::motion::skeleton::SkeletonMap;
+    match map {
+        Some(name) if name.ends_with(".json") || Path::new(name).exists() => {
+            Ok(Some(SkeletonMap::read(Path::new(name))?))
+        }
+        Some(name) => Ok(Some(SkeletonMap::builtin(name)?)),
+        None => format.default_map().map(SkeletonMap::builtin).transpose(),
+    }
+}

@@ -25,25 +25,6 @@ pub(super) fn component_path(n: Node) -> String {
     format!("/{}", parts.join("/"))
 }
 
-/// `path` (absolute, or relative with `..`) resolved against the component at `owner`.
-fn join_path(owner: &str, path: &str) -> String {
-    let mut parts: Vec<&str> = if path.starts_with('/') {
-        Vec::new()
-    } else {
-        owner.split('/').filter(|s| !s.is_empty()).collect()
-    };
-    for seg in path.split('/').filter(|s| !s.is_empty()) {
-        match seg {
-            "." => {}
-            ".." => {
-                parts.pop();
-            }
-            s => parts.push(s),
-        }
-    }
-    format!("/{}", parts.join("/"))
-}
-
 /// The first non-blank text child of an element.
 pub(super) fn text_node<'a, 'i>(n: Node<'a, 'i>) -> Option<Node<'a, 'i>> {
     n.children()
@@ -157,7 +138,7 @@ impl Frames {
         if depth > 64 {
             return Err(format!("offset frames form a cycle through `{socket}`"));
         }
-        let abs = join_path(owner, socket);
+        let abs = crate::model::resolve_path(owner, socket);
         let key = if self.defs.contains_key(&abs) {
             abs
         } else if !socket.contains('/') && !socket.is_empty() {
