@@ -3,23 +3,10 @@
 
 mod common;
 use common::*;
-use std::process::Command;
-
-fn musculo(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_musculo"))
-        .args(args)
-        .output()
-        .expect("run musculo");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
 
 #[test]
 fn inspect_demo_prints_the_model_summary() {
-    let (ok, out, _) = musculo(&["inspect", "--demo"]);
+    let (ok, out, _) = run_musculo(&["inspect", "--demo"]);
     assert!(ok);
     for line in [
         "bodies      5 (plus ground)",
@@ -39,7 +26,7 @@ fn inspect_rajagopal_reports_couplers_locked_coordinates_and_muscles() {
     let Some(p) = reference_file("opensim-models/Models/Rajagopal/Rajagopal2016.osim") else {
         return;
     };
-    let (ok, out, err) = musculo(&["inspect", p.to_str().unwrap()]);
+    let (ok, out, err) = run_musculo(&["inspect", p.to_str().unwrap()]);
     assert!(ok, "{err}");
     assert!(
         out.contains("coordinates 39 : 29 independent, 2 dependent (coupled), 8 locked"),
@@ -59,7 +46,7 @@ fn inspect_json_is_machine_readable() {
     else {
         return;
     };
-    let (ok, out, _) = musculo(&["inspect", "--json", p.to_str().unwrap()]);
+    let (ok, out, _) = run_musculo(&["inspect", "--json", p.to_str().unwrap()]);
     assert!(ok);
     let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
     assert_eq!(v["n_independent_coordinates"], 23);
@@ -75,12 +62,12 @@ fn inspect_lists_unsupported_elements_and_needs_the_option_for_bad_inertia() {
     ) else {
         return;
     };
-    let (ok, _, err) = musculo(&["inspect", p.to_str().unwrap()]);
+    let (ok, _, err) = run_musculo(&["inspect", p.to_str().unwrap()]);
     assert!(
         !ok && err.contains("toes_r") && err.contains("triangle inequality"),
         "{err}"
     );
-    let (ok, out, _) = musculo(&[
+    let (ok, out, _) = run_musculo(&[
         "inspect",
         "--allow-nonphysical-inertia",
         p.to_str().unwrap(),
@@ -93,7 +80,7 @@ fn inspect_lists_unsupported_elements_and_needs_the_option_for_bad_inertia() {
 
 #[test]
 fn inspect_reports_a_missing_file_and_a_bad_model_without_panicking() {
-    let (ok, _, err) = musculo(&["inspect", "/no/such/model.osim"]);
+    let (ok, _, err) = run_musculo(&["inspect", "/no/such/model.osim"]);
     assert!(
         !ok && err.starts_with("error: /no/such/model.osim"),
         "{err}"
@@ -106,7 +93,7 @@ fn inspect_reports_a_missing_file_and_a_bad_model_without_panicking() {
         include_str!("../models/demo.osim").replace("<mass>3.5</mass>", "<mass>-3.5</mass>"),
     )
     .unwrap();
-    let (ok, _, err) = musculo(&["inspect", bad.to_str().unwrap()]);
+    let (ok, _, err) = run_musculo(&["inspect", bad.to_str().unwrap()]);
     assert!(
         !ok && err.contains("Body \"shank\"") && err.contains("negative mass"),
         "{err}"
@@ -144,7 +131,7 @@ fn so_runs_opensims_setup_and_writes_activation_and_force_files() {
     };
     let tmp = TempDir::new("so");
     let prefix = tmp.0.join("walk");
-    let (ok, _, err) = musculo(&[
+    let (ok, _, err) = run_musculo(&[
         "so",
         "--setup",
         setup.to_str().unwrap(),
@@ -218,7 +205,7 @@ fn so_reports_infeasible_frames_and_goes_on() {
     let motion_path = tmp.0.join("still.mot");
     motion.write(&motion_path).unwrap();
     let prefix = tmp.0.join("out");
-    let (ok, _, err) = musculo(&[
+    let (ok, _, err) = run_musculo(&[
         "so",
         "--model",
         model_path.to_str().unwrap(),
@@ -244,7 +231,7 @@ fn so_reports_infeasible_frames_and_goes_on() {
          <PointActuator name=\"p\"><body>tibia</body></PointActuator></objects></ForceSet></OpenSimDocument>",
     )
     .unwrap();
-    let (ok, _, err) = musculo(&[
+    let (ok, _, err) = run_musculo(&[
         "so",
         "--model",
         model_path.to_str().unwrap(),
@@ -271,7 +258,7 @@ fn id_runs_opensims_setup() {
     };
     let tmp = TempDir::new("id");
     let out = tmp.0.join("id.sto");
-    let (ok, _, err) = musculo(&[
+    let (ok, _, err) = run_musculo(&[
         "id",
         "--setup",
         setup.to_str().unwrap(),
@@ -284,7 +271,7 @@ fn id_runs_opensims_setup() {
     assert!(t.column_index("knee_angle_r_moment").is_some());
     assert!(t.column_index("pelvis_tx_force").is_some());
     // A missing model file is an error naming it.
-    let (ok, _, err) = musculo(&[
+    let (ok, _, err) = run_musculo(&[
         "id",
         "--setup",
         setup.to_str().unwrap(),
@@ -301,7 +288,7 @@ fn model_build_reproduces_the_default_model_and_scale_writes_a_subject() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let tmp = TempDir::new("model");
     let built = tmp.0.join("built.osim");
-    let (ok, out, err) = musculo(&[
+    let (ok, out, err) = run_musculo(&[
         "model",
         "build",
         "--data",
@@ -317,7 +304,7 @@ fn model_build_reproduces_the_default_model_and_scale_writes_a_subject() {
         "rebuilt model differs"
     );
     let small = tmp.0.join("small.osim");
-    let (ok, out, err) = musculo(&[
+    let (ok, out, err) = run_musculo(&[
         "model",
         "scale",
         built.to_str().unwrap(),
@@ -335,7 +322,7 @@ fn model_build_reproduces_the_default_model_and_scale_writes_a_subject() {
     let model = musculo::Model::from_osim_str(&text, "small").unwrap();
     assert!((model.total_mass() - 60.0).abs() < 1e-9);
     // a model that does not state its height needs --model-height
-    let (ok, _, err) = musculo(&[
+    let (ok, _, err) = run_musculo(&[
         "model",
         "scale",
         root.join("models/demo.osim").to_str().unwrap(),
