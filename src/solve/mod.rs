@@ -3,6 +3,7 @@
 //! External loads over time ([`external_loads`]) and OpenSim's Inverse Dynamics tool
 //! ([`inverse_dynamics`]).
 
+pub mod contact;
 pub mod external_loads;
 pub mod filter;
 pub mod ik;

@@ -1,0 +1,513 @@
+//! Ground contact forces from kinematics alone (METHOD.md §4).
+//!
+//! Without force plates the floating-base rows of inverse dynamics say what the ground must
+//! supply: with the model's root joint free (6 coordinates; 3 for a planar model), the
+//! equations of motion M q̈ + C q̇ + G = τ + J_cᵀ λ have no actuator on the root's coordinates,
+//! so on those rows (index set B)
+//!
+//!   τ_ID,B = (J_cᵀ λ)_B = Σ_p J_p,Bᵀ f_p,
+//!
+//! with τ_ID = M q̈ + C q̇ + G the generalized forces of inverse dynamics without contact and
+//! f_p the force of the ground on contact point p. This module
+//! 1. describes the contact points ([`ContactSet`]: the model's ContactSpheres, or points given
+//!    by the caller or a JSON file, grouped per foot/hand), their floor (plane n·x = h) and the
+//!    floating-base rows B;
+//! 2. detects contact over a whole clip ([`detect`]): from the height above the floor and the
+//!    speed relative to the floor of every point's lowest point, with hysteresis, as a factor in
+//!    [0, 1] per frame and point that ramps smoothly in and out;
+//! 3. distributes the floating-base rows over the points in contact, frame by frame
+//!    ([`ContactWorkspace::distribute`], allocation-free) with a small QP — minimum force plus a
+//!    heavily weighted unexplained residual, normal forces ≥ 0, an optional friction pyramid;
+//! 4. sums each group's forces into what a force plate reports ([`ground_reaction`]): total
+//!    force, centre of pressure on the floor and free moment.
+//!
+//! Frames: everything is in ground; the floor normal is +y unless set (`ContactSet::floor_normal`).
+//! Units: metres, seconds, newtons.
+
+mod detect;
+mod distribute;
+mod wrench;
+
+pub use detect::{ContactStates, detect};
+pub use distribute::{ContactFrame, ContactWorkspace};
+pub use wrench::{GroupWrench, ground_reaction};
+
+use crate::error::Error;
+use crate::model::{ContactShape, CoordinateRole, DofKind, Model, MotionType};
+use crate::spatial::Vec3;
+
+/// Heel, first and fifth metatarsal heads and toe tip of both feet on gait2392's foot geometry
+/// (`data/contacts/gait2392_feet.json`, read with [`points_from_json`]). The numbers are those
+/// of the default model's table `data/model/contacts.csv` (spheres placed on gait2392's generic
+/// foot, tangent to the floor at the default pose) before its height scaling.
+pub const GAIT2392_FEET_JSON: &str = include_str!("../../../data/contacts/gait2392_feet.json");
+
+/// A contact point: a sphere fixed in a body; it touches the floor at its lowest point, the
+/// centre minus `radius` along the floor normal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactPoint {
+    pub name: String,
+    /// Index into `Model::bodies` (not ground).
+    pub body: usize,
+    /// Sphere centre in the body frame (m).
+    pub location_in_body: Vec3,
+    /// Sphere radius (m, ≥ 0; 0 for a bare point).
+    pub radius: f64,
+    /// The group reported together by [`ground_reaction`]: "foot_r", "foot_l", "hand_r", …
+    pub group: String,
+}
+
+/// The contact points of a model, their groups, the floor and the floating-base rows.
+#[derive(Clone, Debug)]
+pub struct ContactSet {
+    pub points: Vec<ContactPoint>,
+    /// Indices in q of the independent coordinates of the root joint (the joint between ground
+    /// and the first body): the rows the contact forces must balance.
+    pub floating_base: Vec<usize>,
+    /// Unit floor normal in ground, pointing up (default +y).
+    pub floor_normal: Vec3,
+    /// Height of the floor along the normal, n·x = h (default 0). [`detect`] may estimate it
+    /// per clip; [`ground_reaction`] puts the centre of pressure on this plane.
+    pub floor_height: f64,
+    /// Group names in order of first appearance, and each point's group index.
+    groups: Vec<String>,
+    group_of: Vec<usize>,
+}
+
+/// The group of a body: `foot_r`/`foot_l` for calcn, toes and talus, `hand_r`/`hand_l` for hand,
+/// radius and ulna bodies, otherwise the body's name.
+pub fn group_for_body(body_name: &str) -> String {
+    let lower = body_name.to_ascii_lowercase();
+    let side = if lower.ends_with("_r") || lower.ends_with("_right") {
+        Some("r")
+    } else if lower.ends_with("_l") || lower.ends_with("_left") {
+        Some("l")
+    } else {
+        None
+    };
+    let part = ["calcn", "toes", "talus", "foot"]
+        .iter()
+        .any(|p| lower.starts_with(p))
+        .then_some("foot")
+        .or_else(|| {
+            ["hand", "radius", "ulna", "carp", "finger"]
+                .iter()
+                .any(|p| lower.starts_with(p))
+                .then_some("hand")
+        });
+    match (part, side) {
+        (Some(part), Some(side)) => format!("{part}_{side}"),
+        _ => body_name.to_string(),
+    }
+}
+
+fn model_error(model: &Model, element: &str, message: String) -> Error {
+    Error::Model {
+        file: model.source.clone(),
+        line: 0,
+        element: element.to_string(),
+        message,
+    }
+}
+
+/// The independent coordinates of the root joint, which must float: at least one translational
+/// and one rotational coordinate (6 for a free joint, 3 for a planar one).
+fn floating_base(model: &Model) -> crate::Result<Vec<usize>> {
+    let roots: Vec<usize> = (0..model.joints.len())
+        .filter(|&j| model.joints[j].parent_body == 0 && !model.joints[j].coordinates.is_empty())
+        .collect();
+    let [root] = roots[..] else {
+        return Err(model_error(
+            model,
+            "root joint",
+            format!(
+                "model \"{}\" has {} joints with coordinates attached to ground; contact \
+                 estimation needs exactly one floating root joint",
+                model.name,
+                roots.len()
+            ),
+        ));
+    };
+    let joint = &model.joints[root];
+    let mut rows = Vec::new();
+    let (mut translations, mut rotations) = (0, 0);
+    for &c in &joint.coordinates {
+        let coordinate = &model.coordinates[c];
+        if let CoordinateRole::Independent(j) = coordinate.role {
+            rows.push(j);
+            // what the coordinate drives: a slide or a hinge of this joint
+            let drives = |kind: DofKind| {
+                model.dofs[joint.dof_range.clone()]
+                    .iter()
+                    .any(|d| d.kind == kind && d.args.contains(&c))
+            };
+            match coordinate.motion_type {
+                MotionType::Translational => translations += 1,
+                MotionType::Rotational => rotations += 1,
+                MotionType::Coupled => {
+                    translations += usize::from(drives(DofKind::Slide));
+                    rotations += usize::from(drives(DofKind::Hinge));
+                }
+            }
+        }
+    }
+    if translations == 0 || rotations == 0 {
+        return Err(model_error(
+            model,
+            &format!("{} \"{}\"", joint.kind.name(), joint.name),
+            format!(
+                "model \"{}\": the root joint has {translations} free translations and \
+                 {rotations} free rotations; contact estimation needs a floating root \
+                 (6 coordinates, or 3 for a planar model)",
+                model.name
+            ),
+        ));
+    }
+    Ok(rows)
+}
+
+impl ContactSet {
+    /// The model's ContactSpheres, grouped by body ([`group_for_body`]). Errors naming the
+    /// model if it has no ContactSphere or no floating root joint.
+    pub fn from_model(model: &Model) -> crate::Result<ContactSet> {
+        let points: Vec<ContactPoint> = model
+            .contact_geometry
+            .iter()
+            .filter_map(|g| match g.shape {
+                ContactShape::Sphere { radius } => Some(ContactPoint {
+                    name: g.name.clone(),
+                    body: g.body,
+                    location_in_body: g.pose_in_body.pos,
+                    radius,
+                    group: group_for_body(&model.bodies[g.body].name),
+                }),
+                ContactShape::HalfSpace => None,
+            })
+            .collect();
+        if points.is_empty() {
+            return Err(model_error(
+                model,
+                "ContactGeometrySet",
+                format!(
+                    "model \"{}\" has no ContactSphere; give the contact points with \
+                     ContactSet::from_points",
+                    model.name
+                ),
+            ));
+        }
+        Self::from_points(model, points)
+    }
+
+    /// A set from points given by the caller. Errors name the first bad point (unknown or
+    /// ground body, non-finite location, negative radius, empty or repeated name).
+    pub fn from_points(model: &Model, points: Vec<ContactPoint>) -> crate::Result<ContactSet> {
+        if points.is_empty() {
+            return Err(Error::invalid("points", "no contact points"));
+        }
+        for (i, p) in points.iter().enumerate() {
+            let bad = |message: String| {
+                Error::invalid("points", format!("point {i} (\"{}\"): {message}", p.name))
+            };
+            if p.name.is_empty() || points[..i].iter().any(|q| q.name == p.name) {
+                return Err(bad("empty or repeated name".into()));
+            }
+            if p.body == 0 || p.body >= model.bodies.len() {
+                return Err(bad(format!(
+                    "body index {} is ground or out of range ({} bodies)",
+                    p.body,
+                    model.bodies.len()
+                )));
+            }
+            if !p.location_in_body.iter().all(|v| v.is_finite()) {
+                return Err(bad(format!(
+                    "location {:?} is not finite",
+                    p.location_in_body
+                )));
+            }
+            if !(p.radius >= 0.0 && p.radius.is_finite()) {
+                return Err(bad(format!("radius {} must be ≥ 0 and finite", p.radius)));
+            }
+            if p.group.is_empty() {
+                return Err(bad("empty group".into()));
+            }
+        }
+        let floating_base = floating_base(model)?;
+        let mut groups: Vec<String> = Vec::new();
+        let mut group_of = Vec::with_capacity(points.len());
+        for p in &points {
+            let g = match groups.iter().position(|g| *g == p.group) {
+                Some(g) => g,
+                None => {
+                    groups.push(p.group.clone());
+                    groups.len() - 1
+                }
+            };
+            group_of.push(g);
+        }
+        Ok(ContactSet {
+            points,
+            floating_base,
+            floor_normal: Vec3::y(),
+            floor_height: 0.0,
+            groups,
+            group_of,
+        })
+    }
+
+    /// The group names, in order of first appearance among the points.
+    pub fn groups(&self) -> &[String] {
+        &self.groups
+    }
+
+    /// The group index of point `p`.
+    pub fn group_of(&self, p: usize) -> usize {
+        self.group_of[p]
+    }
+
+    /// This set with the floor at height `h` (e.g. [`ContactStates::floor`]).
+    pub fn with_floor(mut self, h: f64) -> ContactSet {
+        self.floor_height = h;
+        self
+    }
+
+    /// This set with another floor normal (normalised; must be finite and non-zero).
+    pub fn with_floor_normal(mut self, normal: Vec3) -> crate::Result<ContactSet> {
+        let norm = normal.norm();
+        if !(norm > 0.0 && norm.is_finite()) {
+            return Err(Error::invalid(
+                "normal",
+                format!("{normal:?} must be finite and non-zero"),
+            ));
+        }
+        self.floor_normal = normal / norm;
+        Ok(self)
+    }
+
+    /// Two unit tangents (t₁, t₂) of the floor such that (t₁, n, t₂) is right-handed, as
+    /// (x, y, z) are for n = +y: t₁ is ground x projected on the floor (z if n ∥ x).
+    pub fn floor_tangents(&self) -> (Vec3, Vec3) {
+        let n = self.floor_normal;
+        let mut t1 = Vec3::x() - n * n.x;
+        if t1.norm() < 1e-6 {
+            t1 = Vec3::z() - n * n.z;
+        }
+        let t1 = t1.normalize();
+        (t1, t1.cross(&n))
+    }
+}
+
+/// Contact points from a JSON document (`source` names it in errors):
+/// `{"points": [{"name": "heel_r", "body": "calcn_r", "location": [x, y, z], "radius": r,
+/// "group": "foot_r"}, …], "scale_reference": {"joint": "mtp_r", "length": L}}`.
+/// `group` is optional ([`group_for_body`] by default). Locations and radii are multiplied by
+/// `scale`, or, when `scale` is None and the document has a `scale_reference`, by the length of
+/// that joint's parent-frame offset in `model` divided by `length` (the foot scale factor of a
+/// scaled model: the calcaneus-to-toes offset for `mtp_r`).
+pub fn points_from_json(
+    model: &Model,
+    json: &str,
+    source: &str,
+    scale: Option<f64>,
+) -> crate::Result<Vec<ContactPoint>> {
+    let err = |element: String, message: String| Error::Model {
+        file: source.to_string(),
+        line: 0,
+        element,
+        message,
+    };
+    let doc: serde_json::Value =
+        serde_json::from_str(json).map_err(|e| err("document".into(), e.to_string()))?;
+    let scale = match scale {
+        Some(s) if s > 0.0 && s.is_finite() => s,
+        Some(s) => return Err(Error::invalid("scale", format!("{s} must be positive"))),
+        None => match doc.get("scale_reference") {
+            None => 1.0,
+            Some(r) => {
+                let joint_name = r.get("joint").and_then(|v| v.as_str()).unwrap_or("");
+                let length = r.get("length").and_then(|v| v.as_f64()).unwrap_or(f64::NAN);
+                let Some(j) = model.joint_index(joint_name) else {
+                    return Err(err(
+                        "scale_reference.joint".into(),
+                        format!("model \"{}\" has no joint \"{joint_name}\"", model.name),
+                    ));
+                };
+                if !(length > 0.0 && length.is_finite()) {
+                    return Err(err(
+                        "scale_reference.length".into(),
+                        "must be a positive number".into(),
+                    ));
+                }
+                model.joints[j].parent_offset.pos.norm() / length
+            }
+        },
+    };
+    let Some(list) = doc.get("points").and_then(|v| v.as_array()) else {
+        return Err(err("points".into(), "missing or not an array".into()));
+    };
+    let mut points = Vec::with_capacity(list.len());
+    for (i, p) in list.iter().enumerate() {
+        let field = |name: &str| p.get(name);
+        let element = |name: &str| format!("points[{i}].{name}");
+        let name = field("name")
+            .and_then(|v| v.as_str())
+            .ok_or_else(|| err(element("name"), "missing or not a string".into()))?;
+        let body_name = field("body")
+            .and_then(|v| v.as_str())
+            .ok_or_else(|| err(element("body"), "missing or not a string".into()))?;
+        let body = model.body_index(body_name).ok_or_else(|| {
+            err(
+                element("body"),
+                format!("model \"{}\" has no body \"{body_name}\"", model.name),
+            )
+        })?;
+        let location: Vec<f64> = field("location")
+            .and_then(|v| v.as_array())
+            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+            .unwrap_or_default();
+        if location.len() != 3 {
+            return Err(err(element("location"), "needs 3 numbers".into()));
+        }
+        let radius = field("radius")
+            .and_then(|v| v.as_f64())
+            .ok_or_else(|| err(element("radius"), "missing or not a number".into()))?;
+        let group = match field("group") {
+            None => group_for_body(body_name),
+            Some(g) => g
+                .as_str()
+                .ok_or_else(|| err(element("group"), "not a string".into()))?
+                .to_string(),
+        };
+        points.push(ContactPoint {
+            name: name.to_string(),
+            body,
+            location_in_body: Vec3::new(location[0], location[1], location[2]) * scale,
+            radius: radius * scale,
+            group,
+        });
+    }
+    Ok(points)
+}
+
+/// Settings of [`detect`] and [`ContactWorkspace::distribute`]; defaults in [`Default`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactOptions {
+    /// Floor height along the normal (m). None: estimated per clip as the `floor_percentile`
+    /// of the lowest points' heights over all frames and points (HumanML3D clips float or sink
+    /// by a few cm). Default None.
+    pub floor_height: Option<f64>,
+    /// Percentile (0–100) used to estimate the floor. Default 5.
+    pub floor_percentile: f64,
+    /// Velocity of the floor in ground (m/s), e.g. a treadmill belt: speeds are measured
+    /// relative to it. None: estimated per clip as the median horizontal velocity of the points
+    /// lower than `height_on`. Default Some(0).
+    pub floor_velocity: Option<Vec3>,
+    /// Contact starts when a point's lowest point is at most `height_on` above the floor and
+    /// moves at most `speed_on` relative to it; it ends when it rises above `height_off` or
+    /// moves faster than `speed_off` (hysteresis: on < off). Defaults 0.02 m, 0.05 m,
+    /// 0.5 m/s, 1.0 m/s.
+    pub height_on: f64,
+    pub height_off: f64,
+    pub speed_on: f64,
+    pub speed_off: f64,
+    /// While in contact the factor is 1 up to `height_full` and falls smoothly (smoothstep) to
+    /// 0 at `height_off`; likewise 1 up to `speed_on` and 0 at `speed_off`. Default 0.01 m.
+    pub height_full: f64,
+    /// The factor ramps in (smoothstep) over this time after contact starts and out over this
+    /// time before it ends (s). Default 0.05 s.
+    pub transition_time: f64,
+    /// Friction coefficient μ: each force lies in the pyramid inscribed in the friction cone
+    /// (edges n ± μ t₁, n ± μ t₂). None: normal ≥ 0, tangential force free. Default None.
+    pub friction: Option<f64>,
+    /// Weight of the unexplained residual relative to the force terms: the objective is
+    /// Σ_p (1/factor_p) ‖x_p‖² + w_r ‖r‖², x_p the point's force coordinates (N), r the
+    /// floating-base rows left (N, N·m). Default 1e8.
+    pub residual_weight: f64,
+    /// Settings of the QP solver (the exponent must stay 2).
+    pub qp: crate::solve::qp::QpSettings,
+}
+
+impl Default for ContactOptions {
+    fn default() -> Self {
+        ContactOptions {
+            floor_height: None,
+            floor_percentile: 5.0,
+            floor_velocity: Some(Vec3::zeros()),
+            height_on: 0.02,
+            height_off: 0.05,
+            speed_on: 0.5,
+            speed_off: 1.0,
+            height_full: 0.01,
+            transition_time: 0.05,
+            friction: None,
+            residual_weight: 1e8,
+            qp: crate::solve::qp::QpSettings::default(),
+        }
+    }
+}
+
+impl ContactOptions {
+    /// Checks every field; the error names the first one out of range.
+    pub fn validate(&self) -> crate::Result<()> {
+        let bad = |field: &'static str, value: f64, need: &str| {
+            Err(Error::invalid(field, format!("{value}: must be {need}")))
+        };
+        if let Some(h) = self.floor_height
+            && !h.is_finite()
+        {
+            return bad("floor_height", h, "finite");
+        }
+        if !(0.0..=100.0).contains(&self.floor_percentile) {
+            return bad("floor_percentile", self.floor_percentile, "in [0, 100]");
+        }
+        if let Some(v) = self.floor_velocity
+            && !v.iter().all(|x| x.is_finite())
+        {
+            return bad("floor_velocity", v.norm(), "finite");
+        }
+        if !(self.height_full >= 0.0 && self.height_full.is_finite()) {
+            return bad("height_full", self.height_full, "≥ 0");
+        }
+        if !(self.height_on >= 0.0 && self.height_on.is_finite()) {
+            return bad("height_on", self.height_on, "≥ 0");
+        }
+        if !(self.height_off > self.height_on
+            && self.height_off > self.height_full
+            && self.height_off.is_finite())
+        {
+            return bad(
+                "height_off",
+                self.height_off,
+                "finite and above height_on and height_full",
+            );
+        }
+        if !(self.speed_on >= 0.0 && self.speed_on.is_finite()) {
+            return bad("speed_on", self.speed_on, "≥ 0");
+        }
+        if !(self.speed_off > self.speed_on && self.speed_off.is_finite()) {
+            return bad("speed_off", self.speed_off, "finite and above speed_on");
+        }
+        if !(self.transition_time >= 0.0 && self.transition_time.is_finite()) {
+            return bad("transition_time", self.transition_time, "≥ 0");
+        }
+        if let Some(mu) = self.friction
+            && !(mu > 0.0 && mu.is_finite())
+        {
+            return bad("friction", mu, "positive");
+        }
+        if !(self.residual_weight > 0.0 && self.residual_weight.is_finite()) {
+            return bad("residual_weight", self.residual_weight, "positive");
+        }
+        if self.qp.exponent != 2.0 {
+            return bad("qp.exponent", self.qp.exponent, "2");
+        }
+        self.qp
+            .validate()
+            .map_err(|e| Error::invalid("qp", e.to_string()))
+    }
+}
+
+/// smoothstep: 0 for x ≤ 0, 1 for x ≥ 1, 3x² − 2x³ between.
+pub(crate) fn smoothstep(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
