@@ -22,6 +22,7 @@ use musculo::solve::contact::{
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::inverse_dynamics::prepare_coordinates;
 use musculo::solve::kinematics::Differentiation;
+use musculo::solve::qp::QpStatus;
 use musculo::spatial::Vec3;
 
 /// Figures of one walk; errors per foot pooled over both feet and all frames.
@@ -35,9 +36,11 @@ struct WalkFigures {
     /// more than 10 % of body weight on that foot.
     cop_ap: f64,
     cop_ml: f64,
-    /// RMS of the unexplained residual on the floating-base translation rows.
+    /// RMS of the unexplained residual on the floating-base translation and rotation rows.
     residual_force_rms: f64,
+    residual_moment_rms: f64,
     micros_per_frame: f64,
+    detect_micros_per_frame: f64,
 }
 
 fn gait_contact_set(model: &Model) -> ContactSet {
@@ -90,20 +93,19 @@ fn walk(
     let rate = (times.len() - 1) as f64 / (times[times.len() - 1] - times[0]);
     let nq = model.nq();
     let frames = times.len();
-    let (mut q, mut qd, mut qdd) = (vec![0.0; frames * nq], vec![0.0; frames * nq], vec![
-        0.0;
-        frames * nq
-    ]);
+    let (mut q, mut qd, mut qdd) = (
+        vec![0.0; frames * nq],
+        vec![0.0; frames * nq],
+        vec![0.0; frames * nq],
+    );
     for (f, &t) in times.iter().enumerate() {
         let r = f * nq..(f + 1) * nq;
-        let (a, b, c) = (
-            &mut q[r.clone()],
-            &mut qd[r.clone()],
-            &mut qdd[r.clone()],
-        );
+        let (a, b, c) = (&mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r.clone()]);
         prepared.trajectory.eval(t, a, b, c);
     }
+    let t0 = std::time::Instant::now();
     let states = contact::detect(&model, &set, options, &q, &qd, rate).unwrap();
+    let detect_micros = 1e6 * t0.elapsed().as_secs_f64() / frames as f64;
     let set = set.with_floor(states.floor);
     eprintln!(
         "{title}: {frames} frames at {rate:.1} Hz ({:.3}–{:.3} s), floor {:.4} m, floor velocity \
@@ -137,15 +139,9 @@ fn walk(
         .collect();
     let (mut e_v, mut e_ap, mut e_ml, mut n_e) = (0.0, 0.0, 0.0, 0.0);
     let (mut cop_ap, mut cop_ml, mut n_cop) = (0.0, 0.0, 0.0_f64);
-    let mut residual2 = 0.0;
+    let (mut residual2, mut residual_moment2) = (0.0, 0.0);
     let mut solve_time = 0.0;
-    let translation_rows: Vec<usize> = set
-        .floating_base
-        .iter()
-        .enumerate()
-        .filter(|(_, j)| model.q_names()[**j].ends_with(['x', 'y', 'z']))
-        .map(|(r, _)| r)
-        .collect();
+    let n_rotational = set.floating_base_rotational.iter().filter(|r| **r).count() as f64;
     let mut rows = Vec::new();
     for (f, &t) in times.iter().enumerate() {
         let r = f * nq..(f + 1) * nq;
@@ -165,8 +161,24 @@ fn walk(
             .unwrap();
         solve_time += t0.elapsed().as_secs_f64();
         ground_reaction(&set, &frame, &mut wrenches).unwrap();
-        for &row in &translation_rows {
-            residual2 += frame.residual[row].powi(2) / translation_rows.len() as f64;
+        if let Some(mu) = options.friction {
+            // every force inside the pyramid: f_n ≥ 0, |f_t1|, |f_t2| ≤ μ f_n
+            let (t1, t2) = set.floor_tangents();
+            for fp in &frame.forces {
+                let normal = fp.dot(&set.floor_normal);
+                let slack = 1e-9 * body_weight;
+                assert!(normal >= -slack, "t = {t}: normal force {normal}");
+                assert!(fp.dot(&t1).abs() <= mu * normal + slack, "t = {t}: {fp:?}");
+                assert!(fp.dot(&t2).abs() <= mu * normal + slack, "t = {t}: {fp:?}");
+            }
+        }
+        for (row, &rotational) in set.floating_base_rotational.iter().enumerate() {
+            let r2 = frame.residual[row].powi(2);
+            if rotational {
+                residual_moment2 += r2 / n_rotational;
+            } else {
+                residual2 += r2 / (set.floating_base.len() as f64 - n_rotational);
+            }
         }
         let mut line = format!("{t:.3}");
         for &(group, plate) in &feet {
@@ -181,12 +193,15 @@ fn walk(
                 cop_ml += (wrenches[group].cop.z - measured.point_in_ground.z).abs();
                 n_cop += 1.0;
             }
-            line += &format!("  {:7.1} {:7.1}", est.y, meas.y);
+            line += &format!(
+                "  {:7.1} {:7.1} {:6.1} {:6.1}",
+                est.y, meas.y, est.z, meas.z
+            );
         }
         rows.push(line);
     }
     if std::env::var_os("MUSCULO_CONTACT_TRACE").is_some() {
-        eprintln!("time   est_r   plate_r   est_l   plate_l (vertical, N)");
+        eprintln!("time  vertical est_r plate_r, medio-lateral est_r plate_r, the same for l (N)");
         rows.iter().for_each(|l| eprintln!("{l}"));
     }
     Some(WalkFigures {
@@ -198,7 +213,9 @@ fn walk(
         cop_ap: cop_ap / n_cop.max(1.0),
         cop_ml: cop_ml / n_cop.max(1.0),
         residual_force_rms: (residual2 / frames as f64).sqrt(),
+        residual_moment_rms: (residual_moment2 / frames as f64).sqrt(),
         micros_per_frame: 1e6 * solve_time / frames as f64,
+        detect_micros_per_frame: detect_micros,
     })
 }
 
@@ -208,7 +225,7 @@ fn report(title: &str, w: &WalkFigures) {
         "{title}: {} frames, body weight {:.1} N\n  per-foot RMSE: vertical {:.1} N ({:.2} % BW), \
          anterior-posterior {:.1} N ({:.2} % BW), medio-lateral {:.1} N ({:.2} % BW)\n  \
          COP mean error (foot loaded > 10 % BW): AP {:.1} mm, ML {:.1} mm\n  unexplained \
-         floating-base force residual RMS {:.2} N; distribute {:.1} µs/frame",
+         floating-base residual RMS {:.2} N, {:.2} N·m\n  detect {:.1} µs/frame, distribute {:.1} µs/frame",
         w.frames,
         w.body_weight,
         w.vertical_rmse,
@@ -220,34 +237,18 @@ fn report(title: &str, w: &WalkFigures) {
         1e3 * w.cop_ap,
         1e3 * w.cop_ml,
         w.residual_force_rms,
+        w.residual_moment_rms,
+        w.detect_micros_per_frame,
         w.micros_per_frame
     );
 }
 
 /// The walks are on a treadmill: speeds are measured relative to the belt, estimated.
 fn treadmill() -> ContactOptions {
-    let mut o = ContactOptions {
+    ContactOptions {
         floor_velocity: None,
         ..ContactOptions::default()
-    };
-    if let Ok(s) = std::env::var("TUNE") {
-        for kv in s.split(',') {
-            let (k, v) = kv.split_once('=').unwrap();
-            let v: f64 = v.parse().unwrap();
-            match k {
-                "hon" => o.height_on = v,
-                "hoff" => o.height_off = v,
-                "hfull" => o.height_full = v,
-                "son" => o.speed_on = v,
-                "soff" => o.speed_off = v,
-                "tt" => o.transition_time = v,
-                "mu" => o.friction = Some(v),
-                "pct" => o.floor_percentile = v,
-                _ => panic!("{k}"),
-            }
-        }
     }
-    o
 }
 
 const GAIT2392: &str = "opensim-models/Pipelines/Gait2392_Simbody";
@@ -290,5 +291,399 @@ fn vertical_grf_from_kinematics_matches_force_plates_gait10dof18musc_walk() {
         w.vertical_rmse <= 0.05 * w.body_weight,
         "vertical RMSE {:.1} N > 5 % of body weight",
         w.vertical_rmse
+    );
+}
+
+/// Exact mode: every point active, no friction cone, both residual weights high.
+fn exact() -> ContactOptions {
+    ContactOptions {
+        friction: None,
+        residual_moment_weight: 1e8,
+        ..ContactOptions::default()
+    }
+}
+
+/// Distributes `tau` at `q` (kinematics in `data`) with every factor 1.
+fn distribute_all(
+    model: &Model,
+    set: &ContactSet,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    options: &ContactOptions,
+) -> (Vec<f64>, ContactFrame) {
+    let tau = dynamics::rnea(model, data, q, qd, qdd)
+        .unwrap()
+        .as_slice()
+        .to_vec();
+    let mut workspace = ContactWorkspace::new(model, set);
+    let mut frame = ContactFrame::new(model, set);
+    let factor = vec![1.0; set.points.len()];
+    workspace
+        .distribute(model, data, set, options, &factor, &tau, &mut frame)
+        .unwrap();
+    (tau, frame)
+}
+
+#[test]
+fn standing_pose_all_points_reproduce_the_floating_base_rows_and_body_weight() {
+    let model = Model::default_fullbody();
+    let set = ContactSet::from_model(&model).unwrap();
+    assert_eq!(set.points.len(), 8, "the default model's ContactSpheres");
+    assert_eq!(set.groups(), ["foot_r", "foot_l"]);
+    assert_eq!(set.floating_base.len(), 6);
+    let nq = model.nq();
+    let q = model.default_q();
+    let mut data = Data::new(&model);
+    let zeros = vec![0.0; nq];
+    let (tau, frame) = distribute_all(&model, &set, &mut data, &q, &zeros, &zeros, &exact());
+    assert_eq!(frame.status, QpStatus::Solved);
+
+    // the floating-base rows: Σ J_cᵀλ = τ_ID
+    let scale = set
+        .floating_base
+        .iter()
+        .map(|&j| tau[j].abs())
+        .fold(0.0, f64::max);
+    for (r, &j) in set.floating_base.iter().enumerate() {
+        assert!(
+            (frame.generalized[j] - tau[j]).abs() <= 1e-6 * scale,
+            "row {}: J_cᵀλ {} vs τ {}",
+            model.q_names()[j],
+            frame.generalized[j],
+            tau[j]
+        );
+        assert!(frame.residual[r].abs() <= 1e-6 * scale);
+    }
+    // Newton: Σ f = m g (static), independent of the Jacobians
+    let weight = model.total_mass() * model.gravity.norm();
+    let total: Vec3 = frame.forces.iter().sum();
+    assert!(
+        (total.y - weight).abs() <= 1e-6 * weight,
+        "vertical {} vs m g {weight}",
+        total.y
+    );
+    assert!(total.x.abs() <= 1e-6 * weight && total.z.abs() <= 1e-6 * weight);
+    // Euler: the contact forces have no moment about the centre of mass
+    let com = dynamics::center_of_mass(&model, &data).unwrap();
+    let moment: Vec3 = frame
+        .forces
+        .iter()
+        .zip(&frame.points)
+        .map(|(f, p)| (p - com).cross(f))
+        .sum();
+    assert!(
+        moment.norm() <= 1e-6 * weight,
+        "moment about the COM {moment:?}"
+    );
+    // J_cᵀλ recomputed from the forces as body wrenches (spatial-force projection)
+    let mut generalized = vec![0.0; nq];
+    for (p, point) in set.points.iter().enumerate() {
+        dynamics::add_body_wrench(
+            &model,
+            &data,
+            point.body,
+            &frame.points[p],
+            &frame.forces[p],
+            &Vec3::zeros(),
+            &mut generalized,
+        )
+        .unwrap();
+    }
+    for j in 0..nq {
+        assert!((generalized[j] - frame.generalized[j]).abs() <= 1e-9 * weight);
+    }
+    // the contact points are the spheres' lowest points, on the floor at the default pose
+    for p in &frame.points {
+        assert!(p.y.abs() < 0.01, "contact point at height {}", p.y);
+    }
+    // both feet carry load; the plates' sum is the total; COPs on the floor plane
+    let mut wrenches = vec![GroupWrench::default(); 2];
+    ground_reaction(&set, &frame, &mut wrenches).unwrap();
+    for w in &wrenches {
+        assert!(w.loaded && w.force.y > 0.3 * weight, "{w:?}");
+        assert_eq!(w.cop.y, 0.0);
+    }
+    assert!((wrenches[0].force.y + wrenches[1].force.y - weight).abs() <= 1e-6 * weight);
+    eprintln!(
+        "standing: right {:.2} N, left {:.2} N (m g {weight:.2} N), QP iterations {}",
+        wrenches[0].force.y, wrenches[1].force.y, frame.iterations
+    );
+}
+
+#[test]
+fn accelerating_pose_all_points_reproduce_the_floating_base_rows() {
+    // standing pose with joint accelerations: the rows change, all points still balance them
+    let model = Model::default_fullbody();
+    let set = ContactSet::from_model(&model).unwrap();
+    let nq = model.nq();
+    let q = model.default_q();
+    let mut rng = common::Rng::new(11);
+    let qd: Vec<f64> = (0..nq).map(|_| rng.uniform(-0.3, 0.3)).collect();
+    let mut qdd: Vec<f64> = (0..nq).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    for &j in &set.floating_base {
+        qdd[j] = 0.0;
+    }
+    let mut data = Data::new(&model);
+    let (tau, frame) = distribute_all(&model, &set, &mut data, &q, &qd, &qdd, &exact());
+    assert_eq!(frame.status, QpStatus::Solved);
+    let scale = set
+        .floating_base
+        .iter()
+        .map(|&j| tau[j].abs())
+        .fold(0.0, f64::max);
+    for (r, &j) in set.floating_base.iter().enumerate() {
+        assert!(
+            frame.residual[r].abs() <= 1e-6 * scale,
+            "row {}: residual {} (τ {})",
+            model.q_names()[j],
+            frame.residual[r],
+            tau[j]
+        );
+    }
+}
+
+#[test]
+fn a_frame_in_the_air_gets_no_force_and_the_whole_residual() {
+    let model = Model::default_fullbody();
+    let set = ContactSet::from_model(&model).unwrap();
+    let nq = model.nq();
+    let ty = model.q_index("pelvis_ty").unwrap();
+    // 10 frames standing, then the body rises 0.3 m over 20 frames at 60 Hz
+    let rate = 60.0;
+    let frames = 30;
+    let mut q = Vec::with_capacity(frames * nq);
+    let mut qd = vec![0.0; frames * nq];
+    for f in 0..frames {
+        let mut qf = model.default_q();
+        if f >= 10 {
+            qf[ty] += 0.3 * (f - 9) as f64 / 20.0;
+            qd[f * nq + ty] = 0.3 / 20.0 * rate;
+        }
+        q.extend(qf);
+    }
+    let options = ContactOptions {
+        floor_height: Some(0.0),
+        ..ContactOptions::default()
+    };
+    let states = contact::detect(&model, &set, &options, &q, &qd, rate).unwrap();
+    assert!((0..8).all(|p| states.in_contact[p]), "standing: in contact");
+    assert!(states.factor.iter().all(|f| (0.0..=1.0).contains(f)));
+    let last = frames - 1;
+    assert!(states.frame(last).iter().all(|&f| f == 0.0), "in the air");
+    assert!(states.height[last * 8..].iter().all(|&h| h > 0.25));
+
+    let mut data = Data::new(&model);
+    let r = last * nq..(last + 1) * nq;
+    let tau = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r], &vec![0.0; nq])
+        .unwrap()
+        .as_slice()
+        .to_vec();
+    let mut workspace = ContactWorkspace::new(&model, &set);
+    let mut frame = ContactFrame::new(&model, &set);
+    workspace
+        .distribute(
+            &model,
+            &data,
+            &set,
+            &ContactOptions::default(),
+            states.frame(last),
+            &tau,
+            &mut frame,
+        )
+        .unwrap();
+    assert!(frame.forces.iter().all(|f| *f == Vec3::zeros()));
+    assert!(frame.generalized.iter().all(|&g| g == 0.0));
+    for (r, &j) in set.floating_base.iter().enumerate() {
+        assert_eq!(frame.residual[r], tau[j]);
+    }
+    // the vertical residual is the weight
+    let weight = model.total_mass() * model.gravity.norm();
+    let ty_row = set.floating_base.iter().position(|&j| j == ty).unwrap();
+    assert!((frame.residual[ty_row] - weight).abs() <= 1e-9 * weight);
+    let mut wrenches = vec![GroupWrench::default(); 2];
+    ground_reaction(&set, &frame, &mut wrenches).unwrap();
+    assert!(
+        wrenches
+            .iter()
+            .all(|w| !w.loaded && w.force == Vec3::zeros())
+    );
+}
+
+/// A pendulum hinged to ground: no floating root, no ContactSphere.
+fn pendulum() -> Model {
+    let xml = common::osim(
+        &common::body(
+            "link",
+            1.0,
+            [0.0, -0.5, 0.0],
+            [0.1, 0.1, 0.1, 0.0, 0.0, 0.0],
+        ),
+        &common::joint(
+            "PinJoint",
+            "hinge",
+            "/ground",
+            [0.0, 1.0, 0.0],
+            "/bodyset/link",
+            &[common::coordinate("swing", [-3.0, 3.0])],
+            "",
+        ),
+        "",
+        [0.0, -9.81, 0.0],
+    );
+    Model::from_osim_str(&xml, "<pendulum>").unwrap()
+}
+
+#[test]
+fn bad_input_is_an_error_naming_the_argument() {
+    let invalid = |e: musculo::Error| common::expect_invalid_argument(e);
+    // models without ContactSpheres or without a floating root
+    let p = pendulum();
+    let e = ContactSet::from_model(&p).unwrap_err().to_string();
+    assert!(e.contains("no ContactSphere") && e.contains("test"), "{e}");
+    let point = ContactPoint {
+        name: "tip".into(),
+        body: 1,
+        location_in_body: Vec3::new(0.0, -1.0, 0.0),
+        radius: 0.0,
+        group: "tip".into(),
+    };
+    let e = ContactSet::from_points(&p, vec![point.clone()])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("floating root") && e.contains("hinge"), "{e}");
+
+    let model = Model::default_fullbody();
+    let nq = model.nq();
+    // bad points
+    for (edit, needle) in [
+        (
+            Box::new(|p: &mut ContactPoint| p.body = 0) as Box<dyn Fn(&mut ContactPoint)>,
+            "ground",
+        ),
+        (
+            Box::new(|p: &mut ContactPoint| p.body = 999),
+            "out of range",
+        ),
+        (Box::new(|p: &mut ContactPoint| p.radius = -0.1), "radius"),
+        (
+            Box::new(|p: &mut ContactPoint| p.location_in_body.x = f64::NAN),
+            "not finite",
+        ),
+    ] {
+        let mut bad = point.clone();
+        edit(&mut bad);
+        let (argument, message) = invalid(ContactSet::from_points(&model, vec![bad]).unwrap_err());
+        assert_eq!(argument, "points");
+        assert!(message.contains(needle), "{message}");
+    }
+    let e = ContactSet::from_points(&model, vec![]).unwrap_err();
+    assert_eq!(invalid(e).0, "points");
+    // JSON points
+    for (json, needle) in [
+        ("{", "document"),
+        (r#"{"points": 3}"#, "points"),
+        (
+            r#"{"points": [{"name": "a", "body": "nobody", "location": [0,0,0], "radius": 0}]}"#,
+            "nobody",
+        ),
+        (
+            r#"{"points": [{"name": "a", "body": "calcn_r", "location": [0,0], "radius": 0}]}"#,
+            "points[0].location",
+        ),
+    ] {
+        let e = contact::points_from_json(&model, json, "pts.json", None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pts.json") && e.contains(needle), "{e}");
+    }
+
+    let set = ContactSet::from_model(&model).unwrap();
+    let options = ContactOptions::default();
+    let q1 = model.default_q();
+    let q: Vec<f64> = (0..3).flat_map(|_| q1.clone()).collect();
+    let qd = vec![0.0; q.len()];
+    let detect = |q: &[f64], qd: &[f64], rate: f64, o: &ContactOptions| {
+        invalid(contact::detect(&model, &set, o, q, qd, rate).unwrap_err())
+    };
+    assert_eq!(detect(&q[1..], &qd[1..], 60.0, &options).0, "q");
+    assert_eq!(detect(&[], &[], 60.0, &options).0, "q");
+    assert_eq!(detect(&q, &qd[1..], 60.0, &options).0, "qd");
+    assert_eq!(detect(&q, &qd, 0.0, &options).0, "rate_hz");
+    assert_eq!(detect(&q, &qd, f64::NAN, &options).0, "rate_hz");
+    let mut nan = q.clone();
+    nan[2 * nq + 4] = f64::NAN;
+    let (argument, message) = detect(&nan, &qd, 60.0, &options);
+    assert_eq!(argument, "q");
+    assert!(message.contains("frame 2") && message.contains(model.q_names()[4]));
+    let mut nan = qd.clone();
+    nan[5] = f64::INFINITY;
+    assert_eq!(detect(&q, &nan, 60.0, &options).0, "qd");
+    let bad_options = ContactOptions {
+        height_off: 0.01,
+        ..ContactOptions::default()
+    };
+    assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "height_off");
+    let bad_options = ContactOptions {
+        friction: Some(f64::NAN),
+        ..ContactOptions::default()
+    };
+    assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "friction");
+
+    // distribute
+    let mut data = Data::new(&model);
+    let mut workspace = ContactWorkspace::new(&model, &set);
+    let mut frame = ContactFrame::new(&model, &set);
+    let factor = vec![1.0; 8];
+    let tau = vec![0.0; nq];
+    // before any kinematics
+    let e = workspace
+        .distribute(&model, &data, &set, &options, &factor, &tau, &mut frame)
+        .unwrap_err();
+    assert!(
+        matches!(e, musculo::Error::StageNotComputed { .. }),
+        "{e:?}"
+    );
+    dynamics::forward_kinematics(&model, &mut data, &q1).unwrap();
+    let mut distribute = |factor: &[f64], tau: &[f64], set: &ContactSet| {
+        invalid(
+            workspace
+                .distribute(&model, &data, set, &options, factor, tau, &mut frame)
+                .unwrap_err(),
+        )
+    };
+    assert_eq!(distribute(&factor, &tau[1..], &set).0, "tau");
+    let mut nan = tau.clone();
+    nan[3] = f64::NAN;
+    assert_eq!(distribute(&factor, &nan, &set).0, "tau");
+    assert_eq!(distribute(&factor[1..], &tau, &set).0, "factor");
+    assert_eq!(distribute(&[1.5; 8], &tau, &set).0, "factor");
+    assert_eq!(distribute(&[f64::NAN; 8], &tau, &set).0, "factor");
+    let smaller = ContactSet::from_points(&model, set.points[..4].to_vec()).unwrap();
+    assert_eq!(distribute(&factor[..4], &tau, &smaller).0, "set");
+    let mut small_frame = ContactFrame::new(&model, &smaller);
+    let e = workspace
+        .distribute(
+            &model,
+            &data,
+            &set,
+            &options,
+            &factor,
+            &tau,
+            &mut small_frame,
+        )
+        .unwrap_err();
+    assert_eq!(invalid(e).0, "out");
+    // ground_reaction
+    let mut one = vec![GroupWrench::default(); 1];
+    assert_eq!(
+        invalid(ground_reaction(&set, &frame, &mut one).unwrap_err()).0,
+        "out"
+    );
+    let mut two = vec![GroupWrench::default(); 2];
+    assert_eq!(
+        invalid(ground_reaction(&set, &small_frame, &mut two).unwrap_err()).0,
+        "frame"
     );
 }

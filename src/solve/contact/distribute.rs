@@ -6,11 +6,13 @@
 //! one slack s_r per floating-base row. With J_p the 3 × n Jacobian of the point's contact
 //! location (sphere centre − r n) and B the floating-base rows:
 //!
-//!   minimise   Σ_p (1/φ_p) Σ_e x_p,e²  +  w_r Σ_r s_r²
+//!   minimise   Σ_p (1/φ_p) Σ_e c_e x_p,e²  +  Σ_r w_r s_r²
 //!   subject to Σ_p Σ_e (J_p,Bᵀ d_e) x_p,e + s = τ_B,
 //!
-//! φ_p the contact factor (a point with φ_p = 0 has its coordinates fixed at 0). The slack makes
-//! the problem always feasible; with w_r large it is the unexplained residual, reported per row.
+//! φ_p the contact factor, c_e = 1 for the normal and the pyramid's edges and the
+//! `tangential_weight` for free tangential coordinates (a point with φ_p = 0 has its coordinates fixed at 0). The slack makes
+//! the problem always feasible; with w_r large (`residual_weight` on translation rows,
+//! `residual_moment_weight` on rotation rows) it is the unexplained residual, reported per row.
 //! The weights 1/φ_p move load smoothly as the factors ramp (METHOD.md §4). Solved by
 //! [`crate::solve::qp`] (p = 2), warm-started from the previous frame.
 
@@ -198,7 +200,12 @@ impl ContactWorkspace {
                 }
                 let free_tangent = options.friction.is_none() && e > 0;
                 if factor[p] > 0.0 {
-                    self.weights[c] = 1.0 / factor[p];
+                    let tangential = if free_tangent {
+                        options.tangential_weight
+                    } else {
+                        1.0
+                    };
+                    self.weights[c] = tangential / factor[p];
                     self.lower[c] = if free_tangent { f64::NEG_INFINITY } else { 0.0 };
                     self.upper[c] = f64::INFINITY;
                 } else {
@@ -213,7 +220,11 @@ impl ContactWorkspace {
             for rr in 0..nb {
                 self.a[(rr, c)] = if rr == r { 1.0 } else { 0.0 };
             }
-            self.weights[c] = options.residual_weight;
+            self.weights[c] = if set.floating_base_rotational[r] {
+                options.residual_moment_weight
+            } else {
+                options.residual_weight
+            };
             self.lower[c] = f64::NEG_INFINITY;
             self.upper[c] = f64::INFINITY;
         }

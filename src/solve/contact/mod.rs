@@ -64,6 +64,8 @@ pub struct ContactSet {
     /// Indices in q of the independent coordinates of the root joint (the joint between ground
     /// and the first body): the rows the contact forces must balance.
     pub floating_base: Vec<usize>,
+    /// Whether each floating-base row is a rotation (its generalized force a moment, N·m).
+    pub floating_base_rotational: Vec<bool>,
     /// Unit floor normal in ground, pointing up (default +y).
     pub floor_normal: Vec3,
     /// Height of the floor along the normal, n·x = h (default 0). [`detect`] may estimate it
@@ -112,7 +114,7 @@ fn model_error(model: &Model, element: &str, message: String) -> Error {
 
 /// The independent coordinates of the root joint, which must float: at least one translational
 /// and one rotational coordinate (6 for a free joint, 3 for a planar one).
-fn floating_base(model: &Model) -> crate::Result<Vec<usize>> {
+fn floating_base(model: &Model) -> crate::Result<(Vec<usize>, Vec<bool>)> {
     let roots: Vec<usize> = (0..model.joints.len())
         .filter(|&j| model.joints[j].parent_body == 0 && !model.joints[j].coordinates.is_empty())
         .collect();
@@ -130,6 +132,7 @@ fn floating_base(model: &Model) -> crate::Result<Vec<usize>> {
     };
     let joint = &model.joints[root];
     let mut rows = Vec::new();
+    let mut rotational = Vec::new();
     let (mut translations, mut rotations) = (0, 0);
     for &c in &joint.coordinates {
         let coordinate = &model.coordinates[c];
@@ -141,14 +144,14 @@ fn floating_base(model: &Model) -> crate::Result<Vec<usize>> {
                     .iter()
                     .any(|d| d.kind == kind && d.args.contains(&c))
             };
-            match coordinate.motion_type {
-                MotionType::Translational => translations += 1,
-                MotionType::Rotational => rotations += 1,
-                MotionType::Coupled => {
-                    translations += usize::from(drives(DofKind::Slide));
-                    rotations += usize::from(drives(DofKind::Hinge));
-                }
-            }
+            let (slide, hinge) = match coordinate.motion_type {
+                MotionType::Translational => (true, false),
+                MotionType::Rotational => (false, true),
+                MotionType::Coupled => (drives(DofKind::Slide), drives(DofKind::Hinge)),
+            };
+            translations += usize::from(slide);
+            rotations += usize::from(hinge);
+            rotational.push(!slide);
         }
     }
     if translations == 0 || rotations == 0 {
@@ -163,7 +166,7 @@ fn floating_base(model: &Model) -> crate::Result<Vec<usize>> {
             ),
         ));
     }
-    Ok(rows)
+    Ok((rows, rotational))
 }
 
 impl ContactSet {
@@ -231,7 +234,7 @@ impl ContactSet {
                 return Err(bad("empty group".into()));
             }
         }
-        let floating_base = floating_base(model)?;
+        let (floating_base, floating_base_rotational) = floating_base(model)?;
         let mut groups: Vec<String> = Vec::new();
         let mut group_of = Vec::with_capacity(points.len());
         for p in &points {
@@ -247,6 +250,7 @@ impl ContactSet {
         Ok(ContactSet {
             points,
             floating_base,
+            floating_base_rotational,
             floor_normal: Vec3::y(),
             floor_height: 0.0,
             groups,
@@ -413,15 +417,31 @@ pub struct ContactOptions {
     /// 0 at `height_off`; likewise 1 up to `speed_on` and 0 at `speed_off`. Default 0.01 m.
     pub height_full: f64,
     /// The factor ramps in (smoothstep) over this time after contact starts and out over this
-    /// time before it ends (s). Default 0.05 s.
+    /// time before it ends (s): about a walking double-support period, so that load passes
+    /// from the trailing to the leading foot over it. Default 0.2 s.
     pub transition_time: f64,
     /// Friction coefficient μ: each force lies in the pyramid inscribed in the friction cone
-    /// (edges n ± μ t₁, n ± μ t₂). None: normal ≥ 0, tangential force free. Default None.
+    /// (edges n ± μ t₁, n ± μ t₂). None: normal ≥ 0, tangential force free — then the QP may
+    /// balance pelvis moments with large opposing tangential forces between points.
+    /// Default Some(0.8).
     pub friction: Option<f64>,
-    /// Weight of the unexplained residual relative to the force terms: the objective is
-    /// Σ_p (1/factor_p) ‖x_p‖² + w_r ‖r‖², x_p the point's force coordinates (N), r the
-    /// floating-base rows left (N, N·m). Default 1e8.
+    /// Without friction: weight of the tangential force coordinates relative to the normal
+    /// one (w_t in Σ_p (1/φ_p)(f_n² + w_t ‖f_t‖²)); a larger weight discourages opposing
+    /// tangential forces between points. Default 1. (With a friction pyramid the edge
+    /// coefficients all have weight 1/φ_p.)
+    pub tangential_weight: f64,
+    /// Weights of the unexplained residual relative to the force terms: the objective is
+    /// Σ_p (1/factor_p) ‖x_p‖² + w_f ‖r_f‖² + w_m ‖r_m‖², x_p the point's force coordinates
+    /// (N), r_f the floating-base translation rows left (N) and r_m the rotation rows left
+    /// (N·m). Default 1e8 for forces: the force residual is used only where no contact force
+    /// can balance the rows (the total vertical force is then m g + m a_y exactly). Default
+    /// 100 for moments: a moment residual of 1 N·m costs as much as 10 N of force at full
+    /// contact, so moments the contacts could only make with implausible forces (typically
+    /// inconsistencies of the kinematics, of the order of OpenSim's pelvis residuals with
+    /// measured plates, ~10–20 N·m RMS) are left as residual. Set it to 1e8 to reproduce the
+    /// moment rows whenever the contacts can.
     pub residual_weight: f64,
+    pub residual_moment_weight: f64,
     /// Settings of the QP solver (the exponent must stay 2).
     pub qp: crate::solve::qp::QpSettings,
 }
@@ -437,9 +457,11 @@ impl Default for ContactOptions {
             speed_on: 0.5,
             speed_off: 1.0,
             height_full: 0.01,
-            transition_time: 0.05,
-            friction: None,
+            transition_time: 0.2,
+            friction: Some(0.8),
+            tangential_weight: 1.0,
             residual_weight: 1e8,
+            residual_moment_weight: 100.0,
             qp: crate::solve::qp::QpSettings::default(),
         }
     }
@@ -494,8 +516,18 @@ impl ContactOptions {
         {
             return bad("friction", mu, "positive");
         }
+        if !(self.tangential_weight > 0.0 && self.tangential_weight.is_finite()) {
+            return bad("tangential_weight", self.tangential_weight, "positive");
+        }
         if !(self.residual_weight > 0.0 && self.residual_weight.is_finite()) {
             return bad("residual_weight", self.residual_weight, "positive");
+        }
+        if !(self.residual_moment_weight > 0.0 && self.residual_moment_weight.is_finite()) {
+            return bad(
+                "residual_moment_weight",
+                self.residual_moment_weight,
+                "positive",
+            );
         }
         if self.qp.exponent != 2.0 {
             return bad("qp.exponent", self.qp.exponent, "2");
