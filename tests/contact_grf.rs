@@ -24,6 +24,33 @@ use musculo::solve::inverse_dynamics::prepare_coordinates;
 use musculo::solve::kinematics::Differentiation;
 use musculo::solve::qp::QpStatus;
 use musculo::spatial::Vec3;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+/// Counts this thread's allocations, to check that the per-frame distribution allocates
+/// nothing.
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
 
 /// Figures of one walk; errors per foot pooled over both feet and all frames.
 struct WalkFigures {
@@ -147,6 +174,7 @@ fn walk(
         let r = f * nq..(f + 1) * nq;
         let id = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r]).unwrap();
         tau.copy_from_slice(id.as_slice());
+        let allocations = ALLOCATIONS.with(|c| c.get());
         let t0 = std::time::Instant::now();
         workspace
             .distribute(
@@ -161,6 +189,11 @@ fn walk(
             .unwrap();
         solve_time += t0.elapsed().as_secs_f64();
         ground_reaction(&set, &frame, &mut wrenches).unwrap();
+        assert_eq!(
+            ALLOCATIONS.with(|c| c.get()),
+            allocations,
+            "t = {t}: distribute and ground_reaction allocated"
+        );
         if let Some(mu) = options.friction {
             // every force inside the pyramid: f_n ≥ 0, |f_t1|, |f_t2| ≤ μ f_n
             let (t1, t2) = set.floor_tangents();
@@ -251,19 +284,26 @@ fn treadmill() -> ContactOptions {
     }
 }
 
+fn treadmill_exact() -> ContactOptions {
+    ContactOptions {
+        floor_velocity: None,
+        ..exact()
+    }
+}
+
 const GAIT2392: &str = "opensim-models/Pipelines/Gait2392_Simbody";
 const GAIT10: &str = "opensim-models/Pipelines/Gait10dof18musc/OutputReference";
 
 #[test]
 fn vertical_grf_from_kinematics_matches_force_plates_gait2392_walk() {
     let title = "gait2392 walk";
-    let Some(w) = walk(
-        title,
+    // the IK the ID setup names (OutputReference's copy also holds marker and GRF columns)
+    let (model, ik, grf) = (
         &format!("{GAIT2392}/OutputReference/subject01_simbody.osim"),
         &format!("{GAIT2392}/subject01_walk1_ik.mot"),
         &format!("{GAIT2392}/subject01_walk1_grf.xml"),
-        &treadmill(),
-    ) else {
+    );
+    let Some(w) = walk(title, model, ik, grf, &treadmill()) else {
         return;
     };
     report(title, &w);
@@ -272,18 +312,22 @@ fn vertical_grf_from_kinematics_matches_force_plates_gait2392_walk() {
         "vertical RMSE {:.1} N > 5 % of body weight",
         w.vertical_rmse
     );
+    // for comparison (no assertion): no friction cone, moment rows reproduced exactly
+    let exact_title = format!("{title}, no friction cone, moment rows exact");
+    if let Some(e) = walk(&exact_title, model, ik, grf, &treadmill_exact()) {
+        report(&exact_title, &e);
+    }
 }
 
 #[test]
 fn vertical_grf_from_kinematics_matches_force_plates_gait10dof18musc_walk() {
     let title = "Gait10dof18musc walk";
-    let Some(w) = walk(
-        title,
+    let (model, ik, grf) = (
         &format!("{GAIT10}/subject01.osim"),
         &format!("{GAIT10}/IK/subject01_walk_IK.mot"),
         &format!("{GAIT10}/ExperimentalData/subject01_walk_grf.xml"),
-        &treadmill(),
-    ) else {
+    );
+    let Some(w) = walk(title, model, ik, grf, &treadmill()) else {
         return;
     };
     report(title, &w);
@@ -292,6 +336,11 @@ fn vertical_grf_from_kinematics_matches_force_plates_gait10dof18musc_walk() {
         "vertical RMSE {:.1} N > 5 % of body weight",
         w.vertical_rmse
     );
+    // for comparison (no assertion): no friction cone, moment rows reproduced exactly
+    let exact_title = format!("{title}, no friction cone, moment rows exact");
+    if let Some(e) = walk(&exact_title, model, ik, grf, &treadmill_exact()) {
+        report(&exact_title, &e);
+    }
 }
 
 /// Exact mode: every point active, no friction cone, both residual weights high.
@@ -442,6 +491,28 @@ fn accelerating_pose_all_points_reproduce_the_floating_base_rows() {
             tau[j]
         );
     }
+    // a quick timing on the default model with the default options (no assertion): factors
+    // ramping as in a load transfer, warm-started from frame to frame
+    let mut workspace = ContactWorkspace::new(&model, &set);
+    let mut frame = ContactFrame::new(&model, &set);
+    let options = ContactOptions::default();
+    let mut factor = vec![1.0; set.points.len()];
+    let calls = 2000;
+    let t0 = std::time::Instant::now();
+    for k in 0..calls {
+        let s = 0.5 + 0.5 * (k as f64 * 0.05).sin();
+        factor[..4].iter_mut().for_each(|f| *f = s);
+        factor[4..].iter_mut().for_each(|f| *f = 1.0 - s);
+        workspace
+            .distribute(&model, &data, &set, &options, &factor, &tau, &mut frame)
+            .unwrap();
+    }
+    eprintln!(
+        "default model ({} coordinates, {} points): distribute {:.1} µs/frame",
+        nq,
+        set.points.len(),
+        1e6 * t0.elapsed().as_secs_f64() / calls as f64
+    );
 }
 
 #[test]

@@ -48,7 +48,7 @@ impl ContactStates {
 
 /// Checks a frame-major T × nq array: length a multiple of nq, every value finite.
 fn check_frames(model: &Model, argument: &'static str, x: &[f64], nq: usize) -> crate::Result<()> {
-    if nq == 0 || x.is_empty() || x.len() % nq != 0 {
+    if nq == 0 || x.is_empty() || !x.len().is_multiple_of(nq) {
         return Err(Error::invalid(
             argument,
             format!(

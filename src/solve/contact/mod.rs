@@ -17,9 +17,24 @@
 //!    [0, 1] per frame and point that ramps smoothly in and out;
 //! 3. distributes the floating-base rows over the points in contact, frame by frame
 //!    ([`ContactWorkspace::distribute`], allocation-free) with a small QP — minimum force plus a
-//!    heavily weighted unexplained residual, normal forces ≥ 0, an optional friction pyramid;
+//!    weighted unexplained residual, normal forces ≥ 0, friction pyramid (μ = 0.8 by default);
 //! 4. sums each group's forces into what a force plate reports ([`ground_reaction`]): total
 //!    force, centre of pressure on the floor and free moment.
+//!
+//! Typical use, per clip (q, q̇, q̈ frame-major, τ from [`crate::dynamics::rnea`]):
+//! ```text
+//! let set = ContactSet::from_model(&model)?;
+//! let states = detect(&model, &set, &options, &q, &qd, rate_hz)?;
+//! let set = set.with_floor(states.floor);
+//! for each frame t:  rnea(&model, &mut data, q_t, qd_t, qdd_t) → τ;
+//!     workspace.distribute(&model, &data, &set, &options, states.frame(t), τ, &mut frame)?;
+//!     ground_reaction(&set, &frame, &mut wrenches)?;   // per foot: force, COP, free moment
+//!     joint torques: τ − frame.generalized; pelvis residual: frame.residual
+//! ```
+//!
+//! Accuracy (tests/contact_grf.rs, subject01's treadmill walk of OpenSim's Gait2392 and
+//! Gait10dof18musc pipelines, stored IK, 6 Hz): per-foot vertical RMSE 3.5 % and 4.0 % of body
+//! weight against the force plates with the default options.
 //!
 //! Frames: everything is in ground; the floor normal is +y unless set (`ContactSet::floor_normal`).
 //! Units: metres, seconds, newtons.
