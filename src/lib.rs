@@ -15,6 +15,7 @@
 //!
 //! The library never prints; the `musculo` binary is a thin command-line layer on top.
 
+pub mod augment;
 pub mod check;
 pub mod dynamics;
 pub mod error;

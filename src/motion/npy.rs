@@ -306,6 +306,20 @@ fn write_error(path: &Path, e: impl std::fmt::Display) -> Error {
     io_error(path, std::io::Error::other(e.to_string()))
 }
 
+/// Writes `bytes` to `path` atomically (a temporary file beside it, synced, then renamed):
+/// an interrupted write leaves the old file or the new one, never part of one.
+pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
+    let (atomic, mut file) = AtomicFile::create(path)?;
+    file.write_all(bytes).map_err(|e| io_error(path, e))?;
+    atomic.commit(file)
+}
+
+/// True for the name of a temporary file this module writes (`.<name>.tmp-<pid>-<n>`): left
+/// behind only when a process is killed mid-write, and safe to delete.
+pub fn is_temporary_name(name: &str) -> bool {
+    name.starts_with('.') && name.contains(".tmp-")
+}
+
 /// Writes `array` as an `.npy` file (little-endian, C order), atomically.
 pub fn write_npy<A: NpyFloat>(path: &Path, array: ArrayViewD<'_, A>) -> crate::Result<()> {
     let (atomic, file) = AtomicFile::create(path)?;

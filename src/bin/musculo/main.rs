@@ -1,5 +1,6 @@
 //! The `musculo` command-line tool: a thin layer over the library.
 
+mod augment;
 mod check;
 mod export_mjcf;
 mod id;
@@ -58,6 +59,12 @@ enum Command {
     /// maximum isometric joint moments against published ranges. Exits non-zero when a
     /// check fails.
     Check(check::Args),
+    /// Augment a motion dataset: per clip, joint torques, ground contact forces and muscle
+    /// activations of the model (IK, inverse dynamics, contacts, static optimization), as
+    /// float32 .npz tensors with a manifest and statistics. Resumable and shardable.
+    Augment(augment::Args),
+    /// Combine the shards of an `augment --shard K/N` run into one manifest and statistics.
+    Merge(augment::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -71,6 +78,12 @@ fn main() -> ExitCode {
         Command::So(args) => so::run(&args),
         Command::Scale(args) => scale::run(&args),
         Command::Model(command) => model::run(&command),
+        Command::Augment(args) => match augment::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(e) => Err(e),
+        },
+        Command::Merge(args) => augment::merge(&args),
         Command::Check(args) => match check::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,

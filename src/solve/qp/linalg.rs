@@ -7,7 +7,7 @@
 /// `c_k` yielded by `terms` — the rank-k update that adds (c > 0) or removes (c < 0) columns of
 /// the dual Hessian A D Aᵀ. Columns are taken four at a time so that each entry of H is loaded
 /// and stored once per four rank-1 terms.
-pub(super) fn symmetric_rank_update<'a>(
+pub(crate) fn symmetric_rank_update<'a>(
     h: &mut [f64],
     n: usize,
     mut terms: impl Iterator<Item = (&'a [f64], f64)>,
@@ -64,7 +64,7 @@ fn rank_update_1(h: &mut [f64], n: usize, a: &[f64], c: f64) {
 /// column at a time: L[j,j] = √M[j,j], L[j+1..,j] = M[j+1..,j] / L[j,j], then the trailing
 /// M[c..,c] −= L[c,j] L[c..,j]). Returns false, leaving `m` partly overwritten, when a pivot
 /// is not positive and finite (the matrix is not numerically positive definite).
-pub(super) fn cholesky_in_place(m: &mut [f64], n: usize) -> bool {
+pub(crate) fn cholesky_in_place(m: &mut [f64], n: usize) -> bool {
     for j in 0..n {
         let pivot = m[j * n + j];
         if !(pivot > 0.0 && pivot.is_finite()) {
@@ -95,7 +95,7 @@ pub(super) fn cholesky_in_place(m: &mut [f64], n: usize) -> bool {
 /// Solves L Lᵀ x = rhs in place for the factor of [`cholesky_in_place`]: forward
 /// substitution L y = rhs by columns, then back substitution Lᵀ x = y by dot products with
 /// the (contiguous) columns of L.
-pub(super) fn cholesky_solve_in_place(l: &[f64], n: usize, x: &mut [f64]) {
+pub(crate) fn cholesky_solve_in_place(l: &[f64], n: usize, x: &mut [f64]) {
     for j in 0..n {
         let l_col = &l[j * n..(j + 1) * n];
         let xj = x[j] / l_col[j];
@@ -112,7 +112,7 @@ pub(super) fn cholesky_solve_in_place(l: &[f64], n: usize, x: &mut [f64]) {
 }
 
 /// uᵀv with four independent accumulators (so that the sum vectorises).
-pub(super) fn dot(u: &[f64], v: &[f64]) -> f64 {
+pub(crate) fn dot(u: &[f64], v: &[f64]) -> f64 {
     let mut acc = [0.0; 4];
     let (u4, u_rest) = u.split_at(u.len() / 4 * 4);
     let (v4, v_rest) = v.split_at(u4.len());

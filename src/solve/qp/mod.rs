@@ -62,7 +62,7 @@
 //! violation", Math. Program. 200 (2023); F. C. Anderson & M. G. Pandy, "Static and dynamic
 //! optimization solutions for gait are practically equivalent", J. Biomech. 34 (2001).
 
-mod linalg;
+pub(crate) mod linalg;
 #[cfg(test)]
 mod tests;
 

@@ -1,0 +1,830 @@
+//! The per-clip chain of `musculo augment`:
+//!
+//!   motion → (scaling to the clip) → inverse kinematics → low-pass filter and quintic-spline
+//!   derivatives → inverse dynamics → contact forces from the floating-base rows → static
+//!   optimization (muscles + reserves) → excitations by inverse activation dynamics →
+//!   muscle forces, fibre lengths and velocities, and the per-joint layout.
+//!
+//! Per frame, with τ_ID = M q̈ + C q̇ + G from inverse dynamics and λ the contact forces:
+//!   τ = τ_ID − J_cᵀ λ
+//! are the generalized forces the actuators carry; on the floating-base rows τ is what no
+//! contact could explain (the residual, carried by residual actuators), on the joints it is
+//! shared by the muscles and one reserve actuator per coordinate (optimal force
+//! [`ChainOptions::reserve_optimal_force`], so a reserve costs as much per N·m as a muscle
+//! of that maximum force would). The emitted arrays satisfy M q̈ + C q̇ + G = τ + J_cᵀ λ
+//! exactly (up to float32 rounding): the identity holds by construction of τ; what the
+//! chain estimates is how τ and λ split.
+//!
+//! The per-frame loop allocates nothing: every workspace is built once per clip.
+
+use super::layout::{JointFrame, JointLayout};
+use super::perturb::Variant;
+use crate::dynamics::{self, Data};
+use crate::error::Error;
+use crate::io::Table;
+use crate::model::{ActuatorKind, ForceElement, Model, RawElement, ScalarActuator};
+use crate::motion::Motion;
+use crate::motion::skeleton::SkeletonMap;
+use crate::muscle::activation::ActivationDynamics;
+use crate::solve::contact::{
+    self, ContactFrame, ContactOptions, ContactSet, ContactWorkspace, GroupWrench,
+};
+use crate::solve::ik::{self, IkSettings};
+use crate::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
+use crate::solve::scale_from_clip;
+use crate::solve::static_optimization::{
+    SoFrame, SoStatus, SoWorkspace, StaticOptimization, StaticOptimizationOptions,
+};
+use crate::spatial::Vec3;
+
+/// Excitation samples clamped by more than this (in excitation units) are counted in
+/// [`ClipQuality::clamped_excitations`]: an activation resting on its lower bound asks for
+/// excitations a hair below it at almost every sample, which says nothing.
+pub const CLAMP_REPORTED: f64 = 0.01;
+
+/// Options of the chain.
+#[derive(Clone, Debug)]
+pub struct ChainOptions {
+    /// Low-pass cutoff of the coordinates (Hz) before differentiation; None: none.
+    /// Default 6 Hz (OpenSim's usual choice for gait).
+    pub lowpass_hz: Option<f64>,
+    /// Scale the model's segments to each clip's bone lengths (needs a skeleton map with
+    /// segments). Default true.
+    pub scale_to_clip: bool,
+    pub ik: IkSettings,
+    pub contact: ContactOptions,
+    /// Optimal force of the reserve actuator on every joint coordinate (N·m or N): a reserve
+    /// control x costs x² in static optimization, like a muscle's activation. Default 1.
+    pub reserve_optimal_force: f64,
+    /// Also produce OpenSim files per clip (see [`ClipOutput::tables`]). Default false.
+    pub opensim_files: bool,
+}
+
+impl Default for ChainOptions {
+    fn default() -> Self {
+        ChainOptions {
+            lowpass_hz: Some(6.0),
+            scale_to_clip: true,
+            ik: IkSettings::default(),
+            contact: ContactOptions::default(),
+            reserve_optimal_force: 1.0,
+            opensim_files: false,
+        }
+    }
+}
+
+/// One named float32 array of a clip's output.
+#[derive(Clone, Debug)]
+pub struct Array {
+    pub name: &'static str,
+    pub shape: Vec<usize>,
+    pub values: Vec<f32>,
+}
+
+/// Quality figures of one clip (the manifest's per-clip entry).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize, PartialEq)]
+pub struct ClipQuality {
+    pub frames: usize,
+    pub rate_hz: f64,
+    /// Median over frames of the per-frame marker/joint RMSE of IK (m).
+    pub ik_rmse_median: f64,
+    /// Largest single marker/joint error of IK (m).
+    pub ik_error_max: f64,
+    /// Frames with a coordinate at its bound after IK.
+    pub ik_frames_at_bound: usize,
+    /// Largest floating-base residual force no contact explained, relative to body weight.
+    pub residual_force_max_bw: f64,
+    /// Largest residual moment (N·m) about the pelvis coordinates.
+    pub residual_moment_max: f64,
+    /// Σ|reserve moments| / Σ|joint moments| over the joint coordinates and frames.
+    pub reserve_share: f64,
+    /// The coordinates whose reserves carry most, with their share of the same total
+    /// (Σ|reserve_c| / Σ|joint moments|), largest first (at most 5).
+    pub reserve_by_coordinate: Vec<(String, f64)>,
+    /// Frames static optimization could not solve exactly.
+    pub so_unsolved_frames: usize,
+    /// Excitation samples that inverse activation dynamics had to clamp to the excitation
+    /// range by more than [`CLAMP_REPORTED`]: where static optimization's activations change
+    /// faster than activation dynamics allow.
+    pub clamped_excitations: usize,
+    /// Fraction of frames with at least one contact.
+    pub contact_fraction: f64,
+    /// Body mass (kg) and height scale of the model used.
+    pub body_mass: f64,
+}
+
+/// Everything the chain computed for one clip.
+#[derive(Clone, Debug)]
+pub struct ClipOutput {
+    pub arrays: Vec<Array>,
+    pub quality: ClipQuality,
+    /// With [`ChainOptions::opensim_files`]: OpenSim tables as (file suffix, table) —
+    /// `_ik.mot` (every coordinate, rotational ones in degrees, as OpenSim's IK writes them),
+    /// `_tau.sto` (generalized forces, OpenSim ID's `_moment`/`_force` labels),
+    /// `_activation.sto` (muscle activations) and `_grf.mot` (per contact group: force,
+    /// centre of pressure and free moment, in ExternalLoads' column naming).
+    pub tables: Vec<(&'static str, Table)>,
+    /// With [`ChainOptions::opensim_files`], the model scaled to the clip as OpenSim XML
+    /// (only for variants that change neither mass nor load, which the XML would not show).
+    pub model_xml: Option<String>,
+    pub warnings: Vec<String>,
+}
+
+/// The immutable part of the chain, shared by all clips: the base model's text, the
+/// options, and names of what is emitted.
+#[derive(Clone, Debug)]
+pub struct Chain {
+    pub xml: String,
+    pub source: String,
+    pub model: Model,
+    pub options: ChainOptions,
+}
+
+impl Chain {
+    /// A chain on the model in `xml` (named `source` in messages).
+    pub fn new(xml: String, source: String, options: ChainOptions) -> crate::Result<Chain> {
+        if !(options.reserve_optimal_force > 0.0 && options.reserve_optimal_force.is_finite()) {
+            return Err(Error::invalid(
+                "reserve_optimal_force",
+                format!("must be positive, got {}", options.reserve_optimal_force),
+            ));
+        }
+        let model = Model::from_osim_str(&xml, &source)?;
+        ContactSet::from_model(&model)?;
+        Ok(Chain {
+            xml,
+            source,
+            model,
+            options,
+        })
+    }
+
+    /// The model the chain uses for `motion` (as the variant sees it: see
+    /// [`Variant::apply_to_motion`]): the base model scaled to the clip's bone lengths when
+    /// a map with segments is given, with one reserve actuator per coordinate, perturbed by
+    /// `variant` (mass, load). Deterministic: a clip's `.npz` can be checked against it.
+    pub fn clip_model(
+        &self,
+        motion: &Motion,
+        map: Option<&SkeletonMap>,
+        variant: &Variant,
+    ) -> crate::Result<Model> {
+        Ok(self.clip_model_and_xml(motion, map, variant)?.0)
+    }
+
+    /// [`Chain::clip_model`] and, when it was scaled, the scaled model's XML.
+    fn clip_model_and_xml(
+        &self,
+        motion: &Motion,
+        map: Option<&SkeletonMap>,
+        variant: &Variant,
+    ) -> crate::Result<(Model, Option<String>)> {
+        let (mut model, xml) = match map {
+            Some(map) if self.options.scale_to_clip && !map.segments.is_empty() => {
+                let s = scale_from_clip::scale_to_clip(
+                    &self.xml,
+                    &self.source,
+                    &self.model,
+                    map,
+                    motion,
+                )?;
+                (s.model, Some(s.xml))
+            }
+            _ => (self.model.clone(), None),
+        };
+        add_reserves(&mut model, self.options.reserve_optimal_force);
+        variant.apply_to_model(&mut model)?;
+        Ok((model, xml))
+    }
+
+    /// Runs the chain on one clip (`motion` as read, `map` from its skeleton to the model's
+    /// markers, None for marker sets matched by name) with perturbation `variant`.
+    pub fn run(
+        &self,
+        motion: &Motion,
+        map: Option<&SkeletonMap>,
+        variant: &Variant,
+    ) -> crate::Result<ClipOutput> {
+        let mut warnings = Vec::new();
+        let motion = variant.apply_to_motion(motion)?;
+        let (model, scaled_xml) = self.clip_model_and_xml(&motion, map, variant)?;
+        let (targets, tasks) = match map {
+            Some(map) => map.apply(&model, &motion)?,
+            None => (motion.clone(), ik::tasks_by_name(&model, &motion)),
+        };
+        // --- inverse kinematics ---
+        let solution = ik::solve_motion(&model, &targets, &tasks, &self.options.ik, &|_| {})?;
+        let frames = solution.n_frames();
+        if frames < 4 {
+            return Err(Error::invalid(
+                "motion",
+                format!(
+                    "{}: {frames} frames; the chain needs at least 4",
+                    motion.source
+                ),
+            ));
+        }
+        let n = model.nq();
+        // --- filtering and differentiation ---
+        let names: Vec<String> = model.q_names().iter().map(|s| s.to_string()).collect();
+        let table = Table::new("ik", names, targets.time.clone(), solution.q.clone())?;
+        let trajectory = CoordinateTrajectory::from_table(
+            &model,
+            &Table {
+                in_degrees: Some(false),
+                ..table
+            },
+            &motion.source,
+            &KinematicsOptions {
+                lowpass_hz: self.options.lowpass_hz,
+                differentiation: Differentiation::SecondDerivative,
+            },
+        )?;
+        let mut q = vec![0.0; frames * n];
+        let mut qd = vec![0.0; frames * n];
+        let mut qdd = vec![0.0; frames * n];
+        for f in 0..frames {
+            let r = f * n..(f + 1) * n;
+            let (a, b, c) = (&mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r]);
+            trajectory.eval(targets.time[f], a, b, c);
+        }
+        // The dynamics are computed for the kinematics as emitted (float32), so that
+        // M q̈ + C q̇ + G = τ + J_cᵀλ holds for the arrays in the file, not only for values
+        // a reader never sees.
+        for v in q.iter_mut().chain(qd.iter_mut()).chain(qdd.iter_mut()) {
+            *v = *v as f32 as f64;
+        }
+        // --- contacts, inverse dynamics, static optimization, per frame ---
+        let set = ContactSet::from_model(&model)?;
+        let states = contact::detect(
+            &model,
+            &set,
+            &self.options.contact,
+            &q,
+            &qd,
+            targets.rate_hz,
+        )?;
+        let set = set.with_floor(states.floor);
+        let so = StaticOptimization::new(&model, StaticOptimizationOptions::default())?;
+        let layout = JointLayout::new(&model, so.muscles.muscles.len());
+        let mut per_frame = FrameArrays::new(&model, &so, &set, &layout, frames);
+        let mut data = Data::new(&model);
+        let mut contact_ws = ContactWorkspace::new(&model, &set);
+        let mut contact_frame = ContactFrame::new(&model, &set);
+        let mut groups = vec![GroupWrench::default(); set.groups().len()];
+        let mut so_ws = SoWorkspace::new(&model, &so);
+        let mut so_frame = SoFrame::new(&so, &model);
+        let mut layout_ws = layout.workspace(&model);
+        let mut joint_frame = JointFrame::new(&layout);
+        let mut tau = vec![0.0; n];
+        let mut body_contact = vec![Vec3::zeros(); model.bodies.len()];
+        let p = set.points.len();
+        for f in 0..frames {
+            let r = f * n..(f + 1) * n;
+            // τ_ID = M q̈ + C q̇ + G
+            let tau_id = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r])?;
+            tau.copy_from_slice(tau_id.as_slice());
+            contact_ws.distribute(
+                &model,
+                &data,
+                &set,
+                &self.options.contact,
+                &states.factor[f * p..(f + 1) * p],
+                &tau,
+                &mut contact_frame,
+            )?;
+            // τ = τ_ID − J_cᵀ λ
+            for (t, g) in tau.iter_mut().zip(&contact_frame.generalized) {
+                *t -= g;
+            }
+            contact::ground_reaction(&set, &contact_frame, &mut groups)?;
+            so.solve_frame(&model, &data, &tau, &mut so_ws, &mut so_frame)
+                .map_err(|e| at_frame(&motion.source, f, e))?;
+            body_contact.fill(Vec3::zeros());
+            for (point, force) in set.points.iter().zip(&contact_frame.forces) {
+                body_contact[point.body] += force;
+            }
+            // body accelerations without gravity, for the joint accelerations
+            dynamics::forward_kinematics_acceleration(
+                &model,
+                &mut data,
+                &q[f * n..(f + 1) * n],
+                &qd[f * n..(f + 1) * n],
+                &qdd[f * n..(f + 1) * n],
+            )?;
+            layout.frame(
+                &model,
+                &data,
+                &tau,
+                &body_contact,
+                &mut layout_ws,
+                &mut joint_frame,
+            )?;
+            per_frame.record(
+                &so,
+                &so_ws,
+                &so_frame,
+                &contact_frame,
+                &groups,
+                &layout,
+                &joint_frame,
+                &tau,
+            );
+        }
+        // --- excitations by inverse activation dynamics ---
+        let mut clamped = 0;
+        let m = so.muscles.muscles.len();
+        let mut excitation = vec![0.0f32; frames * m];
+        let mut series = vec![0.0; frames];
+        for (k, muscle) in so.muscles.muscles.iter().enumerate() {
+            let force = &model.forces[so.muscles.paths.paths[k].force];
+            let dynamics = ActivationDynamics::from_muscle(force, &model.source)?;
+            let (lo, hi) = dynamics.range();
+            for f in 0..frames {
+                series[f] = per_frame.activation[f * m + k].clamp(lo, hi);
+            }
+            let estimate = dynamics
+                .excitation_from_activation(&targets.time, &series)
+                .map_err(|e| Error::invalid("activation", format!("{}: {e}", muscle.name())))?;
+            clamped += estimate
+                .clamped
+                .iter()
+                .filter(|c| c.amount().abs() > CLAMP_REPORTED)
+                .count();
+            for f in 0..frames {
+                excitation[f * m + k] = estimate.excitation[f] as f32;
+            }
+        }
+        let quality = per_frame.quality(&model, &solution, frames, targets.rate_hz, clamped);
+        if quality.so_unsolved_frames > 0 {
+            warnings.push(format!(
+                "{}: static optimization left {} frame(s) unbalanced",
+                motion.source, quality.so_unsolved_frames
+            ));
+        }
+        let (tables, model_xml) = if self.options.opensim_files {
+            let plain = variant.mass_scale == 1.0 && variant.load_kg == 0.0;
+            (
+                opensim_tables(&model, &so, &set, &targets.time, &q, &per_frame)?,
+                if plain { scaled_xml } else { None },
+            )
+        } else {
+            (Vec::new(), None)
+        };
+        let mut arrays = per_frame.into_arrays(&layout, &q, &qd, &qdd, frames, n);
+        arrays.push(Array {
+            name: "excitation",
+            shape: vec![frames, m],
+            values: excitation,
+        });
+        arrays.push(Array {
+            name: "time",
+            shape: vec![frames],
+            values: targets.time.iter().map(|&t| t as f32).collect(),
+        });
+        Ok(ClipOutput {
+            arrays,
+            quality,
+            tables,
+            model_xml,
+            warnings,
+        })
+    }
+}
+
+/// The OpenSim tables of [`ClipOutput::tables`].
+fn opensim_tables(
+    model: &Model,
+    so: &StaticOptimization,
+    set: &ContactSet,
+    time: &[f64],
+    q: &[f64],
+    frames: &FrameArrays,
+) -> crate::Result<Vec<(&'static str, Table)>> {
+    use crate::model::MotionType;
+    use crate::solve::inverse_dynamics::generalized_force_label;
+    let n = model.nq();
+    let mut data = Data::new(model);
+    let mut values = Vec::with_capacity(time.len() * model.coordinates.len());
+    for f in 0..time.len() {
+        dynamics::forward_kinematics(model, &mut data, &q[f * n..(f + 1) * n])?;
+        for (c, v) in model.coordinates.iter().zip(data.coordinate_values(model)) {
+            values.push(if c.motion_type == MotionType::Rotational {
+                v.to_degrees()
+            } else {
+                *v
+            });
+        }
+    }
+    let labels = model.coordinates.iter().map(|c| c.name.clone()).collect();
+    let mut ik = Table::new("Coordinates", labels, time.to_vec(), values)?;
+    ik.in_degrees = Some(true);
+    let labels = model
+        .reduction
+        .independent
+        .iter()
+        .map(|&c| generalized_force_label(model, c))
+        .collect();
+    let mut tau = Table::new(
+        "Inverse Dynamics",
+        labels,
+        time.to_vec(),
+        frames.tau.clone(),
+    )?;
+    tau.in_degrees = Some(false);
+    let labels = so
+        .muscles
+        .muscles
+        .iter()
+        .map(|m| m.name().to_string())
+        .collect();
+    let mut act = Table::new(
+        "Static Optimization",
+        labels,
+        time.to_vec(),
+        frames.activation.clone(),
+    )?;
+    act.in_degrees = Some(false);
+    let mut labels = Vec::new();
+    for g in set.groups() {
+        for suffix in [
+            "ground_force_vx",
+            "ground_force_vy",
+            "ground_force_vz",
+            "ground_force_px",
+            "ground_force_py",
+            "ground_force_pz",
+            "ground_torque_y",
+        ] {
+            labels.push(format!("{g}_{suffix}"));
+        }
+    }
+    let ng = set.groups().len();
+    let mut values = Vec::with_capacity(time.len() * labels.len());
+    for f in 0..time.len() {
+        for g in 0..ng {
+            let k = (f * ng + g) * 3;
+            values.extend(frames.grf[k..k + 3].iter().map(|&v| v as f64));
+            values.extend(frames.cop[k..k + 3].iter().map(|&v| v as f64));
+            values.push(frames.free_moment[f * ng + g] as f64);
+        }
+    }
+    let mut grf = Table::new("GRF", labels, time.to_vec(), values)?;
+    grf.in_degrees = Some(false);
+    Ok(vec![
+        ("_ik.mot", ik),
+        ("_tau.sto", tau),
+        ("_activation.sto", act),
+        ("_grf.mot", grf),
+    ])
+}
+
+/// A CoordinateActuator named `reserve_<coordinate>` on every independent coordinate (the
+/// residual actuators of the floating base and the joints' reserves), controls unbounded,
+/// as OpenSim's reserve force-set files define them.
+fn add_reserves(model: &mut Model, optimal_force: f64) {
+    let independent = model.reduction.independent.clone();
+    for c in independent {
+        let name = model.coordinates[c].name.clone();
+        model.forces.push(ForceElement {
+            name: format!("reserve_{name}"),
+            kind: "CoordinateActuator".into(),
+            path: None,
+            applies_force: true,
+            actuator: Some(ScalarActuator {
+                min_control: f64::NEG_INFINITY,
+                max_control: f64::INFINITY,
+                optimal_force,
+                kind: ActuatorKind::Coordinate { coordinate: c },
+            }),
+            raw: RawElement::default(),
+            line: 0,
+        });
+    }
+}
+
+fn at_frame(source: &str, frame: usize, e: Error) -> Error {
+    match e {
+        Error::InvalidArgument { argument, message } => Error::InvalidArgument {
+            argument,
+            message: format!("{source}, frame {frame}: {message}"),
+        },
+        other => other,
+    }
+}
+
+/// The per-frame outputs of a clip, filled frame by frame (allocated once).
+struct FrameArrays {
+    x: Vec<f32>,
+    tau: Vec<f64>,
+    activation: Vec<f64>,
+    muscle_force: Vec<f32>,
+    fiber_length: Vec<f32>,
+    fiber_velocity: Vec<f32>,
+    muscle_length: Vec<f32>,
+    grf: Vec<f32>,
+    cop: Vec<f32>,
+    free_moment: Vec<f32>,
+    contact_point_force: Vec<f32>,
+    contact_point_pos: Vec<f32>,
+    contact_state: Vec<f32>,
+    residual: Vec<f64>,
+    reserve_abs: f64,
+    joint_abs: f64,
+    /// Σ|reserve| per reserve column (same order as `reserve_columns`).
+    reserve_by_column: Vec<f64>,
+    unsolved: usize,
+    in_contact: usize,
+    muscle_columns: Vec<usize>,
+    reserve_columns: Vec<(usize, usize)>,
+    floating: Vec<usize>,
+    groups: usize,
+}
+
+impl FrameArrays {
+    fn new(
+        model: &Model,
+        so: &StaticOptimization,
+        set: &ContactSet,
+        layout: &JointLayout,
+        frames: usize,
+    ) -> FrameArrays {
+        let m = so.muscles.muscles.len();
+        let p = set.points.len();
+        let g = set.groups().len();
+        let muscle_columns = (0..m)
+            .map(|k| {
+                so.actuators
+                    .iter()
+                    .position(|a| a.muscle == Some(k))
+                    .expect("every muscle is an actuator")
+            })
+            .collect();
+        let floating = set.floating_base.clone();
+        let names = model.q_names();
+        let reserve_columns = so
+            .actuators
+            .iter()
+            .enumerate()
+            .filter_map(|(k, a)| {
+                let name = a.name.strip_prefix("reserve_")?;
+                let j = names.iter().position(|n| *n == name)?;
+                (!floating.contains(&j)).then_some((k, j))
+            })
+            .collect();
+        FrameArrays {
+            x: Vec::with_capacity(frames * layout.width()),
+            tau: Vec::with_capacity(frames * model.nq()),
+            activation: Vec::with_capacity(frames * m),
+            muscle_force: Vec::with_capacity(frames * m),
+            fiber_length: Vec::with_capacity(frames * m),
+            fiber_velocity: Vec::with_capacity(frames * m),
+            muscle_length: Vec::with_capacity(frames * m),
+            grf: Vec::with_capacity(frames * g * 3),
+            cop: Vec::with_capacity(frames * g * 3),
+            free_moment: Vec::with_capacity(frames * g),
+            contact_point_force: Vec::with_capacity(frames * p * 3),
+            contact_point_pos: Vec::with_capacity(frames * p * 3),
+            contact_state: Vec::with_capacity(frames * p),
+            residual: Vec::with_capacity(frames * 6),
+            reserve_abs: 0.0,
+            joint_abs: 0.0,
+            reserve_by_column: Vec::new(),
+            unsolved: 0,
+            in_contact: 0,
+            muscle_columns,
+            reserve_columns,
+            floating,
+            groups: g,
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &mut self,
+        so: &StaticOptimization,
+        so_ws: &SoWorkspace,
+        so_frame: &SoFrame,
+        contact: &ContactFrame,
+        groups: &[GroupWrench],
+        layout: &JointLayout,
+        joint: &JointFrame,
+        tau: &[f64],
+    ) {
+        let start = self.activation.len();
+        for &k in &self.muscle_columns {
+            self.activation.push(so_frame.controls[k]);
+        }
+        let acts = &self.activation[start..];
+        layout.flatten(joint, acts, &mut self.x);
+        for (i, &k) in self.muscle_columns.iter().enumerate() {
+            let muscle = &so.muscles.muscles[i];
+            let (l, v) = (so_ws.paths.length[i], so_ws.paths.speed[i]);
+            let s = muscle.state_rigid_tendon(so_frame.controls[k].max(0.0), l, v);
+            self.muscle_force.push(so_frame.forces[k] as f32);
+            self.fiber_length.push(s.fiber_length as f32);
+            self.fiber_velocity.push(s.fiber_velocity as f32);
+            self.muscle_length.push(l as f32);
+        }
+        self.tau.extend_from_slice(tau);
+        for &(k, j) in &self.reserve_columns {
+            self.reserve_abs += so_frame.forces[k].abs();
+            self.joint_abs += tau[j].abs();
+        }
+        self.reserve_by_column
+            .resize(self.reserve_columns.len(), 0.0);
+        for (i, &(k, _)) in self.reserve_columns.iter().enumerate() {
+            self.reserve_by_column[i] += so_frame.forces[k].abs();
+        }
+        if so_frame.status != SoStatus::Solved {
+            self.unsolved += 1;
+        }
+        for g in groups {
+            self.grf
+                .extend([g.force.x as f32, g.force.y as f32, g.force.z as f32]);
+            self.cop
+                .extend([g.cop.x as f32, g.cop.y as f32, g.cop.z as f32]);
+            self.free_moment.push(g.free_moment as f32);
+        }
+        let mut any = false;
+        for (f, p) in contact.forces.iter().zip(&contact.points) {
+            self.contact_point_force
+                .extend([f.x as f32, f.y as f32, f.z as f32]);
+            self.contact_point_pos
+                .extend([p.x as f32, p.y as f32, p.z as f32]);
+            self.contact_state
+                .push(if f.norm() > 0.0 { 1.0 } else { 0.0 });
+            any |= f.norm() > 0.0;
+        }
+        if any {
+            self.in_contact += 1;
+        }
+        for &j in &self.floating {
+            self.residual.push(tau[j]);
+        }
+    }
+
+    fn quality(
+        &self,
+        model: &Model,
+        ik: &ik::IkSolution,
+        frames: usize,
+        rate_hz: f64,
+        clamped: usize,
+    ) -> ClipQuality {
+        let mass: f64 = model.bodies.iter().map(|b| b.mass).sum();
+        let weight = mass * model.gravity.norm();
+        let nf = self.floating.len().max(1);
+        let (mut force, mut moment) = (0.0f64, 0.0f64);
+        for f in 0..frames {
+            for (i, &j) in self.floating.iter().enumerate() {
+                let v = self.residual[f * nf + i].abs();
+                if model.coordinates[model.reduction.independent[j]].motion_type
+                    == crate::model::MotionType::Translational
+                {
+                    force = force.max(v);
+                } else {
+                    moment = moment.max(v);
+                }
+            }
+        }
+        let mut rmse: Vec<f64> = ik.rmse.iter().copied().filter(|v| v.is_finite()).collect();
+        rmse.sort_by(f64::total_cmp);
+        ClipQuality {
+            frames,
+            rate_hz,
+            ik_rmse_median: rmse.get(rmse.len() / 2).copied().unwrap_or(f64::NAN),
+            ik_error_max: ik
+                .max_error
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max),
+            ik_frames_at_bound: ik.frames_at_limit(),
+            residual_force_max_bw: force / weight,
+            residual_moment_max: moment,
+            reserve_share: if self.joint_abs > 0.0 {
+                self.reserve_abs / self.joint_abs
+            } else {
+                0.0
+            },
+            reserve_by_coordinate: {
+                let names = model.q_names();
+                let mut v: Vec<(String, f64)> = self
+                    .reserve_columns
+                    .iter()
+                    .zip(&self.reserve_by_column)
+                    .filter(|(_, r)| **r > 0.0)
+                    .map(|(&(_, j), r)| (names[j].to_string(), r / self.joint_abs.max(1e-300)))
+                    .collect();
+                v.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+                v.truncate(5);
+                v
+            },
+            so_unsolved_frames: self.unsolved,
+            clamped_excitations: clamped,
+            contact_fraction: self.in_contact as f64 / frames as f64,
+            body_mass: mass,
+        }
+    }
+
+    fn into_arrays(
+        self,
+        layout: &JointLayout,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        frames: usize,
+        n: usize,
+    ) -> Vec<Array> {
+        let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        let width = layout.width();
+        let mut arrays = Vec::new();
+        // the per-joint blocks, cut out of x
+        for r in layout.ranges() {
+            let mut values = Vec::with_capacity(frames * (r.end - r.start));
+            for f in 0..frames {
+                values.extend_from_slice(&self.x[f * width + r.start..f * width + r.end]);
+            }
+            let mut shape = vec![frames];
+            shape.extend(&r.shape);
+            arrays.push(Array {
+                name: block_name(&r.name),
+                shape,
+                values,
+            });
+        }
+        let m = layout.n_muscles;
+        let g = self.groups;
+        let p = self.contact_state.len() / frames.max(1);
+        arrays.push(Array {
+            name: "x",
+            shape: vec![frames, width],
+            values: self.x,
+        });
+        for (name, v) in [("q", q), ("qd", qd), ("qdd", qdd), ("tau", &self.tau[..])] {
+            arrays.push(Array {
+                name,
+                shape: vec![frames, n],
+                values: f32s(v),
+            });
+        }
+        arrays.push(Array {
+            name: "grf",
+            shape: vec![frames, g, 3],
+            values: self.grf,
+        });
+        arrays.push(Array {
+            name: "cop",
+            shape: vec![frames, g, 3],
+            values: self.cop,
+        });
+        arrays.push(Array {
+            name: "free_moment",
+            shape: vec![frames, g],
+            values: self.free_moment,
+        });
+        arrays.push(Array {
+            name: "contact_point_force",
+            shape: vec![frames, p, 3],
+            values: self.contact_point_force,
+        });
+        arrays.push(Array {
+            name: "contact_point_pos",
+            shape: vec![frames, p, 3],
+            values: self.contact_point_pos,
+        });
+        arrays.push(Array {
+            name: "contact_state",
+            shape: vec![frames, p],
+            values: self.contact_state,
+        });
+        for (name, v) in [
+            ("muscle_force", self.muscle_force),
+            ("muscle_length", self.muscle_length),
+            ("fiber_length", self.fiber_length),
+            ("fiber_velocity", self.fiber_velocity),
+        ] {
+            arrays.push(Array {
+                name,
+                shape: vec![frames, m],
+                values: v,
+            });
+        }
+        let nf = self.floating.len();
+        arrays.push(Array {
+            name: "residual",
+            shape: vec![frames, nf],
+            values: f32s(&self.residual),
+        });
+        arrays
+    }
+}
+
+fn block_name(name: &str) -> &'static str {
+    super::layout::BLOCKS
+        .iter()
+        .find(|b| **b == name)
+        .copied()
+        .unwrap_or("unknown")
+}

@@ -1,0 +1,350 @@
+//! What `musculo augment` writes, and how an interrupted or sharded run is put together.
+//!
+//! Output tree (mirrors the input tree; `<clip>` is the input's path relative to the input
+//! root without its extension, `<clip>_v<k>` for variant k ≥ 1):
+//! - `<clip>.npz` — the clip's float32 arrays (see [`super::chain`]);
+//! - `.musculo/records/<clip>.json` — the clip's record: status, reason, variant, quality
+//!   figures and the per-feature sums of `x` for the statistics; written after the `.npz`,
+//!   so a record means the clip is complete;
+//! - `manifest.json` and `stats.npz` — written at the end of an unsharded run, or by
+//!   `musculo merge` from the records once every shard has finished. Both are computed from
+//!   the records in clip order only, so the same clips give the same bytes whatever the
+//!   number of threads, shards or interruptions.
+//!
+//! Every file is written atomically (temporary file, sync, rename). A process killed
+//! mid-write leaves a hidden temporary file (`.<name>.tmp-…`), which the next run removes.
+
+use super::chain::{Array, ClipQuality};
+use super::layout::BlockRange;
+use super::perturb::{PerturbationRanges, Variant};
+use crate::error::Error;
+use crate::motion::npy;
+use ndarray::{ArrayD, IxDyn};
+use std::path::{Path, PathBuf};
+
+/// Folder of the per-clip records, inside the output folder.
+pub const RECORDS: &str = ".musculo/records";
+/// Folder of the shard lists, inside the output folder.
+pub const SHARDS: &str = ".musculo/shards";
+
+/// The manifest's description of the tensors (same for every clip of a run).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LayoutDescription {
+    pub joints: Vec<String>,
+    pub muscles: Vec<String>,
+    pub coordinates: Vec<String>,
+    /// The floating-base coordinates (the columns of `residual`).
+    pub floating_base: Vec<String>,
+    pub contact_points: Vec<String>,
+    pub contact_groups: Vec<String>,
+    /// Blocks of `x` with their index ranges.
+    pub x: Vec<BlockRange>,
+    /// Units of every array.
+    pub units: Vec<(String, String)>,
+}
+
+/// Settings that decide the results (the manifest's `run`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunDescription {
+    pub musculo_version: String,
+    pub model: String,
+    /// FNV-1a 64-bit hash of the model file's text.
+    pub model_hash: String,
+    pub variants: usize,
+    pub seed: u64,
+    pub perturbation: PerturbationRanges,
+    pub lowpass_hz: Option<f64>,
+    pub scale_to_clip: bool,
+}
+
+/// One clip's record.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ClipRecord {
+    /// Output name (relative path without extension).
+    pub clip: String,
+    /// Input file, relative to the input root.
+    pub input: String,
+    pub status: ClipStatus,
+    /// Why the clip failed.
+    pub reason: Option<String>,
+    pub variant: Variant,
+    pub quality: Option<ClipQuality>,
+    pub warnings: Vec<String>,
+    /// Σ x and Σ x² per feature of `x` over the clip's frames (f64), for `stats.npz`.
+    pub x_sum: Vec<f64>,
+    pub x_sum_sq: Vec<f64>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ClipStatus {
+    Ok,
+    Failed,
+}
+
+/// The whole run's manifest.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Manifest {
+    pub run: RunDescription,
+    pub layout: Option<LayoutDescription>,
+    pub clips: Vec<ClipRecordSummary>,
+    pub summary: Summary,
+}
+
+/// A clip in the manifest: its record without the sums.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ClipRecordSummary {
+    pub clip: String,
+    pub input: String,
+    pub status: ClipStatus,
+    pub reason: Option<String>,
+    pub variant: Variant,
+    pub quality: Option<ClipQuality>,
+    pub warnings: Vec<String>,
+}
+
+/// Totals over the clips.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Summary {
+    pub clips_ok: usize,
+    pub clips_failed: usize,
+    pub frames: usize,
+    /// The clips with the largest unexplained residual force (× body weight), worst first
+    /// (at most 5).
+    pub worst_residuals: Vec<(String, f64)>,
+    /// Largest reserve share of any clip.
+    pub reserve_share_max: f64,
+}
+
+/// The `.npz` of a clip.
+pub fn npz_path(out: &Path, clip: &str) -> PathBuf {
+    out.join(format!("{clip}.npz"))
+}
+
+/// The record of a clip.
+pub fn record_path(out: &Path, clip: &str) -> PathBuf {
+    out.join(RECORDS).join(format!("{clip}.json"))
+}
+
+fn create_parent(path: &Path) -> crate::Result<()> {
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).map_err(|source| Error::Io {
+            path: parent.to_path_buf(),
+            source,
+        })?;
+    }
+    Ok(())
+}
+
+/// Writes a clip's arrays as `<clip>.npz` (uncompressed, so equal arrays give equal bytes).
+pub fn write_clip(out: &Path, clip: &str, arrays: &[Array]) -> crate::Result<()> {
+    let path = npz_path(out, clip);
+    create_parent(&path)?;
+    let owned: Vec<(&str, ArrayD<f32>)> = arrays
+        .iter()
+        .map(|a| {
+            ArrayD::from_shape_vec(IxDyn(&a.shape), a.values.clone())
+                .map(|arr| (a.name, arr))
+                .map_err(|e| Error::invalid("arrays", format!("{}: {e}", a.name)))
+        })
+        .collect::<crate::Result<_>>()?;
+    let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
+        owned.iter().map(|(n, a)| (*n, a.view())).collect();
+    npy::write_npz(&path, &views, false)
+}
+
+/// Writes a clip's OpenSim files beside its `.npz`: `<clip><suffix>` for each table, and
+/// `<clip>.osim` for the model when given.
+pub fn write_opensim_files(
+    out: &Path,
+    clip: &str,
+    tables: &[(&str, crate::io::Table)],
+    model_xml: Option<&str>,
+) -> crate::Result<()> {
+    for (suffix, table) in tables {
+        let path = out.join(format!("{clip}{suffix}"));
+        npy::write_file_atomic(&path, table.to_file_string()?.as_bytes())?;
+    }
+    if let Some(xml) = model_xml {
+        npy::write_file_atomic(&out.join(format!("{clip}.osim")), xml.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Writes a clip's record (after its `.npz`).
+pub fn write_record(out: &Path, record: &ClipRecord) -> crate::Result<()> {
+    let path = record_path(out, &record.clip);
+    create_parent(&path)?;
+    let text = serde_json::to_string(record)
+        .map_err(|e| Error::invalid("record", format!("{}: {e}", record.clip)))?;
+    npy::write_file_atomic(&path, text.as_bytes())
+}
+
+/// Reads a clip's record; None when it does not exist (the clip is not finished).
+pub fn read_record(out: &Path, clip: &str) -> crate::Result<Option<ClipRecord>> {
+    let path = record_path(out, clip);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(Error::Io { path, source }),
+    };
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|e| Error::Motion {
+            file: path.display().to_string(),
+            location: format!("line {}", e.line()),
+            message: format!("not a clip record: {e}"),
+        })
+}
+
+/// Removes the temporary files an interrupted run left in `out` (recursively).
+pub fn remove_temporaries(out: &Path) -> crate::Result<usize> {
+    let mut removed = 0;
+    let mut stack = vec![out.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(e) => e,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(source) => return Err(Error::Io { path: dir, source }),
+        };
+        for entry in entries {
+            let entry = entry.map_err(|source| Error::Io {
+                path: dir.clone(),
+                source,
+            })?;
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if npy::is_temporary_name(&entry.file_name().to_string_lossy()) {
+                std::fs::remove_file(&path).map_err(|source| Error::Io {
+                    path: path.clone(),
+                    source,
+                })?;
+                removed += 1;
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// Σ x and Σ x² per feature over the frames of the `x` array (f64 accumulation).
+pub fn feature_sums(arrays: &[Array]) -> (Vec<f64>, Vec<f64>) {
+    let Some(x) = arrays.iter().find(|a| a.name == "x") else {
+        return (Vec::new(), Vec::new());
+    };
+    let width = x.shape[1];
+    let mut sum = vec![0.0; width];
+    let mut sq = vec![0.0; width];
+    for row in x.values.chunks(width) {
+        for ((s, q), &v) in sum.iter_mut().zip(&mut sq).zip(row) {
+            let v = v as f64;
+            *s += v;
+            *q += v * v;
+        }
+    }
+    (sum, sq)
+}
+
+/// Builds the manifest and `stats.npz` from the records of `clips` (in this order), read
+/// from `out` one at a time (memory does not grow with the dataset), and writes both. A clip
+/// without a record is an error.
+pub fn write_manifest(
+    out: &Path,
+    run: &RunDescription,
+    layout: Option<&LayoutDescription>,
+    clips: &[String],
+) -> crate::Result<Manifest> {
+    let mut summary = Summary::default();
+    let width = layout.map_or(0, |l| l.x.last().map_or(0, |b| b.end));
+    let (mut sum, mut sq, mut count) = (vec![0.0; width], vec![0.0; width], 0usize);
+    let mut residuals = Vec::new();
+    let mut entries = Vec::with_capacity(clips.len());
+    for name in clips {
+        let r = read_record(out, name)?.ok_or_else(|| {
+            Error::invalid(
+                "OUT",
+                format!(
+                    "clip {name} has no record in {}: it did not finish",
+                    out.display()
+                ),
+            )
+        })?;
+        match (r.status, &r.quality) {
+            (ClipStatus::Ok, Some(q)) => {
+                summary.clips_ok += 1;
+                summary.frames += q.frames;
+                summary.reserve_share_max = summary.reserve_share_max.max(q.reserve_share);
+                residuals.push((r.clip.clone(), q.residual_force_max_bw));
+                if r.x_sum.len() != width {
+                    return Err(Error::invalid(
+                        "records",
+                        format!(
+                            "clip {} has {} features, others {width}: records of different runs \
+                             are mixed in {}",
+                            r.clip,
+                            r.x_sum.len(),
+                            out.display()
+                        ),
+                    ));
+                }
+                for i in 0..width {
+                    sum[i] += r.x_sum[i];
+                    sq[i] += r.x_sum_sq[i];
+                }
+                count += q.frames;
+            }
+            _ => summary.clips_failed += 1,
+        }
+        entries.push(ClipRecordSummary {
+            clip: r.clip,
+            input: r.input,
+            status: r.status,
+            reason: r.reason,
+            variant: r.variant,
+            quality: r.quality,
+            warnings: r.warnings,
+        });
+    }
+    residuals.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+    residuals.truncate(5);
+    summary.worst_residuals = residuals;
+    // mean and (population) standard deviation per feature, as HumanML3D's Mean/Std
+    let n = count.max(1) as f64;
+    let mean: Vec<f32> = sum.iter().map(|s| (s / n) as f32).collect();
+    let std: Vec<f32> = sum
+        .iter()
+        .zip(&sq)
+        .map(|(s, q)| ((q / n - (s / n) * (s / n)).max(0.0)).sqrt() as f32)
+        .collect();
+    let stats = [
+        (
+            "mean",
+            ArrayD::from_shape_vec(IxDyn(&[width]), mean).expect("length"),
+        ),
+        (
+            "std",
+            ArrayD::from_shape_vec(IxDyn(&[width]), std).expect("length"),
+        ),
+    ];
+    let views: Vec<_> = stats.iter().map(|(n, a)| (*n, a.view())).collect();
+    npy::write_npz(&out.join("stats.npz"), &views, false)?;
+    let manifest = Manifest {
+        run: run.clone(),
+        layout: layout.cloned(),
+        clips: entries,
+        summary,
+    };
+    let text = serde_json::to_string_pretty(&manifest)
+        .map_err(|e| Error::invalid("manifest", e.to_string()))?;
+    npy::write_file_atomic(&out.join("manifest.json"), text.as_bytes())?;
+    Ok(manifest)
+}
+
+/// FNV-1a 64-bit hash of `text`, as 16 hex digits.
+pub fn fnv1a_hex(text: &str) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in text.bytes() {
+        h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}

@@ -1,0 +1,508 @@
+//! Running the chain over a dataset: listing the clips, the deterministic shard split, resume,
+//! clips in parallel, a failing clip recorded with its reason while the run goes on.
+//!
+//! The work list is every (clip, variant) pair, clips in the byte order of their output
+//! names. Shard k of N (0 ≤ k < N) takes the clips whose position in that order is ≡ k
+//! (mod N), all variants of a clip in the same shard — a split that depends only on the
+//! list of inputs, so any scheduler (a Slurm array, a Kubernetes Indexed Job, Dask, Ray) can
+//! run the shards anywhere and `musculo merge` puts them together.
+
+use super::chain::{Chain, ClipOutput};
+use super::output::{
+    self, ClipRecord, ClipStatus, LayoutDescription, Manifest, RunDescription, SHARDS,
+};
+use super::perturb::{PerturbationRanges, Variant};
+use crate::error::Error;
+use crate::motion::skeleton::SkeletonMap;
+use crate::motion::{self, Format, Motion, ReadOptions};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Where a clip comes from.
+#[derive(Clone, Debug)]
+pub enum ClipSource {
+    /// A motion file in one of the formats of [`Format`].
+    File { path: PathBuf, format: Format },
+    /// A motion already in memory (the demo clips), matched to the model's markers by name.
+    Motion(Box<Motion>),
+}
+
+/// One input clip.
+#[derive(Clone, Debug)]
+pub struct ClipInput {
+    /// Output name: the path relative to the input root without extension, `/`-separated.
+    pub name: String,
+    /// The input as the manifest shows it.
+    pub input: String,
+    pub source: ClipSource,
+}
+
+/// Options of a run.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    pub out: PathBuf,
+    /// Variants per clip (≥ 1; variant 0 is the clip as recorded).
+    pub variants: usize,
+    pub seed: u64,
+    pub perturbation: PerturbationRanges,
+    /// (k, N): run shard k of N.
+    pub shard: Option<(usize, usize)>,
+    /// Skip clips whose record exists.
+    pub resume: bool,
+    /// Skeleton map for every input (None: each format's built-in map).
+    pub map: Option<SkeletonMap>,
+    pub read: ReadOptions,
+}
+
+/// Progress after each clip.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    pub done: usize,
+    pub total: usize,
+    pub failed: usize,
+    pub skipped: usize,
+    pub frames: usize,
+}
+
+/// What a run did.
+#[derive(Clone, Debug)]
+pub struct RunReport {
+    /// Records of this run's items (computed or resumed), in work-list order, without the
+    /// feature sums (those stay in the record files).
+    pub records: Vec<ClipRecord>,
+    /// The manifest, when this run wrote it (unsharded runs).
+    pub manifest: Option<Manifest>,
+    pub computed: usize,
+    pub resumed: usize,
+    pub temporaries_removed: usize,
+}
+
+/// The clips under `inputs`: files as given, folders searched recursively for the motion
+/// formats (`.npy`, `.bvh`, `.c3d`, `.trc`), names relative to the folder. Sorted by name; two
+/// inputs with one output name are an error.
+pub fn list_inputs(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<Vec<ClipInput>> {
+    let mut clips = Vec::new();
+    for input in inputs {
+        let meta = std::fs::metadata(input).map_err(|source| Error::Io {
+            path: input.clone(),
+            source,
+        })?;
+        if meta.is_dir() {
+            let mut files = Vec::new();
+            walk(input, &mut files)?;
+            for path in files {
+                let ext = path
+                    .extension()
+                    .map(|e| e.to_string_lossy().to_ascii_lowercase())
+                    .unwrap_or_default();
+                if !matches!(ext.as_str(), "npy" | "bvh" | "c3d" | "trc") {
+                    continue;
+                }
+                let rel = path.strip_prefix(input).unwrap_or(&path).with_extension("");
+                let name = rel
+                    .components()
+                    .map(|c| c.as_os_str().to_string_lossy())
+                    .collect::<Vec<_>>()
+                    .join("/");
+                let format = match format {
+                    Some(f) => f,
+                    None => Format::detect(&path)?,
+                };
+                clips.push(ClipInput {
+                    name,
+                    input: path.display().to_string(),
+                    source: ClipSource::File { path, format },
+                });
+            }
+        } else {
+            let name = input
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let format = match format {
+                Some(f) => f,
+                None => Format::detect(input)?,
+            };
+            clips.push(ClipInput {
+                name,
+                input: input.display().to_string(),
+                source: ClipSource::File {
+                    path: input.clone(),
+                    format,
+                },
+            });
+        }
+    }
+    clips.sort_by(|a, b| a.name.cmp(&b.name));
+    if let Some(w) = clips.windows(2).find(|w| w[0].name == w[1].name) {
+        return Err(Error::invalid(
+            "--input",
+            format!(
+                "{} and {} would both be written as {}.npz",
+                w[0].input, w[1].input, w[0].name
+            ),
+        ));
+    }
+    if clips.is_empty() {
+        return Err(Error::invalid(
+            "--input",
+            "no motion file (.npy, .bvh, .c3d, .trc) found",
+        ));
+    }
+    Ok(clips)
+}
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> crate::Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|source| Error::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    for entry in entries {
+        let entry = entry.map_err(|source| Error::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let path = entry.path();
+        if path.is_dir() {
+            walk(&path, out)?;
+        } else {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
+/// The output name of variant `v` of clip `name`.
+pub fn variant_name(name: &str, v: usize) -> String {
+    if v == 0 {
+        name.to_string()
+    } else {
+        format!("{name}_v{v}")
+    }
+}
+
+/// The clips of shard k of N (all clips without a shard).
+pub fn shard_clips(clips: &[ClipInput], shard: Option<(usize, usize)>) -> Vec<&ClipInput> {
+    clips
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| shard.is_none_or(|(k, n)| i % n == k))
+        .map(|(_, c)| c)
+        .collect()
+}
+
+/// Runs `chain` on `clips` (the whole dataset's list: the shard is taken from it), in
+/// parallel on the current rayon pool. Unsharded, writes the manifest and statistics at the
+/// end; sharded, writes the shard's list for `musculo merge`.
+pub fn run(
+    chain: &Chain,
+    layout: &LayoutDescription,
+    clips: &[ClipInput],
+    options: &RunOptions,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> crate::Result<RunReport> {
+    if options.variants == 0 {
+        return Err(Error::invalid("--variants", "must be at least 1"));
+    }
+    if let Some((k, n)) = options.shard
+        && (n == 0 || k >= n)
+    {
+        return Err(Error::invalid(
+            "--shard",
+            format!("{k}/{n}: K must satisfy 0 ≤ K < N"),
+        ));
+    }
+    options.perturbation.validate()?;
+    std::fs::create_dir_all(&options.out).map_err(|source| Error::Io {
+        path: options.out.clone(),
+        source,
+    })?;
+    let temporaries_removed = output::remove_temporaries(&options.out)?;
+    let mine = shard_clips(clips, options.shard);
+    let items: Vec<(&ClipInput, usize)> = mine
+        .iter()
+        .flat_map(|c| (0..options.variants).map(move |v| (*c, v)))
+        .collect();
+    if !options.resume {
+        if let Some((c, v)) = items
+            .iter()
+            .find(|(c, v)| output::record_path(&options.out, &variant_name(&c.name, *v)).exists())
+        {
+            return Err(Error::invalid(
+                "--out",
+                format!(
+                    "{} already holds results (e.g. {}); use --resume to finish that run, or \
+                     another folder",
+                    options.out.display(),
+                    variant_name(&c.name, *v)
+                ),
+            ));
+        }
+    }
+    let total = items.len();
+    let (done, failed, skipped, frames) = (
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+    );
+    let report = |f: usize, fail: bool, skip: bool| {
+        frames.fetch_add(f, Ordering::Relaxed);
+        if fail {
+            failed.fetch_add(1, Ordering::Relaxed);
+        }
+        if skip {
+            skipped.fetch_add(1, Ordering::Relaxed);
+        }
+        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(Progress {
+            done: d,
+            total,
+            failed: failed.load(Ordering::Relaxed),
+            skipped: skipped.load(Ordering::Relaxed),
+            frames: frames.load(Ordering::Relaxed),
+        });
+    };
+    let results: Vec<crate::Result<(ClipRecord, bool)>> = items
+        .par_iter()
+        .map(|(clip, v)| {
+            let name = variant_name(&clip.name, *v);
+            if options.resume
+                && let Some(record) = output::read_record(&options.out, &name)?
+                && record.status == ClipStatus::Ok
+            {
+                let f = record.quality.as_ref().map_or(0, |q| q.frames);
+                report(f, false, true);
+                return Ok((without_sums(record), true));
+            }
+            let variant = Variant::draw(options.seed, &clip.name, *v, &options.perturbation);
+            let record = match process(chain, clip, &variant, options) {
+                Ok(out) => {
+                    output::write_clip(&options.out, &name, &out.arrays)?;
+                    output::write_opensim_files(
+                        &options.out,
+                        &name,
+                        &out.tables,
+                        out.model_xml.as_deref(),
+                    )?;
+                    let (x_sum, x_sum_sq) = output::feature_sums(&out.arrays);
+                    ClipRecord {
+                        clip: name,
+                        input: clip.input.clone(),
+                        status: ClipStatus::Ok,
+                        reason: None,
+                        variant,
+                        quality: Some(out.quality),
+                        warnings: out.warnings,
+                        x_sum,
+                        x_sum_sq,
+                    }
+                }
+                Err(e) => ClipRecord {
+                    clip: name,
+                    input: clip.input.clone(),
+                    status: ClipStatus::Failed,
+                    reason: Some(e.to_string()),
+                    variant,
+                    quality: None,
+                    warnings: Vec::new(),
+                    x_sum: Vec::new(),
+                    x_sum_sq: Vec::new(),
+                },
+            };
+            output::write_record(&options.out, &record)?;
+            let f = record.quality.as_ref().map_or(0, |q| q.frames);
+            report(f, record.status == ClipStatus::Failed, false);
+            Ok((without_sums(record), false))
+        })
+        .collect();
+    let mut records = Vec::with_capacity(results.len());
+    let (mut computed, mut resumed) = (0, 0);
+    for r in results {
+        let (record, was_resumed) = r?;
+        if was_resumed {
+            resumed += 1;
+        } else {
+            computed += 1;
+        }
+        records.push(record);
+    }
+    let run = run_description(chain, options);
+    let manifest = match options.shard {
+        None => {
+            let names: Vec<String> = records.iter().map(|r| r.clip.clone()).collect();
+            Some(output::write_manifest(
+                &options.out,
+                &run,
+                Some(layout),
+                &names,
+            )?)
+        }
+        Some((k, n)) => {
+            write_shard_list(&options.out, k, n, clips, &run, layout, options.variants)?;
+            None
+        }
+    };
+    Ok(RunReport {
+        records,
+        manifest,
+        computed,
+        resumed,
+        temporaries_removed,
+    })
+}
+
+fn without_sums(mut record: ClipRecord) -> ClipRecord {
+    record.x_sum = Vec::new();
+    record.x_sum_sq = Vec::new();
+    record
+}
+
+/// The run's settings as the manifest shows them.
+pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
+    RunDescription {
+        musculo_version: env!("CARGO_PKG_VERSION").to_string(),
+        model: chain.model.name.clone(),
+        model_hash: output::fnv1a_hex(&chain.xml),
+        variants: options.variants,
+        seed: options.seed,
+        perturbation: options.perturbation.clone(),
+        lowpass_hz: chain.options.lowpass_hz,
+        scale_to_clip: chain.options.scale_to_clip,
+    }
+}
+
+fn process(
+    chain: &Chain,
+    clip: &ClipInput,
+    variant: &Variant,
+    options: &RunOptions,
+) -> crate::Result<ClipOutput> {
+    match &clip.source {
+        ClipSource::File { path, format } => {
+            let motion = motion::read(path, Some(*format), &options.read)?;
+            let builtin;
+            let map = match (&options.map, format.default_map()) {
+                (Some(m), _) => Some(m),
+                (None, Some(name)) => {
+                    builtin = SkeletonMap::builtin(name)?;
+                    Some(&builtin)
+                }
+                (None, None) => None,
+            };
+            chain.run(&motion, map, variant)
+        }
+        ClipSource::Motion(motion) => chain.run(motion, None, variant),
+    }
+}
+
+/// What a shard leaves for `musculo merge`: the whole dataset's clip names and the run's
+/// settings, so the merge can tell whether every shard has finished.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ShardList {
+    pub shard: usize,
+    pub shards: usize,
+    pub run: RunDescription,
+    pub layout: LayoutDescription,
+    /// Every output name of the dataset (all shards), in order.
+    pub all: Vec<(String, String)>,
+}
+
+fn write_shard_list(
+    out: &Path,
+    k: usize,
+    n: usize,
+    clips: &[ClipInput],
+    run: &RunDescription,
+    layout: &LayoutDescription,
+    variants: usize,
+) -> crate::Result<()> {
+    let list = ShardList {
+        shard: k,
+        shards: n,
+        run: run.clone(),
+        layout: layout.clone(),
+        all: clips
+            .iter()
+            .flat_map(|c| (0..variants).map(move |v| (variant_name(&c.name, v), c.input.clone())))
+            .collect(),
+    };
+    let path = out.join(SHARDS).join(format!("{k}-of-{n}.json"));
+    std::fs::create_dir_all(out.join(SHARDS)).map_err(|source| Error::Io {
+        path: out.join(SHARDS),
+        source,
+    })?;
+    let text =
+        serde_json::to_string(&list).map_err(|e| Error::invalid("shard list", e.to_string()))?;
+    crate::motion::npy::write_file_atomic(&path, text.as_bytes())
+}
+
+/// `musculo merge OUT`: checks that every shard of the run in `out` has finished and
+/// writes the manifest and statistics from the records — the same files an unsharded run
+/// writes.
+pub fn merge(out: &Path) -> crate::Result<Manifest> {
+    let dir = out.join(SHARDS);
+    let entries = std::fs::read_dir(&dir).map_err(|source| Error::Io {
+        path: dir.clone(),
+        source,
+    })?;
+    let mut lists = Vec::new();
+    for entry in entries {
+        let path = entry
+            .map_err(|source| Error::Io {
+                path: dir.clone(),
+                source,
+            })?
+            .path();
+        if path.extension().is_some_and(|e| e == "json") {
+            let text = std::fs::read_to_string(&path).map_err(|source| Error::Io {
+                path: path.clone(),
+                source,
+            })?;
+            let list: ShardList = serde_json::from_str(&text).map_err(|e| Error::Motion {
+                file: path.display().to_string(),
+                location: format!("line {}", e.line()),
+                message: format!("not a shard list: {e}"),
+            })?;
+            lists.push(list);
+        }
+    }
+    let Some(first) = lists.first() else {
+        return Err(Error::invalid(
+            "OUT",
+            format!(
+                "{} holds no shard list: run the shards first",
+                dir.display()
+            ),
+        ));
+    };
+    let n = first.shards;
+    for l in &lists {
+        if l.shards != n || l.run != first.run || l.all != first.all {
+            return Err(Error::invalid(
+                "OUT",
+                format!(
+                    "{}: shard {} of {} belongs to another run than shard {} of {}",
+                    out.display(),
+                    l.shard,
+                    l.shards,
+                    first.shard,
+                    n
+                ),
+            ));
+        }
+    }
+    let mut missing: Vec<usize> = (0..n)
+        .filter(|k| !lists.iter().any(|l| l.shard == *k))
+        .collect();
+    missing.truncate(10);
+    if !missing.is_empty() {
+        return Err(Error::invalid(
+            "OUT",
+            format!("shard(s) {missing:?} of {n} have not finished"),
+        ));
+    }
+    let names: Vec<String> = first.all.iter().map(|(n, _)| n.clone()).collect();
+    output::write_manifest(out, &first.run, Some(&first.layout), &names)
+}

@@ -1,0 +1,255 @@
+//! `musculo augment`: a motion dataset in, per-clip tensors of joint torques, contact forces
+//! and muscle activations out (see `musculo::augment`); and `musculo merge`, which puts the
+//! shards of a run together.
+
+use crate::tool::{model_text, skeleton_map};
+use indicatif::{ProgressBar, ProgressStyle};
+use musculo::augment::chain::{Chain, ChainOptions};
+use musculo::augment::perturb::PerturbationRanges;
+use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
+use musculo::augment::{demo, describe};
+use musculo::motion::{self, Format, ReadOptions};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Motion files or folders (searched recursively for .npy, .bvh, .c3d, .trc); the output
+    /// tree mirrors each folder's tree.
+    #[arg(long, num_args = 1.., required_unless_present = "demo")]
+    input: Vec<PathBuf>,
+    /// Run the shipped sample clips (walk, squat, reach on the default model).
+    #[arg(long, conflicts_with = "input")]
+    demo: bool,
+    /// Input format (default: from each file's extension and array shape).
+    #[arg(long, value_parser = Format::parse)]
+    format: Option<Format>,
+    /// Skeleton map (built-in name or .json file; default: the format's built-in map).
+    #[arg(long)]
+    map: Option<String>,
+    /// Length unit of the inputs (m, cm, mm, in or metres per unit).
+    #[arg(long)]
+    length_unit: Option<String>,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Model (.osim); default: the built-in full-body model.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Variants per clip: 1 = the clips as recorded; each further variant perturbs body
+    /// height and mass, adds a carried load and warps time (seeded).
+    #[arg(long, default_value_t = 1)]
+    variants: usize,
+    /// Seed of the perturbations.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Run shard K of N (0 ≤ K < N), e.g. `--shard $SLURM_ARRAY_TASK_ID/8`; finish with
+    /// `musculo merge OUT`.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// Skip clips already finished in OUT (after an interruption).
+    #[arg(long)]
+    resume: bool,
+    /// Low-pass cutoff (Hz) of the coordinates before differentiation; 0 = none.
+    #[arg(long, default_value_t = 6.0)]
+    lowpass: f64,
+    /// Do not scale the model to each clip's bone lengths.
+    #[arg(long)]
+    no_scale: bool,
+    /// Also write OpenSim files per clip: `<clip>_ik.mot`, `_tau.sto`, `_activation.sto`,
+    /// `_grf.mot` and the scaled model `<clip>.osim`, so a clip opens in OpenSim's GUI.
+    #[arg(long)]
+    opensim_files: bool,
+}
+
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The output folder the shards wrote into.
+    out: PathBuf,
+}
+
+fn invalid(argument: &'static str, message: impl Into<String>) -> musculo::Error {
+    musculo::Error::InvalidArgument {
+        argument,
+        message: message.into(),
+    }
+}
+
+fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
+    let bad = || {
+        invalid(
+            "--shard",
+            format!("`{text}`: expected K/N with 0 ≤ K < N, e.g. 3/8"),
+        )
+    };
+    let (k, n) = text.split_once('/').ok_or_else(bad)?;
+    let (k, n): (usize, usize) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || k >= n {
+        return Err(bad());
+    }
+    Ok((k, n))
+}
+
+pub fn run(args: &Args) -> Result<bool, musculo::Error> {
+    if !(args.lowpass >= 0.0 && args.lowpass.is_finite()) {
+        return Err(invalid(
+            "--lowpass",
+            format!("{} must be ≥ 0 (0: no filter)", args.lowpass),
+        ));
+    }
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    let (xml, source) = model_text(args.model.as_deref())?;
+    let options = ChainOptions {
+        lowpass_hz: (args.lowpass > 0.0).then_some(args.lowpass),
+        scale_to_clip: !args.no_scale,
+        opensim_files: args.opensim_files,
+        ..ChainOptions::default()
+    };
+    let chain = Chain::new(xml, source, options)?;
+    let layout = describe(&chain)?;
+    let clips: Vec<ClipInput> = if args.demo {
+        demo::clips(&chain.model)?
+            .into_iter()
+            .map(|(name, motion)| ClipInput {
+                input: format!("demo:{name}"),
+                name,
+                source: ClipSource::Motion(Box::new(motion)),
+            })
+            .collect()
+    } else {
+        runner::list_inputs(&args.input, args.format)?
+    };
+    let map = match (&args.map, args.format) {
+        (Some(m), Some(f)) => skeleton_map(Some(m), f)?,
+        (Some(m), None) => skeleton_map(Some(m), Format::Trc)?,
+        (None, _) => None,
+    };
+    let read = ReadOptions {
+        length_unit: args
+            .length_unit
+            .as_deref()
+            .map(|u| {
+                motion::LengthUnit::parse(u).ok_or_else(|| {
+                    invalid(
+                        "--length-unit",
+                        format!("`{u}`: use m, cm, mm, in or a number"),
+                    )
+                })
+            })
+            .transpose()?,
+    };
+    let run_options = RunOptions {
+        out: args.out.clone(),
+        variants: args.variants,
+        seed: args.seed,
+        perturbation: PerturbationRanges::default(),
+        shard,
+        resume: args.resume,
+        map,
+        read,
+    };
+    let mine = runner::shard_clips(&clips, shard).len() * args.variants.max(1);
+    let bar = ProgressBar::new(mine as u64).with_style(
+        ProgressStyle::with_template("augment [{bar:30}] {pos}/{len} clips  {msg}  ETA {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let progress = |p: runner::Progress| {
+        let s = start.elapsed().as_secs_f64().max(1e-9);
+        bar.set_position(p.done as u64);
+        bar.set_message(format!(
+            "{:.1} clips/s, {:.0} frames/s, {} failed",
+            p.done as f64 / s,
+            p.frames as f64 / s,
+            p.failed
+        ));
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.jobs.unwrap_or(0))
+        .build()
+        .map_err(|e| invalid("--jobs", e.to_string()))?;
+    let report = pool.install(|| runner::run(&chain, &layout, &clips, &run_options, &progress));
+    bar.finish_and_clear();
+    let report = report?;
+    let seconds = start.elapsed().as_secs_f64();
+    let failed: Vec<_> = report
+        .records
+        .iter()
+        .filter(|r| r.reason.is_some())
+        .collect();
+    let frames: usize = report
+        .records
+        .iter()
+        .filter_map(|r| r.quality.as_ref())
+        .map(|q| q.frames)
+        .sum();
+    if report.temporaries_removed > 0 {
+        eprintln!(
+            "removed {} partial file(s) left by an interrupted run",
+            report.temporaries_removed
+        );
+    }
+    for r in &failed {
+        eprintln!(
+            "failed: {} ({}): {}",
+            r.clip,
+            r.input,
+            r.reason.as_deref().unwrap_or("")
+        );
+    }
+    eprintln!(
+        "{} clip(s) ok, {} failed ({} computed, {} resumed); {frames} frames in {seconds:.1} s \
+         ({:.0} frames/s); output in {}",
+        report.records.len() - failed.len(),
+        failed.len(),
+        report.computed,
+        report.resumed,
+        frames as f64 / seconds.max(1e-9),
+        args.out.display()
+    );
+    let mut worst: Vec<_> = report
+        .records
+        .iter()
+        .filter_map(|r| r.quality.as_ref().map(|q| (r.clip.as_str(), q)))
+        .collect();
+    worst.sort_by(|a, b| {
+        b.1.residual_force_max_bw
+            .total_cmp(&a.1.residual_force_max_bw)
+    });
+    for (clip, q) in worst.iter().take(3) {
+        eprintln!(
+            "  {clip}: IK RMSE {:.1} mm, unexplained force ≤ {:.2} BW, reserves {:.2} % of \
+             joint moments, {} clamped excitation(s)",
+            q.ik_rmse_median * 1e3,
+            q.residual_force_max_bw,
+            100.0 * q.reserve_share,
+            q.clamped_excitations
+        );
+    }
+    match shard {
+        Some((k, n)) => eprintln!(
+            "shard {k}/{n} done; when every shard has finished: musculo merge {}",
+            args.out.display()
+        ),
+        None => eprintln!("wrote {}", args.out.join("manifest.json").display()),
+    }
+    Ok(failed.is_empty())
+}
+
+pub fn merge(args: &MergeArgs) -> Result<(), musculo::Error> {
+    let manifest = runner::merge(&args.out)?;
+    eprintln!(
+        "merged: {} clip(s) ok, {} failed, {} frames; wrote {}",
+        manifest.summary.clips_ok,
+        manifest.summary.clips_failed,
+        manifest.summary.frames,
+        args.out.join("manifest.json").display()
+    );
+    Ok(())
+}

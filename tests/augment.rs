@@ -1,0 +1,403 @@
+//! `musculo augment` end to end: the emitted arrays satisfy the equations of motion when
+//! recomputed from the `.npz` alone, activations lie in [0, 1], nothing is NaN; runs are
+//! byte-identical for 1 and 2 threads, for sharded runs after `merge`, and after `kill -9`
+//! and `--resume`; a failing clip is recorded and the run goes on.
+
+mod common;
+
+use common::reference_file;
+use musculo::augment::chain::{Chain, ChainOptions};
+use musculo::augment::output::{self, ClipStatus};
+use musculo::augment::perturb::{PerturbationRanges, Variant};
+use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
+use musculo::augment::{demo, describe};
+use musculo::motion::skeleton::SkeletonMap;
+use musculo::motion::{self, Format, Motion, ReadOptions};
+use musculo::solve::contact::ContactSet;
+use musculo::spatial::Vec3;
+use musculo::{Data, Model, dynamics};
+use nalgebra::DMatrix;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+fn chain() -> Chain {
+    Chain::new(
+        musculo::DEFAULT_MODEL_OSIM.to_string(),
+        "models/musculo_fullbody.osim".into(),
+        ChainOptions::default(),
+    )
+    .unwrap()
+}
+
+fn demo_inputs(chain: &Chain) -> Vec<ClipInput> {
+    demo::clips(&chain.model)
+        .unwrap()
+        .into_iter()
+        .map(|(name, motion)| ClipInput {
+            input: format!("demo:{name}"),
+            name,
+            source: ClipSource::Motion(Box::new(motion)),
+        })
+        .collect()
+}
+
+fn options(out: &Path) -> RunOptions {
+    RunOptions {
+        out: out.to_path_buf(),
+        variants: 1,
+        seed: 0,
+        perturbation: PerturbationRanges::default(),
+        shard: None,
+        resume: false,
+        map: None,
+        read: ReadOptions::default(),
+    }
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("musculo-augment-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn read_npz(path: &Path) -> HashMap<String, (Vec<usize>, Vec<f64>)> {
+    motion::npy::read_npz_as_f64(path)
+        .unwrap()
+        .into_iter()
+        .map(|(k, a)| {
+            let shape = a.shape().to_vec();
+            (k, (shape, a.iter().copied().collect()))
+        })
+        .collect()
+}
+
+/// Recomputes M q̈ + C q̇ + G − τ − J_cᵀλ from the arrays of one clip on `model`; returns the
+/// worst frame's ‖·‖∞ relative to that frame's ‖M q̈ + C q̇ + G‖∞, and checks the rest.
+fn check_clip(model: &Model, npz: &Path) -> f64 {
+    let a = read_npz(npz);
+    let get = |name: &str| &a.get(name).unwrap_or_else(|| panic!("{name} missing")).1;
+    for (name, (_, v)) in &a {
+        assert!(v.iter().all(|x| x.is_finite()), "{name} has NaN/inf");
+    }
+    for &v in get("muscle_act") {
+        assert!((0.0..=1.0).contains(&v), "activation {v}");
+    }
+    let n = model.nq();
+    let (q, qd, qdd, tau) = (get("q"), get("qd"), get("qdd"), get("tau"));
+    let frames = q.len() / n;
+    let set = ContactSet::from_model(model).unwrap();
+    let p = set.points.len();
+    let (force, pos) = (get("contact_point_force"), get("contact_point_pos"));
+    assert_eq!(force.len(), frames * p * 3);
+    let mut data = Data::new(model);
+    let mut jac = DMatrix::zeros(3, n);
+    let mut worst = 0.0f64;
+    for f in 0..frames {
+        let r = f * n..(f + 1) * n;
+        let lhs: Vec<f64> =
+            dynamics::rnea(model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r])
+                .unwrap()
+                .iter()
+                .copied()
+                .collect();
+        let mut rhs: Vec<f64> = tau[f * n..(f + 1) * n].to_vec();
+        for (i, point) in set.points.iter().enumerate() {
+            let k = (f * p + i) * 3;
+            let fv = Vec3::new(force[k], force[k + 1], force[k + 2]);
+            if fv.norm() == 0.0 {
+                continue;
+            }
+            let at = Vec3::new(pos[k], pos[k + 1], pos[k + 2]);
+            let (rot, origin) = data.body_pose(point.body);
+            let local = rot.transpose() * (at - origin);
+            dynamics::point_jacobian(model, &data, point.body, &local, &mut jac).unwrap();
+            for j in 0..n {
+                rhs[j] += jac[(0, j)] * fv.x + jac[(1, j)] * fv.y + jac[(2, j)] * fv.z;
+            }
+        }
+        let scale = lhs.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1.0);
+        let err = lhs
+            .iter()
+            .zip(&rhs)
+            .fold(0.0f64, |m, (l, r)| m.max((l - r).abs()));
+        worst = worst.max(err / scale);
+    }
+    worst
+}
+
+#[test]
+fn demo_clips_satisfy_the_equations_of_motion_from_the_files_alone() {
+    let chain = chain();
+    let layout = describe(&chain).unwrap();
+    let clips = demo_inputs(&chain);
+    let out = temp_dir("demo");
+    let report = runner::run(&chain, &layout, &clips, &options(&out), &|_| {}).unwrap();
+    let manifest = report.manifest.unwrap();
+    assert_eq!(manifest.summary.clips_ok, 3);
+    for (clip, record) in clips.iter().zip(&report.records) {
+        let ClipSource::Motion(motion) = &clip.source else {
+            unreachable!()
+        };
+        let model = chain
+            .clip_model(motion, None, &Variant::identity())
+            .unwrap();
+        let worst = check_clip(&model, &output::npz_path(&out, &clip.name));
+        let q = record.quality.as_ref().unwrap();
+        println!(
+            "{}: EL identity {worst:.2e} (relative), reserves {:.2} %, residual force ≤ {:.3} BW, \
+             contact in {:.0} % of frames",
+            clip.name,
+            100.0 * q.reserve_share,
+            q.residual_force_max_bw,
+            100.0 * q.contact_fraction
+        );
+        assert!(worst <= 1e-6, "{}: {worst:e}", clip.name);
+    }
+    // x is the concatenation of the per-joint blocks, in the manifest's ranges
+    let a = read_npz(&output::npz_path(&out, "march"));
+    let (xs, x) = &a["x"];
+    for r in &layout.x {
+        let (_, block) = &a[&r.name];
+        let width = r.end - r.start;
+        for f in 0..xs[0] {
+            for i in 0..width {
+                assert_eq!(
+                    x[f * xs[1] + r.start + i],
+                    block[f * width + i],
+                    "{}",
+                    r.name
+                );
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+fn bytes_of(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                if !p.ends_with(".musculo") {
+                    stack.push(p);
+                }
+            } else {
+                let rel = p.strip_prefix(dir).unwrap().display().to_string();
+                files.push((rel, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+#[test]
+fn threads_and_shards_give_identical_bytes() {
+    let chain = chain();
+    let layout = describe(&chain).unwrap();
+    let clips = demo_inputs(&chain);
+    let run_with = |threads: usize, dir: &Path, shard: Option<(usize, usize)>| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut o = options(dir);
+        o.variants = 2;
+        o.shard = shard;
+        pool.install(|| runner::run(&chain, &layout, &clips, &o, &|_| {}))
+            .unwrap();
+    };
+    let (one, two, sharded) = (temp_dir("t1"), temp_dir("t2"), temp_dir("sh"));
+    run_with(1, &one, None);
+    run_with(2, &two, None);
+    run_with(2, &sharded, Some((1, 2)));
+    run_with(1, &sharded, Some((0, 2)));
+    assert!(
+        runner::merge(&one).is_err(),
+        "an unsharded run has no shard lists"
+    );
+    runner::merge(&sharded).unwrap();
+    let reference = bytes_of(&one);
+    assert_eq!(
+        reference.len(),
+        2 + 6,
+        "manifest, stats and 3 clips × 2 variants"
+    );
+    assert!(reference == bytes_of(&two), "1 vs 2 threads");
+    assert!(
+        reference == bytes_of(&sharded),
+        "sharded + merge vs one run"
+    );
+    for d in [one, two, sharded] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+#[test]
+fn kill_minus_9_then_resume_gives_the_bytes_of_an_uninterrupted_run() {
+    let exe = env!("CARGO_BIN_EXE_musculo");
+    let whole = temp_dir("whole");
+    let cut = temp_dir("cut");
+    let args = |dir: &Path| {
+        vec![
+            "augment".to_string(),
+            "--demo".into(),
+            "--variants".into(),
+            "3".into(),
+            "--out".into(),
+            dir.display().to_string(),
+        ]
+    };
+    let status = std::process::Command::new(exe)
+        .args(args(&whole))
+        .stderr(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    // kill at several points of the run, resuming each time
+    let mut kills = 0;
+    for delay_ms in [30u64, 90, 150, 220, 300, 400] {
+        let mut a = args(&cut);
+        a.push("--resume".into());
+        let mut child = std::process::Command::new(exe)
+            .args(&a)
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        if child.try_wait().unwrap().is_none() {
+            child.kill().unwrap(); // SIGKILL
+            kills += 1;
+        }
+        child.wait().unwrap();
+    }
+    let mut a = args(&cut);
+    a.push("--resume".into());
+    let status = std::process::Command::new(exe)
+        .args(&a)
+        .stderr(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    println!("killed {kills} run(s) mid-way");
+    let (w, c) = (bytes_of(&whole), bytes_of(&cut));
+    assert!(
+        w.iter().map(|f| &f.0).eq(c.iter().map(|f| &f.0)),
+        "same files (no partial file left)"
+    );
+    assert!(w == c, "identical bytes after kill -9 and --resume");
+    for d in [whole, cut] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+#[test]
+fn a_failing_clip_is_recorded_and_the_run_goes_on() {
+    let dir = temp_dir("inputs");
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    // a valid clip (the demo walk as a HumanML3D joints array) and a broken one
+    let chain = chain();
+    let (_, walk) = demo::clips(&chain.model).unwrap().remove(0);
+    let values: Vec<f32> = walk
+        .positions
+        .iter()
+        .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+        .collect();
+    let array = ndarray::ArrayD::from_shape_vec(vec![walk.n_frames(), 22, 3], values).unwrap();
+    motion::npy::write_npy(&dir.join("sub/good.npy"), array.view()).unwrap();
+    std::fs::write(dir.join("sub/broken.npy"), b"\x93NUMPY not really").unwrap();
+    let exe = env!("CARGO_BIN_EXE_musculo");
+    let out = temp_dir("failing-out");
+    let result = std::process::Command::new(exe)
+        .args(["augment", "--input"])
+        .arg(&dir)
+        .args(["--format", "humanml3d", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert!(
+        !result.status.success(),
+        "a failed clip makes the exit status non-zero"
+    );
+    assert!(stderr.contains("broken"), "{stderr}");
+    let manifest: output::Manifest =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let by_name: HashMap<_, _> = manifest
+        .clips
+        .iter()
+        .map(|c| (c.clip.as_str(), c))
+        .collect();
+    assert_eq!(by_name["sub/good"].status, ClipStatus::Ok);
+    assert_eq!(by_name["sub/broken"].status, ClipStatus::Failed);
+    assert!(
+        by_name["sub/broken"]
+            .reason
+            .as_ref()
+            .unwrap()
+            .contains("broken.npy")
+    );
+    assert!(
+        out.join("sub/good.npz").exists(),
+        "the tree mirrors the input tree"
+    );
+    // without --resume, an existing run is not overwritten
+    let again = std::process::Command::new(exe)
+        .args(["augment", "--input"])
+        .arg(&dir)
+        .args(["--format", "humanml3d", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--resume"));
+    for d in [dir, out] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+/// The dataset clips in ../shared/reference end to end, each checked from its file.
+#[test]
+fn reference_clips_end_to_end() {
+    let mut inputs: Vec<(PathBuf, Format, Option<&str>)> = Vec::new();
+    for (rel, format, unit) in [
+        ("humanml3d/new_joints_012314.npy", Format::HumanMl3d, None),
+        ("bvh/131_01.bvh", Format::Bvh, Some("0.056444")),
+        ("bvh/cmu_01_01.bvh", Format::Bvh, Some("0.056444")),
+    ] {
+        match reference_file(rel) {
+            Some(p) => inputs.push((p, format, unit)),
+            None => return,
+        }
+    }
+    let chain = chain();
+    for (path, format, unit) in inputs {
+        let read = ReadOptions {
+            length_unit: unit.map(|u| motion::LengthUnit::parse(u).unwrap()),
+        };
+        let clip: Motion = motion::read(&path, Some(format), &read).unwrap();
+        let map = SkeletonMap::builtin(format.default_map().unwrap()).unwrap();
+        let out = chain.run(&clip, Some(&map), &Variant::identity()).unwrap();
+        let dir = temp_dir("ref");
+        output::write_clip(&dir, "clip", &out.arrays).unwrap();
+        let model = chain
+            .clip_model(&clip, Some(&map), &Variant::identity())
+            .unwrap();
+        let worst = check_clip(&model, &output::npz_path(&dir, "clip"));
+        let q = &out.quality;
+        println!(
+            "{}: {} frames, IK RMSE median {:.1} mm, EL identity {worst:.2e}, reserves {:.2} % \
+             of joint moments, unexplained force ≤ {:.3} BW, {} clamped excitation(s)",
+            path.display(),
+            q.frames,
+            q.ik_rmse_median * 1e3,
+            100.0 * q.reserve_share,
+            q.residual_force_max_bw,
+            q.clamped_excitations
+        );
+        assert!(worst <= 1e-6, "{}: {worst:e}", path.display());
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
