@@ -22,6 +22,10 @@
 //!   2. each placed marker ← the per-component median over frames of R_bᵀ (x(t) − o_b(t)),
 //!      the target in its body's frame at the solved pose;
 //!   3. IK with every weight, and step 2 again, [`PLACEMENT_ROUNDS`] times in all.
+//!
+//! Placement looks at no more than [`PLACEMENT_FRAMES`] frames, evenly spread over the clip:
+//! a median of that many samples moves by far less than the targets' own noise, and a long
+//! clip (CMU's run to thousands of frames) then costs no more to place than a short one.
 
 use super::ik::{self, IkSettings};
 use super::scale::{ScaleOptions, ScaleSet, ScaledModel, scale_osim};
@@ -34,6 +38,31 @@ use crate::spatial::Vec3;
 
 /// Rounds of marker placement (IK, then placement).
 pub const PLACEMENT_ROUNDS: usize = 3;
+
+/// Most frames marker placement looks at (evenly spread over the clip).
+pub const PLACEMENT_FRAMES: usize = 100;
+
+/// At most `max` frames of `motion`, evenly spread and including the first and last.
+fn spread_frames(motion: &Motion, max: usize) -> Motion {
+    let t = motion.n_frames();
+    if t <= max || max < 2 {
+        return motion.clone();
+    }
+    let n = motion.names.len();
+    let picked: Vec<usize> = (0..max)
+        .map(|i| (i as f64 * (t - 1) as f64 / (max - 1) as f64).round() as usize)
+        .collect();
+    Motion {
+        source: motion.source.clone(),
+        names: motion.names.clone(),
+        rate_hz: motion.rate_hz,
+        time: picked.iter().map(|&f| motion.time[f]).collect(),
+        positions: picked
+            .iter()
+            .flat_map(|&f| motion.positions[f * n..(f + 1) * n].iter().copied())
+            .collect(),
+    }
+}
 
 /// A model scaled to a clip.
 #[derive(Clone, Debug)]
@@ -247,6 +276,7 @@ pub fn place_markers(
     clip: &Motion,
 ) -> crate::Result<Vec<(String, Vec3, Vec3)>> {
     let (targets, mut tasks) = map.apply(model, clip)?;
+    let targets = spread_frames(&targets, PLACEMENT_FRAMES);
     let placed: Vec<usize> = (0..map.targets.len())
         .filter(|&k| map.targets[k].placed)
         .collect();
