@@ -97,6 +97,7 @@ fn main() {
             resume: false,
             map: None,
             read: ReadOptions::default(),
+            external_loads: None,
         };
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

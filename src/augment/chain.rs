@@ -29,6 +29,7 @@ use crate::muscle::activation::ActivationDynamics;
 use crate::solve::contact::{
     self, ContactFrame, ContactOptions, ContactSet, ContactWorkspace, GroupWrench,
 };
+use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::ik::{self, IkSettings};
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
 use crate::solve::scale_from_clip;
@@ -150,7 +151,7 @@ impl Chain {
             ));
         }
         let model = Model::from_osim_str(&xml, &source)?;
-        ContactSet::from_model(&model)?;
+        contact_set(&model)?;
         Ok(Chain {
             xml,
             source,
@@ -205,9 +206,35 @@ impl Chain {
         map: Option<&SkeletonMap>,
         variant: &Variant,
     ) -> crate::Result<ClipOutput> {
+        self.run_with_loads(motion, map, variant, None)
+    }
+
+    /// [`Chain::run`] with measured ground reactions: the forces of an OpenSim ExternalLoads
+    /// file (`external_loads`, resolved against the clip's model) are used instead of the
+    /// contact estimate. They enter as Q = Σ Jᵀ w (array `external`), so the arrays satisfy
+    /// M q̈ + C q̇ + G = τ + Q; `grf`, `cop` and `free_moment` then report the measured
+    /// forces per contact group (a force belongs to the group of the body it is applied to).
+    /// The loads fix the body's dynamics, so only the identity variant is accepted.
+    pub fn run_with_loads(
+        &self,
+        motion: &Motion,
+        map: Option<&SkeletonMap>,
+        variant: &Variant,
+        external_loads: Option<&std::path::Path>,
+    ) -> crate::Result<ClipOutput> {
+        if external_loads.is_some() && *variant != Variant::identity() {
+            return Err(Error::invalid(
+                "variant",
+                "measured loads belong to the recorded body and speed: perturbed variants \
+                 need the contact estimate (no --external-loads)",
+            ));
+        }
         let mut warnings = Vec::new();
         let motion = variant.apply_to_motion(motion)?;
         let (model, scaled_xml) = self.clip_model_and_xml(&motion, map, variant)?;
+        let loads = external_loads
+            .map(|p| ExternalLoadSet::read(&model, p))
+            .transpose()?;
         let (targets, tasks) = match map {
             Some(map) => map.apply(&model, &motion)?,
             None => (motion.clone(), ik::tasks_by_name(&model, &motion)),
@@ -227,7 +254,19 @@ impl Chain {
         let n = model.nq();
         // --- filtering and differentiation ---
         let names: Vec<String> = model.q_names().iter().map(|s| s.to_string()).collect();
-        let table = Table::new("ik", names, targets.time.clone(), solution.q.clone())?;
+        // Files store times rounded (OpenSim's subject01_walk1.trc at 60 Hz writes 0.017,
+        // 0.033): times within 5 % of a sample interval of the uniform grid at the motion's
+        // rate are put on it, so the filter accepts them.
+        let dt = 1.0 / targets.rate_hz;
+        let grid: Vec<f64> = (0..frames)
+            .map(|f| targets.time[0] + f as f64 * dt)
+            .collect();
+        let on_grid = grid
+            .iter()
+            .zip(&targets.time)
+            .all(|(g, t)| (g - t).abs() <= 0.05 * dt);
+        let times = if on_grid { grid } else { targets.time.clone() };
+        let table = Table::new("ik", names, times.clone(), solution.q.clone())?;
         let trajectory = CoordinateTrajectory::from_table(
             &model,
             &Table {
@@ -246,7 +285,7 @@ impl Chain {
         for f in 0..frames {
             let r = f * n..(f + 1) * n;
             let (a, b, c) = (&mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r]);
-            trajectory.eval(targets.time[f], a, b, c);
+            trajectory.eval(times[f], a, b, c);
         }
         // The dynamics are computed for the kinematics as emitted (float32), so that
         // M q̈ + C q̇ + G = τ + J_cᵀλ holds for the arrays in the file, not only for values
@@ -255,7 +294,7 @@ impl Chain {
             *v = *v as f32 as f64;
         }
         // --- contacts, inverse dynamics, static optimization, per frame ---
-        let set = ContactSet::from_model(&model)?;
+        let set = contact_set(&model)?;
         let states = contact::detect(
             &model,
             &set,
@@ -277,6 +316,11 @@ impl Chain {
         let mut layout_ws = layout.workspace(&model);
         let mut joint_frame = JointFrame::new(&layout);
         let mut tau = vec![0.0; n];
+        let mut external = vec![0.0; n];
+        let load_group = loads
+            .as_ref()
+            .map(|l| load_groups(&model, &set, l))
+            .unwrap_or_default();
         let mut body_contact = vec![Vec3::zeros(); model.bodies.len()];
         let p = set.points.len();
         for f in 0..frames {
@@ -284,26 +328,50 @@ impl Chain {
             // τ_ID = M q̈ + C q̇ + G
             let tau_id = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r])?;
             tau.copy_from_slice(tau_id.as_slice());
-            contact_ws.distribute(
-                &model,
-                &data,
-                &set,
-                &self.options.contact,
-                &states.factor[f * p..(f + 1) * p],
-                &tau,
-                &mut contact_frame,
-            )?;
-            // τ = τ_ID − J_cᵀ λ
-            for (t, g) in tau.iter_mut().zip(&contact_frame.generalized) {
-                *t -= g;
+            external.fill(0.0);
+            body_contact.fill(Vec3::zeros());
+            match &loads {
+                None => {
+                    contact_ws.distribute(
+                        &model,
+                        &data,
+                        &set,
+                        &self.options.contact,
+                        &states.factor[f * p..(f + 1) * p],
+                        &tau,
+                        &mut contact_frame,
+                    )?;
+                    // τ = τ_ID − J_cᵀ λ
+                    for (t, g) in tau.iter_mut().zip(&contact_frame.generalized) {
+                        *t -= g;
+                    }
+                    contact::ground_reaction(&set, &contact_frame, &mut groups)?;
+                    for (point, force) in set.points.iter().zip(&contact_frame.forces) {
+                        body_contact[point.body] += force;
+                    }
+                }
+                Some(loads) => {
+                    // τ = τ_ID − Q, Q = Σ Jᵀ w of the measured forces
+                    let t = times[f];
+                    loads.add_generalized_forces(&model, &data, t, &mut external)?;
+                    for (v, e) in tau.iter_mut().zip(&external) {
+                        *v -= e;
+                    }
+                    contact_frame.forces.fill(Vec3::zeros());
+                    contact_frame.points.fill(Vec3::zeros());
+                    measured_reaction(
+                        &set,
+                        loads,
+                        &load_group,
+                        &data,
+                        t,
+                        &mut groups,
+                        &mut body_contact,
+                    );
+                }
             }
-            contact::ground_reaction(&set, &contact_frame, &mut groups)?;
             so.solve_frame(&model, &data, &tau, &mut so_ws, &mut so_frame)
                 .map_err(|e| at_frame(&motion.source, f, e))?;
-            body_contact.fill(Vec3::zeros());
-            for (point, force) in set.points.iter().zip(&contact_frame.forces) {
-                body_contact[point.body] += force;
-            }
             // body accelerations without gravity, for the joint accelerations
             dynamics::forward_kinematics_acceleration(
                 &model,
@@ -320,6 +388,9 @@ impl Chain {
                 &mut layout_ws,
                 &mut joint_frame,
             )?;
+            per_frame
+                .external
+                .extend(external.iter().map(|&v| v as f32));
             per_frame.record(
                 &so,
                 &so_ws,
@@ -344,7 +415,7 @@ impl Chain {
                 series[f] = per_frame.activation[f * m + k].clamp(lo, hi);
             }
             let estimate = dynamics
-                .excitation_from_activation(&targets.time, &series)
+                .excitation_from_activation(&times, &series)
                 .map_err(|e| Error::invalid("activation", format!("{}: {e}", muscle.name())))?;
             clamped += estimate
                 .clamped
@@ -365,7 +436,7 @@ impl Chain {
         let (tables, model_xml) = if self.options.opensim_files {
             let plain = variant.mass_scale == 1.0 && variant.load_kg == 0.0;
             (
-                opensim_tables(&model, &so, &set, &targets.time, &q, &per_frame)?,
+                opensim_tables(&model, &so, &set, &times, &q, &per_frame)?,
                 if plain { scaled_xml } else { None },
             )
         } else {
@@ -380,7 +451,7 @@ impl Chain {
         arrays.push(Array {
             name: "time",
             shape: vec![frames],
-            values: targets.time.iter().map(|&t| t as f32).collect(),
+            values: times.iter().map(|&t| t as f32).collect(),
         });
         Ok(ClipOutput {
             arrays,
@@ -389,6 +460,86 @@ impl Chain {
             model_xml,
             warnings,
         })
+    }
+}
+
+/// The contact points of `model`: its ContactSpheres, or, for a model without any that has
+/// gait2392's foot bodies (calcn_r/l, toes_r/l), the points of `data/contacts/gait2392_feet.json`
+/// scaled to its feet.
+pub fn contact_set(model: &Model) -> crate::Result<ContactSet> {
+    match ContactSet::from_model(model) {
+        Ok(set) => Ok(set),
+        Err(e) => {
+            let feet = ["calcn_r", "calcn_l", "toes_r", "toes_l"];
+            let spheres = model
+                .contact_geometry
+                .iter()
+                .any(|g| matches!(g.shape, crate::model::ContactShape::Sphere { .. }));
+            if !spheres && feet.iter().all(|b| model.body_index(b).is_some()) {
+                let points = contact::points_from_json(
+                    model,
+                    contact::GAIT2392_FEET_JSON,
+                    "data/contacts/gait2392_feet.json",
+                    None,
+                )?;
+                ContactSet::from_points(model, points)
+            } else {
+                Err(e)
+            }
+        }
+    }
+}
+
+/// The contact group of each force of `loads` (by the body it is applied to).
+fn load_groups(model: &Model, set: &ContactSet, loads: &ExternalLoadSet) -> Vec<Option<usize>> {
+    loads
+        .forces
+        .iter()
+        .map(|f| {
+            let name = contact::group_for_body(&model.bodies[f.applied_to_body].name);
+            set.groups().iter().position(|g| *g == name)
+        })
+        .collect()
+}
+
+/// Measured ground reactions per contact group (forces on a body of the group summed; the
+/// centre of pressure as the normal-force-weighted mean of the forces' points, projected on
+/// the floor; the free moment as the torques' component along the floor normal), and the
+/// force on each body.
+#[allow(clippy::too_many_arguments)]
+fn measured_reaction(
+    set: &ContactSet,
+    loads: &ExternalLoadSet,
+    load_group: &[Option<usize>],
+    data: &Data,
+    t: f64,
+    groups: &mut [GroupWrench],
+    body_contact: &mut [Vec3],
+) {
+    let n = set.floor_normal;
+    for i in 0..loads.forces.len() {
+        let w = loads.wrench(data, i, t);
+        body_contact[w.body] += w.force_in_ground;
+    }
+    for (k, g) in groups.iter_mut().enumerate() {
+        *g = GroupWrench::default();
+        let (mut total, mut weighted) = (0.0, Vec3::zeros());
+        for i in 0..loads.forces.len() {
+            if load_group[i] != Some(k) {
+                continue;
+            }
+            let w = loads.wrench(data, i, t);
+            let normal = w.force_in_ground.dot(&n).max(0.0);
+            g.force += w.force_in_ground;
+            g.free_moment += w.torque_in_ground.dot(&n);
+            total += normal;
+            weighted += w.point_in_ground * normal;
+        }
+        if total > 1e-6 {
+            let c = weighted / total;
+            g.cop = c - n * (n.dot(&c) - set.floor_height);
+            g.loaded = true;
+        }
     }
 }
 
@@ -516,6 +667,8 @@ fn at_frame(source: &str, frame: usize, e: Error) -> Error {
 /// The per-frame outputs of a clip, filled frame by frame (allocated once).
 struct FrameArrays {
     x: Vec<f32>,
+    /// Generalized forces of measured loads (zero without them).
+    external: Vec<f32>,
     tau: Vec<f64>,
     activation: Vec<f64>,
     muscle_force: Vec<f32>,
@@ -574,6 +727,7 @@ impl FrameArrays {
             .collect();
         FrameArrays {
             x: Vec::with_capacity(frames * layout.width()),
+            external: Vec::with_capacity(frames * model.nq()),
             tau: Vec::with_capacity(frames * model.nq()),
             activation: Vec::with_capacity(frames * m),
             muscle_force: Vec::with_capacity(frames * m),
@@ -769,6 +923,11 @@ impl FrameArrays {
                 values: f32s(v),
             });
         }
+        arrays.push(Array {
+            name: "external",
+            shape: vec![frames, n],
+            values: self.external,
+        });
         arrays.push(Array {
             name: "grf",
             shape: vec![frames, g, 3],

@@ -17,7 +17,6 @@ pub mod output;
 pub mod perturb;
 pub mod runner;
 
-use crate::solve::contact::ContactSet;
 use layout::JointLayout;
 use output::LayoutDescription;
 
@@ -25,7 +24,7 @@ use output::LayoutDescription;
 /// of a run has the same layout: scaling changes sizes, not the topology).
 pub fn describe(chain: &chain::Chain) -> crate::Result<LayoutDescription> {
     let model = &chain.model;
-    let set = ContactSet::from_model(model)?;
+    let set = chain::contact_set(model)?;
     let muscles = crate::muscle::MuscleSet::new(model)?;
     let muscle_names: Vec<String> = muscles
         .muscles

@@ -53,6 +53,9 @@ pub struct RunOptions {
     /// Skeleton map for every input (None: each format's built-in map).
     pub map: Option<SkeletonMap>,
     pub read: ReadOptions,
+    /// Measured ground reactions (an OpenSim ExternalLoads file) for a run of one clip, used
+    /// instead of the contact estimate (see [`Chain::run_with_loads`]).
+    pub external_loads: Option<PathBuf>,
 }
 
 /// Progress after each clip.
@@ -214,6 +217,17 @@ pub fn run(
         ));
     }
     options.perturbation.validate()?;
+    if options.external_loads.is_some() && (clips.len() != 1 || options.variants != 1) {
+        return Err(Error::invalid(
+            "--external-loads",
+            format!(
+                "measured loads belong to one trial: give one input and no variants (got {} \
+                 input(s), {} variant(s))",
+                clips.len(),
+                options.variants
+            ),
+        ));
+    }
     std::fs::create_dir_all(&options.out).map_err(|source| Error::Io {
         path: options.out.clone(),
         source,
@@ -391,9 +405,11 @@ fn process(
                 }
                 (None, None) => None,
             };
-            chain.run(&motion, map, variant)
+            chain.run_with_loads(&motion, map, variant, options.external_loads.as_deref())
         }
-        ClipSource::Motion(motion) => chain.run(motion, None, variant),
+        ClipSource::Motion(motion) => {
+            chain.run_with_loads(motion, None, variant, options.external_loads.as_deref())
+        }
     }
 }
 

@@ -59,6 +59,14 @@ pub struct Args {
     /// Do not scale the model to each clip's bone lengths.
     #[arg(long)]
     no_scale: bool,
+    /// The clips were recorded on a treadmill: contact speeds are taken relative to the belt,
+    /// whose velocity is estimated per clip (default: a floor at rest).
+    #[arg(long)]
+    treadmill: bool,
+    /// Measured ground reactions for a single trial (an OpenSim ExternalLoads .xml and its
+    /// data file), used instead of the estimate from kinematics.
+    #[arg(long)]
+    external_loads: Option<PathBuf>,
     /// Also write OpenSim files per clip: `<clip>_ik.mot`, `_tau.sto`, `_activation.sto`,
     /// `_grf.mot` and the scaled model `<clip>.osim`, so a clip opens in OpenSim's GUI.
     #[arg(long)]
@@ -111,6 +119,10 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         opensim_files: args.opensim_files,
         ..ChainOptions::default()
     };
+    let mut options = options;
+    if args.treadmill {
+        options.contact.floor_velocity = None;
+    }
     let chain = Chain::new(xml, source, options)?;
     let layout = describe(&chain)?;
     let clips: Vec<ClipInput> = if args.demo {
@@ -153,6 +165,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         resume: args.resume,
         map,
         read,
+        external_loads: args.external_loads.clone(),
     };
     let mine = runner::shard_clips(&clips, shard).len() * args.variants.max(1);
     let bar = ProgressBar::new(mine as u64).with_style(
