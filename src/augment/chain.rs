@@ -59,6 +59,8 @@ pub struct ChainOptions {
     pub reserve_optimal_force: f64,
     /// Also produce OpenSim files per clip (see [`ClipOutput::tables`]). Default false.
     pub opensim_files: bool,
+    /// Static optimization's options (OpenSim's defaults: exponent 2, force–length–velocity).
+    pub static_optimization: StaticOptimizationOptions,
 }
 
 impl Default for ChainOptions {
@@ -70,6 +72,7 @@ impl Default for ChainOptions {
             contact: ContactOptions::default(),
             reserve_optimal_force: 1.0,
             opensim_files: false,
+            static_optimization: StaticOptimizationOptions::default(),
         }
     }
 }
@@ -304,7 +307,7 @@ impl Chain {
             targets.rate_hz,
         )?;
         let set = set.with_floor(states.floor);
-        let so = StaticOptimization::new(&model, StaticOptimizationOptions::default())?;
+        let so = StaticOptimization::new(&model, self.options.static_optimization.clone())?;
         let layout = JointLayout::new(&model, so.muscles.muscles.len());
         let mut per_frame = FrameArrays::new(&model, &so, &set, &layout, frames);
         let mut data = Data::new(&model);
