@@ -56,7 +56,6 @@
 //! naming the argument and the sample; nothing panics and nothing is clamped silently.
 
 use crate::model::ForceElement;
-use crate::model::natural_spline::NaturalSpline;
 use crate::{Error, Result};
 
 /// The most RK4 steps one call to [`ActivationDynamics::integrate`] may take.
@@ -567,15 +566,14 @@ impl ActivationDynamics {
         check_samples(time, activation, "activation", 2)?;
         let (lo, hi) = self.range();
         check_range(activation, "activation", lo, hi)?;
-        let spline = NaturalSpline::interpolating(2, time.to_vec(), activation.to_vec())
-            .map_err(|m| Error::invalid("time", m))?;
+        let slopes = natural_cubic_slopes(time, activation);
         let mut estimate = ExcitationEstimate {
             excitation: Vec::with_capacity(time.len()),
             activation_rate: Vec::with_capacity(time.len()),
             clamped: Vec::new(),
         };
         for (index, (&t, &a)) in time.iter().zip(activation).enumerate() {
-            let rate = spline.derivative(t, 1);
+            let rate = slopes[index];
             let required = self.excitation_for_rate(a, rate);
             let applied = required.clamp(lo, hi);
             if applied != required {
@@ -591,6 +589,45 @@ impl ActivationDynamics {
         }
         Ok(estimate)
     }
+}
+
+/// The slopes s′(tᵢ) at the knots of the natural cubic spline s through (tᵢ, yᵢ) (s″ = 0 at
+/// both ends): the second derivatives Mᵢ solve the tridiagonal system
+///   hᵢ₋₁ Mᵢ₋₁ + 2(hᵢ₋₁ + hᵢ) Mᵢ + hᵢ Mᵢ₊₁ = 6 (dᵢ − dᵢ₋₁),  M₀ = Mₙ₋₁ = 0,
+/// with hᵢ = tᵢ₊₁ − tᵢ and dᵢ = (yᵢ₊₁ − yᵢ)/hᵢ (solved by the Thomas algorithm, the system being
+/// diagonally dominant), and then s′(tᵢ) = dᵢ − hᵢ(2Mᵢ + Mᵢ₊₁)/6, s′(tₙ₋₁) = dₙ₋₂ +
+/// hₙ₋₂(Mₙ₋₂ + 2Mₙ₋₁)/6. O(n), the same spline as `NaturalSpline::interpolating(2, …)`.
+/// Needs n ≥ 2 samples with increasing times (checked by the caller).
+pub fn natural_cubic_slopes(t: &[f64], y: &[f64]) -> Vec<f64> {
+    let n = t.len();
+    let h: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let d: Vec<f64> = (0..n - 1).map(|i| (y[i + 1] - y[i]) / h[i]).collect();
+    let mut m = vec![0.0; n];
+    if n > 2 {
+        // interior unknowns M₁ … Mₙ₋₂: forward elimination, then back substitution
+        let k = n - 2;
+        let mut diag = vec![0.0; k];
+        let mut rhs = vec![0.0; k];
+        for j in 0..k {
+            let i = j + 1;
+            diag[j] = 2.0 * (h[i - 1] + h[i]);
+            rhs[j] = 6.0 * (d[i] - d[i - 1]);
+            if j > 0 {
+                let w = h[i - 1] / diag[j - 1];
+                diag[j] -= w * h[i - 1];
+                rhs[j] -= w * rhs[j - 1];
+            }
+        }
+        for j in (0..k).rev() {
+            let upper = if j + 1 < k { h[j + 1] * m[j + 2] } else { 0.0 };
+            m[j + 1] = (rhs[j] - upper) / diag[j];
+        }
+    }
+    let mut slopes: Vec<f64> = (0..n - 1)
+        .map(|i| d[i] - h[i] * (2.0 * m[i] + m[i + 1]) / 6.0)
+        .collect();
+    slopes.push(d[n - 2] + h[n - 2] * (m[n - 2] + 2.0 * m[n - 1]) / 6.0);
+    slopes
 }
 
 /// At least `min` samples, equal lengths, finite values, strictly increasing time.

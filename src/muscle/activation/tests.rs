@@ -462,3 +462,32 @@ fn from_muscle_reads_properties_and_class_defaults() {
     );
     assert_eq!(error(&muscle("McKibbenActuator", &[])), 7);
 }
+
+#[test]
+fn natural_cubic_slopes_match_the_general_natural_spline() {
+    use crate::model::natural_spline::NaturalSpline;
+    let t: Vec<f64> = (0..40)
+        .map(|i| i as f64 * 0.05 + 0.01 * ((i * 7 % 5) as f64))
+        .collect();
+    let y: Vec<f64> = t
+        .iter()
+        .map(|&x| (3.0 * x).sin() + 0.2 * (11.0 * x).cos())
+        .collect();
+    let slopes = super::natural_cubic_slopes(&t, &y);
+    let spline = NaturalSpline::interpolating(2, t.clone(), y.clone()).unwrap();
+    for (i, &ti) in t.iter().enumerate() {
+        let expected = spline.derivative(ti, 1);
+        assert!(
+            (slopes[i] - expected).abs() < 1e-9 * (1.0 + expected.abs()),
+            "{i}: {} vs {expected}",
+            slopes[i]
+        );
+    }
+    // two samples: the straight line; three: against the spline too
+    assert!((super::natural_cubic_slopes(&[0.0, 2.0], &[1.0, 5.0])[1] - 2.0).abs() < 1e-15);
+    let s3 = super::natural_cubic_slopes(&t[..3], &y[..3]);
+    let sp3 = NaturalSpline::interpolating(2, t[..3].to_vec(), y[..3].to_vec()).unwrap();
+    for i in 0..3 {
+        assert!((s3[i] - sp3.derivative(t[i], 1)).abs() < 1e-9);
+    }
+}
