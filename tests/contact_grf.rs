@@ -11,7 +11,10 @@
 
 mod common;
 
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
 use common::reference_file;
+use counting_alloc::allocations;
 use musculo::Model;
 use musculo::dynamics::{self, Data};
 use musculo::io::Table;
@@ -24,33 +27,6 @@ use musculo::solve::inverse_dynamics::prepare_coordinates;
 use musculo::solve::kinematics::Differentiation;
 use musculo::solve::qp::QpStatus;
 use musculo::spatial::Vec3;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-/// Counts this thread's allocations, to check that the per-frame distribution allocates
-/// nothing.
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 /// Figures of one walk; errors per foot pooled over both feet and all frames.
 struct WalkFigures {
@@ -174,7 +150,7 @@ fn walk(
         let r = f * nq..(f + 1) * nq;
         let id = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r]).unwrap();
         tau.copy_from_slice(id.as_slice());
-        let allocations = ALLOCATIONS.with(|c| c.get());
+        let allocated_before = allocations();
         let t0 = std::time::Instant::now();
         workspace
             .distribute(
@@ -190,8 +166,8 @@ fn walk(
         solve_time += t0.elapsed().as_secs_f64();
         ground_reaction(&set, &frame, &mut wrenches).unwrap();
         assert_eq!(
-            ALLOCATIONS.with(|c| c.get()),
-            allocations,
+            allocations(),
+            allocated_before,
             "t = {t}: distribute and ground_reaction allocated"
         );
         if let Some(mu) = options.friction {

@@ -11,40 +11,17 @@
 //! uses the copy the reference data keeps from that earlier step, and says so.
 
 mod common;
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
 use common::*;
+use counting_alloc::allocations;
 use musculo::Model;
 use musculo::io::Table;
 use musculo::io::setup::InverseDynamicsSetup;
 use musculo::model::LoadOptions;
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::inverse_dynamics::{InverseDynamicsOptions, inverse_dynamics};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::PathBuf;
-
-/// Counts this thread's allocations, to check that the per-row loop allocates nothing.
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 struct Row {
     label: String,
@@ -350,7 +327,7 @@ fn inverse_dynamics_allocates_nothing_per_row() {
         &coordinates_path.display().to_string(),
         Some(&loads),
         &InverseDynamicsOptions::from_setup(&setup),
-        &mut |_, _| counts.push(ALLOCATIONS.with(|c| c.get())),
+        &mut |_, _| counts.push(allocations()),
     )
     .unwrap();
     assert_eq!(counts.len(), 151);
