@@ -911,74 +911,33 @@ impl FrameArrays {
                 values,
             });
         }
-        let m = layout.n_muscles;
-        let g = self.groups;
+        let (m, g, nf) = (layout.n_muscles, self.groups, self.floating.len());
         let p = self.contact_state.len() / frames.max(1);
-        arrays.push(Array {
-            name: "x",
-            shape: vec![frames, width],
-            values: self.x,
-        });
+        let mut push = |name: &'static str, shape: &[usize], values: Vec<f32>| {
+            let mut full = vec![frames];
+            full.extend_from_slice(shape);
+            arrays.push(Array {
+                name,
+                shape: full,
+                values,
+            });
+        };
+        push("x", &[width], self.x);
         for (name, v) in [("q", q), ("qd", qd), ("qdd", qdd), ("tau", &self.tau[..])] {
-            arrays.push(Array {
-                name,
-                shape: vec![frames, n],
-                values: f32s(v),
-            });
+            push(name, &[n], f32s(v));
         }
-        arrays.push(Array {
-            name: "external",
-            shape: vec![frames, n],
-            values: self.external,
-        });
-        arrays.push(Array {
-            name: "grf",
-            shape: vec![frames, g, 3],
-            values: self.grf,
-        });
-        arrays.push(Array {
-            name: "cop",
-            shape: vec![frames, g, 3],
-            values: self.cop,
-        });
-        arrays.push(Array {
-            name: "free_moment",
-            shape: vec![frames, g],
-            values: self.free_moment,
-        });
-        arrays.push(Array {
-            name: "contact_point_force",
-            shape: vec![frames, p, 3],
-            values: self.contact_point_force,
-        });
-        arrays.push(Array {
-            name: "contact_point_pos",
-            shape: vec![frames, p, 3],
-            values: self.contact_point_pos,
-        });
-        arrays.push(Array {
-            name: "contact_state",
-            shape: vec![frames, p],
-            values: self.contact_state,
-        });
-        for (name, v) in [
-            ("muscle_force", self.muscle_force),
-            ("muscle_length", self.muscle_length),
-            ("fiber_length", self.fiber_length),
-            ("fiber_velocity", self.fiber_velocity),
-        ] {
-            arrays.push(Array {
-                name,
-                shape: vec![frames, m],
-                values: v,
-            });
-        }
-        let nf = self.floating.len();
-        arrays.push(Array {
-            name: "residual",
-            shape: vec![frames, nf],
-            values: f32s(&self.residual),
-        });
+        push("external", &[n], self.external);
+        push("grf", &[g, 3], self.grf);
+        push("cop", &[g, 3], self.cop);
+        push("free_moment", &[g], self.free_moment);
+        push("contact_point_force", &[p, 3], self.contact_point_force);
+        push("contact_point_pos", &[p, 3], self.contact_point_pos);
+        push("contact_state", &[p], self.contact_state);
+        push("muscle_force", &[m], self.muscle_force);
+        push("muscle_length", &[m], self.muscle_length);
+        push("fiber_length", &[m], self.fiber_length);
+        push("fiber_velocity", &[m], self.fiber_velocity);
+        push("residual", &[nf], f32s(&self.residual));
         arrays
     }
 }
