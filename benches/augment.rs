@@ -98,6 +98,7 @@ fn main() {
             map: None,
             read: ReadOptions::default(),
             external_loads: None,
+            force_plates: false,
         };
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -6,7 +6,7 @@
 mod common;
 
 use common::reference_file;
-use musculo::augment::chain::{Chain, ChainOptions};
+use musculo::augment::chain::{Chain, ChainOptions, MeasuredLoads};
 use musculo::augment::output::{self, ClipStatus};
 use musculo::augment::perturb::{PerturbationRanges, Variant};
 use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
@@ -51,6 +51,7 @@ fn options(out: &Path) -> RunOptions {
         map: None,
         read: ReadOptions::default(),
         external_loads: None,
+        force_plates: false,
     }
 }
 
@@ -432,7 +433,12 @@ fn gait2392_walk_with_measured_and_estimated_ground_reactions() {
     let clip = motion::read(&trc, None, &ReadOptions::default()).unwrap();
     let v = Variant::identity();
     let measured = measured_chain
-        .run_with_loads(&clip, None, &v, Some(&loads))
+        .run_with_loads(
+            &clip,
+            None,
+            &v,
+            Some(&MeasuredLoads::ExternalLoads(loads.clone())),
+        )
         .unwrap();
     let estimated = estimated_chain.run(&clip, None, &v).unwrap();
     let dir = temp_dir("gait2392");
@@ -473,8 +479,58 @@ fn gait2392_walk_with_measured_and_estimated_ground_reactions() {
     variant.mass_scale = 1.1;
     assert!(
         measured_chain
-            .run_with_loads(&clip, None, &variant, Some(&loads))
+            .run_with_loads(
+                &clip,
+                None,
+                &variant,
+                Some(&MeasuredLoads::ExternalLoads(loads.clone()))
+            )
             .is_err()
     );
     let _ = std::fs::remove_dir_all(dir);
+}
+
+/// The C3D trials (OpenSim's walking2/walking5) through the chain with the c3d_lower_body map,
+/// with their force plates as measured loads and with the contact estimate.
+#[test]
+fn c3d_trials_end_to_end_with_force_plates_and_estimated_contacts() {
+    let chain = chain();
+    let map = SkeletonMap::builtin("c3d_lower_body").unwrap();
+    for trial in ["walking2", "walking5"] {
+        let Some(path) = reference_file(&format!("c3d/{trial}.c3d")) else {
+            return;
+        };
+        let clip = motion::read(&path, Some(Format::C3d), &ReadOptions::default()).unwrap();
+        let v = Variant::identity();
+        let plates = MeasuredLoads::ForcePlates(path.clone());
+        let measured = chain
+            .run_with_loads(&clip, Some(&map), &v, Some(&plates))
+            .unwrap();
+        let estimated = chain.run(&clip, Some(&map), &v).unwrap();
+        let dir = temp_dir(trial);
+        output::write_clip(&dir, "measured", &measured.arrays).unwrap();
+        output::write_clip(&dir, "estimated", &estimated.arrays).unwrap();
+        let model = chain.clip_model(&clip, Some(&map), &v).unwrap();
+        let wm = check_clip(&model, &output::npz_path(&dir, "measured"));
+        let we = check_clip(&model, &output::npz_path(&dir, "estimated"));
+        let (qm, qe) = (&measured.quality, &estimated.quality);
+        println!(
+            "{trial}: {} frames kept ({:?}), IK RMSE median {:.1} mm; plates — EL identity \
+             {wm:.1e}, reserves {:.2} %, unexplained force ≤ {:.2} BW (steps off the two \
+             plates); estimated — EL identity {we:.1e}, reserves {:.2} %",
+            qm.frames,
+            measured.warnings.first(),
+            qm.ik_rmse_median * 1e3,
+            100.0 * qm.reserve_share,
+            qm.residual_force_max_bw,
+            100.0 * qe.reserve_share
+        );
+        assert!(wm <= 1e-6 && we <= 1e-6);
+        assert!(qm.reserve_share < 0.05, "{}", qm.reserve_share);
+        // the plates carry load: the measured vertical force reaches body weight
+        let grf = &read_npz(&output::npz_path(&dir, "measured"))["grf"].1;
+        let peak = grf.chunks(3).map(|f| f[1]).fold(0.0f64, f64::max);
+        assert!(peak > 0.8 * qm.body_mass * 9.80665, "{peak}");
+        let _ = std::fs::remove_dir_all(dir);
+    }
 }

@@ -77,6 +77,20 @@ impl Default for ChainOptions {
     }
 }
 
+/// Measured ground reactions, used instead of the contact estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MeasuredLoads {
+    /// An OpenSim ExternalLoads file (and the data file it names).
+    ExternalLoads(std::path::PathBuf),
+    /// The force platforms of the clip's own C3D file: each plate's force, centre of pressure
+    /// and free moment (below 20 N of normal load a plate counts as unloaded) applied to the
+    /// calcaneus nearest its centre of pressure over the frames it is loaded.
+    ForcePlates(std::path::PathBuf),
+}
+
+/// Normal load (N) below which a force plate counts as unloaded.
+pub const PLATE_THRESHOLD: f64 = 20.0;
+
 /// One named float32 array of a clip's output.
 #[derive(Clone, Debug)]
 pub struct Array {
@@ -212,9 +226,9 @@ impl Chain {
         self.run_with_loads(motion, map, variant, None)
     }
 
-    /// [`Chain::run`] with measured ground reactions: the forces of an OpenSim ExternalLoads
-    /// file (`external_loads`, resolved against the clip's model) are used instead of the
-    /// contact estimate. They enter as Q = Σ Jᵀ w (array `external`), so the arrays satisfy
+    /// [`Chain::run`] with measured ground reactions (an OpenSim ExternalLoads file resolved
+    /// against the clip's model, or a C3D file's force plates) used instead of the contact
+    /// estimate. They enter as Q = Σ Jᵀ w (array `external`), so the arrays satisfy
     /// M q̈ + C q̇ + G = τ + Q; `grf`, `cop` and `free_moment` then report the measured
     /// forces per contact group (a force belongs to the group of the body it is applied to).
     /// The loads fix the body's dynamics, so only the identity variant is accepted.
@@ -223,7 +237,7 @@ impl Chain {
         motion: &Motion,
         map: Option<&SkeletonMap>,
         variant: &Variant,
-        external_loads: Option<&std::path::Path>,
+        external_loads: Option<&MeasuredLoads>,
     ) -> crate::Result<ClipOutput> {
         if external_loads.is_some() && *variant != Variant::identity() {
             return Err(Error::invalid(
@@ -235,13 +249,11 @@ impl Chain {
         let mut warnings = Vec::new();
         let motion = variant.apply_to_motion(motion)?;
         let (model, scaled_xml) = self.clip_model_and_xml(&motion, map, variant)?;
-        let loads = external_loads
-            .map(|p| ExternalLoadSet::read(&model, p))
-            .transpose()?;
         let (targets, tasks) = match map {
             Some(map) => map.apply(&model, &motion)?,
             None => (motion.clone(), ik::tasks_by_name(&model, &motion)),
         };
+        let targets = trim_to_data(&targets, &mut warnings)?;
         // --- inverse kinematics ---
         let solution = ik::solve_motion(&model, &targets, &tasks, &self.options.ik, &|_| {})?;
         let frames = solution.n_frames();
@@ -296,6 +308,11 @@ impl Chain {
         for v in q.iter_mut().chain(qd.iter_mut()).chain(qdd.iter_mut()) {
             *v = *v as f32 as f64;
         }
+        let loads = match external_loads {
+            None => None,
+            Some(MeasuredLoads::ExternalLoads(p)) => Some(ExternalLoadSet::read(&model, p)?),
+            Some(MeasuredLoads::ForcePlates(p)) => Some(plate_loads(&model, p, &times, &q)?),
+        };
         // --- contacts, inverse dynamics, static optimization, per frame ---
         let set = contact_set(&model)?;
         let states = contact::detect(
@@ -491,6 +508,120 @@ pub fn contact_set(model: &Model) -> crate::Result<ContactSet> {
             }
         }
     }
+}
+
+/// `motion` without its leading and trailing frames in which fewer than half of the targets
+/// are present (a capture volume's ends, where only a few markers are seen); a warning says
+/// how many were dropped. Gaps inside are left to IK (targets missing in a frame are left out
+/// there).
+fn trim_to_data(motion: &Motion, warnings: &mut Vec<String>) -> crate::Result<Motion> {
+    let n = motion.names.len();
+    let enough = |f: usize| {
+        let present = motion.frame(f).iter().filter(|p| p.x.is_finite()).count();
+        2 * present >= n
+    };
+    let frames = motion.n_frames();
+    let Some(first) = (0..frames).find(|&f| enough(f)) else {
+        return Err(Error::Motion {
+            file: motion.source.clone(),
+            location: "every frame".into(),
+            message: format!("fewer than half of the {n} targets are present in any frame"),
+        });
+    };
+    let last = (0..frames).rev().find(|&f| enough(f)).unwrap_or(first);
+    if first == 0 && last + 1 == frames {
+        return Ok(motion.clone());
+    }
+    warnings.push(format!(
+        "{}: frames {first}–{last} of {frames} kept (fewer than half of the targets outside)",
+        motion.source
+    ));
+    motion.time_window(motion.time[first], motion.time[last])
+}
+
+/// The force plates of the C3D file `path` as measured loads on `model`: each plate's force,
+/// centre of pressure and free moment (ground frame, OpenSim axes) applied to `calcn_r` or
+/// `calcn_l`, whichever lies nearer the plate's centre of pressure on average over the frames
+/// the plate is loaded (poses from `q` at `times`, the C3D's marker clock). A plate never
+/// loaded is left out.
+fn plate_loads(
+    model: &Model,
+    path: &std::path::Path,
+    times: &[f64],
+    q: &[f64],
+) -> crate::Result<ExternalLoadSet> {
+    use crate::io::external_loads::{ExternalForce, ExternalLoads};
+    let c3d = crate::motion::c3d::C3d::read(path)?;
+    let table = c3d.ground_reactions(PLATE_THRESHOLD)?;
+    let feet = ["calcn_r", "calcn_l"].map(|b| model.body_index(b));
+    let [Some(right), Some(left)] = feet else {
+        return Err(Error::invalid(
+            "force plates",
+            format!(
+                "{}: assigning plates to feet needs bodies calcn_r and calcn_l, which model {} \
+                 lacks",
+                path.display(),
+                model.name
+            ),
+        ));
+    };
+    let n = model.nq();
+    let mut data = Data::new(model);
+    let columns = table.labels.len();
+    let mut forces = Vec::new();
+    for plate in 1..=c3d.plates.len() {
+        let col = |name: &str| {
+            table
+                .labels
+                .iter()
+                .position(|l| *l == format!("plate{plate}_{name}"))
+        };
+        let (Some(fy), Some(px)) = (col("force_vy"), col("force_px")) else {
+            continue;
+        };
+        // mean distance of the COP to each calcaneus over the loaded samples (nearest pose)
+        let (mut d_right, mut d_left, mut count) = (0.0, 0.0, 0usize);
+        for (row, &t) in table.time.iter().enumerate() {
+            let v = &table.values[row * columns..(row + 1) * columns];
+            if v[fy] == 0.0 {
+                continue;
+            }
+            let f = times.partition_point(|&x| x < t).min(times.len() - 1);
+            if (times[f] - t).abs() > 0.5 * (times[1] - times[0]).abs().max(1e-9) {
+                continue;
+            }
+            crate::dynamics::forward_kinematics(model, &mut data, &q[f * n..(f + 1) * n])?;
+            let cop = Vec3::new(v[px], v[px + 1], v[px + 2]);
+            d_right += (data.body_pose(right).1 - cop).norm();
+            d_left += (data.body_pose(left).1 - cop).norm();
+            count += 1;
+        }
+        if count == 0 {
+            continue;
+        }
+        let body = if d_right <= d_left {
+            "calcn_r"
+        } else {
+            "calcn_l"
+        };
+        forces.push(ExternalForce {
+            name: format!("plate{plate}"),
+            applied_to_body: body.into(),
+            force_expressed_in_body: "ground".into(),
+            point_expressed_in_body: "ground".into(),
+            force_identifier: Some(format!("plate{plate}_force_v")),
+            point_identifier: Some(format!("plate{plate}_force_p")),
+            torque_identifier: Some(format!("plate{plate}_torque_")),
+            line: 0,
+        });
+    }
+    let source = path.display().to_string();
+    let loads = ExternalLoads {
+        source: source.clone(),
+        datafile: None,
+        forces,
+    };
+    ExternalLoadSet::new(model, &loads, &table, &source)
 }
 
 /// The contact group of each force of `loads` (by the body it is applied to).

@@ -7,7 +7,7 @@
 //! list of inputs, so any scheduler (a Slurm array, a Kubernetes Indexed Job, Dask, Ray) can
 //! run the shards anywhere and `musculo merge` puts them together.
 
-use super::chain::{Chain, ClipOutput};
+use super::chain::{Chain, ClipOutput, MeasuredLoads};
 use super::output::{
     self, ClipRecord, ClipStatus, LayoutDescription, Manifest, RunDescription, SHARDS,
 };
@@ -56,6 +56,8 @@ pub struct RunOptions {
     /// Measured ground reactions (an OpenSim ExternalLoads file) for a run of one clip, used
     /// instead of the contact estimate (see [`Chain::run_with_loads`]).
     pub external_loads: Option<PathBuf>,
+    /// Use each C3D input's own force plates as measured ground reactions.
+    pub force_plates: bool,
 }
 
 /// Progress after each clip.
@@ -217,6 +219,12 @@ pub fn run(
         ));
     }
     options.perturbation.validate()?;
+    if options.force_plates && options.variants != 1 {
+        return Err(Error::invalid(
+            "--force-plates",
+            "measured loads belong to the recorded trial: no variants with --force-plates",
+        ));
+    }
     if options.external_loads.is_some() && (clips.len() != 1 || options.variants != 1) {
         return Err(Error::invalid(
             "--external-loads",
@@ -405,10 +413,21 @@ fn process(
                 }
                 (None, None) => None,
             };
-            chain.run_with_loads(&motion, map, variant, options.external_loads.as_deref())
+            let loads = match (&options.external_loads, options.force_plates) {
+                (Some(p), _) => Some(MeasuredLoads::ExternalLoads(p.clone())),
+                (None, true) if *format == Format::C3d => {
+                    Some(MeasuredLoads::ForcePlates(path.clone()))
+                }
+                _ => None,
+            };
+            chain.run_with_loads(&motion, map, variant, loads.as_ref())
         }
         ClipSource::Motion(motion) => {
-            chain.run_with_loads(motion, None, variant, options.external_loads.as_deref())
+            let loads = options
+                .external_loads
+                .clone()
+                .map(MeasuredLoads::ExternalLoads);
+            chain.run_with_loads(motion, None, variant, loads.as_ref())
         }
     }
 }

@@ -117,13 +117,17 @@ fn one() -> f64 {
 }
 
 /// The built-in maps: (name, file text).
-const BUILTIN: [(&str, &str); 3] = [
+const BUILTIN: [(&str, &str); 4] = [
     (
         "humanml3d",
         include_str!("../../data/skeletons/humanml3d.json"),
     ),
     ("kit", include_str!("../../data/skeletons/kit.json")),
     ("cmu_bvh", include_str!("../../data/skeletons/cmu_bvh.json")),
+    (
+        "c3d_lower_body",
+        include_str!("../../data/skeletons/c3d_lower_body.json"),
+    ),
 ];
 
 impl SkeletonMap {

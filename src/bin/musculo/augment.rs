@@ -67,6 +67,10 @@ pub struct Args {
     /// data file), used instead of the estimate from kinematics.
     #[arg(long)]
     external_loads: Option<PathBuf>,
+    /// Use each C3D input's force plates as measured ground reactions (each plate applied to
+    /// the calcaneus nearest its centre of pressure).
+    #[arg(long)]
+    force_plates: bool,
     /// Also write OpenSim files per clip: `<clip>_ik.mot`, `_tau.sto`, `_activation.sto`,
     /// `_grf.mot` and the scaled model `<clip>.osim`, so a clip opens in OpenSim's GUI.
     #[arg(long)]
@@ -166,6 +170,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         map,
         read,
         external_loads: args.external_loads.clone(),
+        force_plates: args.force_plates,
     };
     let mine = runner::shard_clips(&clips, shard).len() * args.variants.max(1);
     let bar = ProgressBar::new(mine as u64).with_style(

@@ -32,7 +32,7 @@ pub struct Args {
     /// and the array shape for .npy).
     #[arg(long, value_parser = Format::parse)]
     format: Option<Format>,
-    /// Skeleton map: a built-in name (humanml3d, kit, cmu_bvh) or a JSON file. Default:
+    /// Skeleton map: a built-in name (humanml3d, kit, cmu_bvh, c3d_lower_body) or a JSON file. Default:
     /// the format's built-in map; markers (.trc, .c3d) are matched to the model's markers
     /// by name.
     #[arg(long)]
