@@ -26,7 +26,7 @@ if [ ${#mode[@]} -eq 0 ]; then
 fi
 
 status=0
-for check in ik_compare scale_compare; do
+for check in ik_compare scale_compare augment_speed; do
     echo "== OpenSim side by side: $check ${mode[*]:-}"
     "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
 done
