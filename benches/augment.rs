@@ -11,7 +11,7 @@
 //! Run: `cargo bench --bench augment`.
 
 use musculo::augment::chain::{Chain, ChainOptions};
-use musculo::augment::perturb::{PerturbationRanges, Variant};
+use musculo::augment::perturb::Variant;
 use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
 use musculo::augment::{demo, describe};
 use musculo::motion::skeleton::SkeletonMap;
@@ -88,18 +88,7 @@ fn main() {
         let clips = copies(k);
         let out = std::env::temp_dir().join(format!("musculo-bench-augment-{threads}-{k}"));
         let _ = std::fs::remove_dir_all(&out);
-        let options = RunOptions {
-            out: out.clone(),
-            variants: 1,
-            seed: 0,
-            perturbation: PerturbationRanges::default(),
-            shard: None,
-            resume: false,
-            map: None,
-            read: ReadOptions::default(),
-            external_loads: None,
-            force_plates: false,
-        };
+        let options = RunOptions::new(&out);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()

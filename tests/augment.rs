@@ -8,7 +8,7 @@ mod common;
 use common::reference_file;
 use musculo::augment::chain::{Chain, ChainOptions, MeasuredLoads};
 use musculo::augment::output::{self, ClipStatus};
-use musculo::augment::perturb::{PerturbationRanges, Variant};
+use musculo::augment::perturb::Variant;
 use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
 use musculo::augment::{demo, describe};
 use musculo::motion::skeleton::SkeletonMap;
@@ -41,18 +41,7 @@ fn demo_inputs(chain: &Chain) -> Vec<ClipInput> {
 }
 
 fn options(out: &Path) -> RunOptions {
-    RunOptions {
-        out: out.to_path_buf(),
-        variants: 1,
-        seed: 0,
-        perturbation: PerturbationRanges::default(),
-        shard: None,
-        resume: false,
-        map: None,
-        read: ReadOptions::default(),
-        external_loads: None,
-        force_plates: false,
-    }
+    RunOptions::new(out)
 }
 
 fn temp_dir(name: &str) -> PathBuf {

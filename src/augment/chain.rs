@@ -687,7 +687,7 @@ fn opensim_tables(
     frames: &FrameArrays,
 ) -> crate::Result<Vec<(&'static str, Table)>> {
     use crate::model::MotionType;
-    use crate::solve::inverse_dynamics::generalized_force_label;
+    use crate::solve::inverse_dynamics::generalized_force_labels;
     let n = model.nq();
     let mut data = Data::new(model);
     let mut values = Vec::with_capacity(time.len() * model.coordinates.len());
@@ -704,12 +704,7 @@ fn opensim_tables(
     let labels = model.coordinates.iter().map(|c| c.name.clone()).collect();
     let mut ik = Table::new("Coordinates", labels, time.to_vec(), values)?;
     ik.in_degrees = Some(true);
-    let labels = model
-        .reduction
-        .independent
-        .iter()
-        .map(|&c| generalized_force_label(model, c))
-        .collect();
+    let labels = generalized_force_labels(model);
     let mut tau = Table::new(
         "Inverse Dynamics",
         labels,

@@ -60,6 +60,25 @@ pub struct RunOptions {
     pub force_plates: bool,
 }
 
+impl RunOptions {
+    /// One variant per clip, seed 0, the default perturbation ranges, no shard, no resume,
+    /// each format's built-in map, default reading, contacts estimated.
+    pub fn new(out: impl Into<PathBuf>) -> RunOptions {
+        RunOptions {
+            out: out.into(),
+            variants: 1,
+            seed: 0,
+            perturbation: PerturbationRanges::default(),
+            shard: None,
+            resume: false,
+            map: None,
+            read: ReadOptions::default(),
+            external_loads: None,
+            force_plates: false,
+        }
+    }
+}
+
 /// Progress after each clip.
 #[derive(Clone, Copy, Debug)]
 pub struct Progress {

@@ -142,6 +142,16 @@ pub fn generalized_force_label(model: &Model, c: usize) -> String {
     }
 }
 
+/// [`generalized_force_label`] of every independent coordinate, in q order.
+pub fn generalized_force_labels(model: &Model) -> Vec<String> {
+    model
+        .reduction
+        .independent
+        .iter()
+        .map(|&c| generalized_force_label(model, c))
+        .collect()
+}
+
 /// Prepares the independent coordinates of `model` from `table` (read from `source`, named in
 /// errors) as OpenSim's ID tool does (module documentation, steps 1–3), which is also how its
 /// Analyze tool prepares them for static optimization. `differentiation` picks q̈: the ID
@@ -417,12 +427,7 @@ pub fn inverse_dynamics(
         }
         progress(k + 1, rows);
     }
-    let labels = model
-        .reduction
-        .independent
-        .iter()
-        .map(|&c| generalized_force_label(model, c))
-        .collect();
+    let labels = generalized_force_labels(model);
     let mut table = Table::new(
         "Inverse Dynamics Generalized Forces",
         labels,

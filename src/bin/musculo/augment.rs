@@ -2,13 +2,13 @@
 //! and muscle activations out (see `musculo::augment`); and `musculo merge`, which puts the
 //! shards of a run together.
 
-use crate::tool::{model_text, skeleton_map};
+use crate::tool::{invalid, model_text, read_options, skeleton_map};
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::augment::chain::{Chain, ChainOptions};
 use musculo::augment::perturb::PerturbationRanges;
 use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
 use musculo::augment::{demo, describe};
-use musculo::motion::{self, Format, ReadOptions};
+use musculo::motion::Format;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -83,13 +83,6 @@ pub struct MergeArgs {
     out: PathBuf,
 }
 
-fn invalid(argument: &'static str, message: impl Into<String>) -> musculo::Error {
-    musculo::Error::InvalidArgument {
-        argument,
-        message: message.into(),
-    }
-}
-
 fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
     let bad = || {
         invalid(
@@ -146,20 +139,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         (Some(m), None) => skeleton_map(Some(m), Format::Trc)?,
         (None, _) => None,
     };
-    let read = ReadOptions {
-        length_unit: args
-            .length_unit
-            .as_deref()
-            .map(|u| {
-                motion::LengthUnit::parse(u).ok_or_else(|| {
-                    invalid(
-                        "--length-unit",
-                        format!("`{u}`: use m, cm, mm, in or a number"),
-                    )
-                })
-            })
-            .transpose()?,
-    };
+    let read = read_options(args.length_unit.as_deref())?;
     let run_options = RunOptions {
         out: args.out.clone(),
         variants: args.variants,

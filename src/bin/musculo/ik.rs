@@ -3,7 +3,9 @@
 //! it. Either an OpenSim InverseKinematicsTool setup (`--setup`), or a motion dataset file
 //! mapped onto a model's markers by a skeleton map.
 
-use crate::tool::{FrameProgress, create_parent_dir, missing, model_text, skeleton_map};
+use crate::tool::{
+    FrameProgress, create_parent_dir, invalid, missing, model_text, read_options, skeleton_map,
+};
 use musculo::io::Table;
 use musculo::io::ik_setup::IkSetup;
 use musculo::model::{LoadOptions, Model};
@@ -62,13 +64,6 @@ pub struct Args {
     /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
     #[arg(long)]
     allow_nonphysical_inertia: bool,
-}
-
-fn invalid(argument: &'static str, message: impl Into<String>) -> musculo::Error {
-    musculo::Error::InvalidArgument {
-        argument,
-        message: message.into(),
-    }
 }
 
 fn parse_bounds(text: Option<&str>, default: Bounds) -> Bounds {
@@ -266,20 +261,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
     };
     let (base_xml, base_source) = model_text(args.model.as_deref())?;
     let base_model = Model::from_osim_str_with(&base_xml, &base_source, &load)?;
-    let options = ReadOptions {
-        length_unit: args
-            .length_unit
-            .as_deref()
-            .map(|u| {
-                motion::LengthUnit::parse(u).ok_or_else(|| {
-                    invalid(
-                        "--length-unit",
-                        format!("`{u}`: use m, cm, mm, in or a number"),
-                    )
-                })
-            })
-            .transpose()?,
-    };
+    let options = read_options(args.length_unit.as_deref())?;
     let auto_scale = match args.scale.as_deref() {
         None => false,
         Some("auto") => true,

@@ -110,3 +110,29 @@ pub fn skeleton_map(
         None => format.default_map().map(SkeletonMap::builtin).transpose(),
     }
 }
+
+/// An invalid command-line argument.
+pub fn invalid(argument: &'static str, message: impl Into<String>) -> musculo::Error {
+    musculo::Error::InvalidArgument {
+        argument,
+        message: message.into(),
+    }
+}
+
+/// The motion readers' options from `--length-unit` (m, cm, mm, in or metres per unit).
+pub fn read_options(
+    length_unit: Option<&str>,
+) -> Result<musculo::motion::ReadOptions, musculo::Error> {
+    Ok(musculo::motion::ReadOptions {
+        length_unit: length_unit
+            .map(|u| {
+                musculo::motion::LengthUnit::parse(u).ok_or_else(|| {
+                    invalid(
+                        "--length-unit",
+                        format!("`{u}`: use m, cm, mm, in or a number"),
+                    )
+                })
+            })
+            .transpose()?,
+    })
+}
