@@ -13,3 +13,53 @@ pub mod storage;
 pub mod trc;
 
 pub use storage::{Dialect, ReadOptions, RepeatedTime, Table};
+
+use std::path::{Path, PathBuf};
+
+/// Something a reader accepted but the user should know about (a header count that
+/// disagrees with the data, a repeated time dropped, a setting not applied). Readers return
+/// these; they never print them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileWarning {
+    pub file: String,
+    /// 1-based line of the file.
+    pub line: u32,
+    /// The element, column or header key, e.g. `header "nRows"`, `column "time"`,
+    /// `AnalyzeTool "arm26" > <speeds_file>`.
+    pub element: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for FileWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}:{}: {}: {}",
+            self.file, self.line, self.element, self.message
+        )
+    }
+}
+
+/// A data-file path written in a setup or ExternalLoads file, resolved against the directory
+/// `base` of that file, as OpenSim's tools resolve it. A path written on Windows
+/// (`..\grf.mot`) names a file elsewhere: when the path as written does not exist and holds
+/// a backslash, the backslashes are read as separators (a backslash is legal in a Unix file
+/// name, so a file that exists as written wins). Every reader that takes a path from a
+/// setup or ExternalLoads file goes through here.
+pub fn resolve_data_path(base: &Path, written: &str) -> PathBuf {
+    let written = written.trim();
+    let as_written = base.join(written);
+    if !written.contains('\\') || std::path::MAIN_SEPARATOR == '\\' || as_written.exists() {
+        return as_written;
+    }
+    // An absolute Windows path (`C:\data\grf.mot`) keeps `C:` as a relative first
+    // component: it cannot name a file here either way, and the error will show it.
+    let parts = written.split(['\\', '/']).filter(|p| !p.is_empty());
+    let mut resolved = if written.starts_with(['\\', '/']) {
+        PathBuf::from("/")
+    } else {
+        base.to_path_buf()
+    };
+    resolved.extend(parts);
+    resolved
+}

@@ -20,25 +20,8 @@ use crate::error::Error;
 use roxmltree::{Document, Node};
 use std::path::{Path, PathBuf};
 
-/// A setting read but not applied, or not understood.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SetupWarning {
-    pub file: String,
-    pub line: u32,
-    /// The element, e.g. `AnalyzeTool "arm26" > <speeds_file>`.
-    pub element: String,
-    pub message: String,
-}
-
-impl std::fmt::Display for SetupWarning {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{}:{}: {}: {}",
-            self.file, self.line, self.element, self.message
-        )
-    }
-}
+/// A setting read but not applied, or not understood (the readers' common warning type).
+pub type SetupWarning = super::FileWarning;
 
 /// The settings of an OpenSim `InverseDynamicsTool`.
 #[derive(Clone, Debug, PartialEq)]

@@ -14,9 +14,11 @@
 //!   `otherdata 1`, with no `version` line.
 //!
 //! The structural keys (`version`, `nRows`/`nr`/`datarows`, `nColumns`/`nc`/`datacolumns`,
-//! `range`, `inDegrees`, `DataType`, `OpenSimVersion`, the name) are interpreted and checked:
-//! declared row and column counts must match the data, so a truncated file is an error, not
-//! a shorter table. Other `key=value` lines are kept in [`Table::metadata`] and the remaining
+//! `range`, `inDegrees`, `DataType`, `OpenSimVersion`, the name) are interpreted and checked.
+//! A declared column count must match the label row (a mismatch is an error). A declared
+//! row count that disagrees with the rows the file holds is a warning (OpenSim reads the
+//! rows; so does this reader, and [`Table::warnings`] names the header line and both
+//! counts). Other `key=value` lines are kept in [`Table::metadata`] and the remaining
 //! free text in [`Table::description`], both in file order. Only `DataType=double` is
 //! supported.
 //!
@@ -35,10 +37,22 @@
 //! label)` for a surplus value — or `header "nRows"` for a header line, or `table`. A
 //! message about a data row also gives its row index, counted from 0 as in
 //! [`Table::time`]. Values must be finite numbers, every row must have one value per
-//! label, time must increase strictly (OpenSim's CMC, RRA and forward tools sometimes
-//! repeat a time; [`ReadOptions::repeated_time`] can accept that, reporting what it left
-//! out), labels must be unique and the table must have rows.
-//! I/O failures are [`Error::Io`] with the path. Nothing is ever repaired silently.
+//! label, time must not decrease, labels must be unique and the table must have rows.
+//!
+//! # Repeated times
+//!
+//! OpenSim's CMC, RRA and forward tools sometimes record the state at one time twice, with
+//! the time equal or differing in the last digits (a repeat 6.6e-14 s apart at the end of a
+//! 100 Hz motion). Both are the same sample, and keeping both makes a spline through the
+//! column ring over the last frames. A row whose time is within [`REPEAT_TOLERANCE`] × the
+//! median sampling interval (the median of the positive steps between rows) of the
+//! previous kept row's is a repeat: by default ([`RepeatedTime::KeepFirst`]) it is left
+//! out, with a warning naming its line and time; [`ReadOptions::repeated_time`] can keep
+//! the last of the repeats instead, or make them an error. A time earlier than the previous
+//! row's by more than the tolerance is always an error.
+//!
+//! I/O failures are [`Error::Io`] with the path. Nothing is ever repaired silently: every
+//! departure from the header or from strictly increasing time is in [`Table::warnings`].
 //!
 //! # Writing
 //!
@@ -52,6 +66,7 @@
 //! destination under a temporary name and renamed into place, so an interrupted write leaves
 //! the old file or none, never half a file.
 
+use crate::io::FileWarning;
 use crate::{Error, Result};
 
 mod read;
@@ -94,32 +109,40 @@ pub struct Table {
     pub time: Vec<f64>,
     /// Row-major values, `time.len() * labels.len()` of them.
     pub values: Vec<f64>,
-    /// File lines of rows left out because their time repeated a neighbour's; empty unless
-    /// [`ReadOptions::repeated_time`] asked for it.
+    /// File lines of rows left out because their time repeated a neighbour's (module
+    /// documentation, "Repeated times").
     pub dropped_repeated_rows: Vec<u32>,
+    /// What the reader accepted but the caller should tell the user: a row count in the
+    /// header that disagrees with the data, repeated times dropped. Empty for tables built
+    /// in memory.
+    pub warnings: Vec<FileWarning>,
 }
 
-/// What to do with a row whose time equals the previous row's.
+/// Two rows whose times differ by at most this fraction of the median sampling interval are
+/// one sample recorded twice (module documentation, "Repeated times"). A millionth of a
+/// step is far below any real sampling jitter and far above the rounding of printed times.
+pub const REPEAT_TOLERANCE: f64 = 1e-6;
+
+/// What to do with a row whose time repeats the previous row's (within
+/// [`REPEAT_TOLERANCE`] of the sampling interval).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum RepeatedTime {
-    /// An error naming the row (the default).
-    #[default]
+    /// An error naming the row.
     Error,
-    /// Keep the first of the rows with that time; list the others' lines in
-    /// [`Table::dropped_repeated_rows`].
+    /// Keep the first of the rows with that time (the default); list the others' lines in
+    /// [`Table::dropped_repeated_rows`], with a warning for each.
+    #[default]
     KeepFirst,
     /// Keep the last of the rows with that time; list the others' lines in
-    /// [`Table::dropped_repeated_rows`].
+    /// [`Table::dropped_repeated_rows`], with a warning for each.
     KeepLast,
 }
 
-/// Options for [`Table::parse_with`] / [`Table::read_with`]. The default is strict.
+/// Options for [`Table::parse_with`] / [`Table::read_with`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ReadOptions {
-    /// OpenSim's CMC, RRA and forward tools sometimes record the state at one time twice
-    /// (at the start or end of a run, with values equal or differing in the last digits).
-    /// Such files are errors by default; `KeepFirst` or `KeepLast` reads them, reporting the
-    /// rows left out. A time earlier than the previous row's is always an error.
+    /// What to do with a repeated time (module documentation, "Repeated times"): keep the
+    /// first row by default.
     pub repeated_time: RepeatedTime,
 }
 
@@ -229,6 +252,7 @@ impl Table {
             time,
             values,
             dropped_repeated_rows: Vec::new(),
+            warnings: Vec::new(),
         };
         table.validate()?;
         Ok(table)

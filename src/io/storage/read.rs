@@ -5,9 +5,10 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use super::{
-    Dialect, HeaderLine, ReadOptions, RepeatedTime, Table, classify_header_line,
-    looks_like_data_row,
+    Dialect, HeaderLine, REPEAT_TOLERANCE, ReadOptions, RepeatedTime, Table,
+    classify_header_line, looks_like_data_row,
 };
+use crate::io::FileWarning;
 use crate::{Error, Result};
 
 fn line_u32(index: usize) -> u32 {
@@ -63,6 +64,7 @@ impl Table {
             time: Vec::new(),
             values: Vec::new(),
             dropped_repeated_rows: Vec::new(),
+            warnings: Vec::new(),
         };
         let header_err = |line: u32, key: &str, message: String| {
             content_error(source, line, format!("header \"{key}\""), message)
@@ -290,8 +292,8 @@ impl Table {
                 c => format!("column {} (beyond the last label)", c + 1),
             }
         };
-        let mut previous_time_line = 0;
-        let mut rows_in_file = 0;
+        // Every row first; repeated times are judged against the median step of them all.
+        let mut row_lines: Vec<u32> = Vec::new();
         for (index, raw) in lines {
             let raw = raw.trim();
             if raw.is_empty() {
@@ -299,7 +301,6 @@ impl Table {
             }
             let line = line_u32(index);
             let row = table.time.len();
-            rows_in_file += 1;
             let mut count = 0;
             for (c, token) in raw.split_whitespace().enumerate() {
                 count += 1;
@@ -336,38 +337,7 @@ impl Table {
                     ),
                 ));
             }
-            if row > 0 {
-                let (t_prev, t) = (table.time[row - 1], table.time[row]);
-                if t == t_prev && options.repeated_time != RepeatedTime::Error {
-                    table.time.pop();
-                    if options.repeated_time == RepeatedTime::KeepFirst {
-                        table.values.truncate(row * width);
-                        table.dropped_repeated_rows.push(line);
-                    } else {
-                        table.values.drain((row - 1) * width..row * width);
-                        table.dropped_repeated_rows.push(previous_time_line);
-                        previous_time_line = line;
-                    }
-                    continue;
-                }
-                if t <= t_prev {
-                    let what = if t == t_prev {
-                        "repeats"
-                    } else {
-                        "is earlier than"
-                    };
-                    return Err(content_error(
-                        source,
-                        line,
-                        column_name(0),
-                        format!(
-                            "row {row}: time {t} {what} the previous row's {t_prev} \
-                             (line {previous_time_line}); time must increase strictly"
-                        ),
-                    ));
-                }
-            }
-            previous_time_line = line;
+            row_lines.push(line);
         }
         if table.time.is_empty() {
             return Err(content_error(
@@ -377,15 +347,123 @@ impl Table {
                 "no data rows after the column labels".into(),
             ));
         }
+        let rows_in_file = table.time.len();
+        drop_repeated_times(&mut table, &row_lines, source, options)?;
         if let Some(d) = &declared_rows
             && d.value != rows_in_file
         {
-            return Err(header_err(
-                d.line,
-                &d.key,
-                format!("declares {} rows, but the file has {rows_in_file}", d.value),
-            ));
+            table.warnings.push(FileWarning {
+                file: source.to_string(),
+                line: d.line,
+                element: format!("header \"{}\"", d.key),
+                message: format!(
+                    "declares {} rows, but the file holds {rows_in_file}: all {rows_in_file} \
+                     are read",
+                    d.value
+                ),
+            });
         }
         Ok(table)
     }
+}
+
+/// Leaves out the rows whose time repeats the previous kept row's within
+/// [`REPEAT_TOLERANCE`] × the median positive step (module documentation), recording their
+/// lines and a warning for each; a time earlier than that is an error. `lines` holds the file
+/// line of every row.
+fn drop_repeated_times(
+    table: &mut Table,
+    lines: &[u32],
+    source: &str,
+    options: &ReadOptions,
+) -> Result<()> {
+    let mut steps: Vec<f64> = table
+        .time
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&d| d > 0.0)
+        .collect();
+    let tolerance = if steps.is_empty() {
+        0.0
+    } else {
+        let mid = steps.len() / 2;
+        let (_, median, _) = steps.select_nth_unstable_by(mid, f64::total_cmp);
+        REPEAT_TOLERANCE * *median
+    };
+    let width = table.labels.len();
+    let n = table.time.len();
+    // Compacts rows in place: `kept` rows are final, row `r` is the one being judged.
+    let mut kept = 1;
+    let mut kept_line = lines[0];
+    for r in 1..n {
+        let (t_prev, t) = (table.time[kept - 1], table.time[r]);
+        let line = lines[r];
+        if t < t_prev - tolerance {
+            return Err(content_error(
+                source,
+                line,
+                "column \"time\"".into(),
+                format!(
+                    "row {r}: time {t} is earlier than the previous row's {t_prev} (line \
+                     {kept_line}); time must increase"
+                ),
+            ));
+        }
+        if t <= t_prev + tolerance {
+            let within = if t == t_prev {
+                String::new()
+            } else {
+                format!(" (within {:.1e} s)", (t - t_prev).abs())
+            };
+            let dropped = match options.repeated_time {
+                RepeatedTime::Error => {
+                    return Err(content_error(
+                        source,
+                        line,
+                        "column \"time\"".into(),
+                        format!(
+                            "row {r}: time {t} repeats the previous row's {t_prev}{within} \
+                             (line {kept_line}); time must increase strictly"
+                        ),
+                    ));
+                }
+                RepeatedTime::KeepFirst => line,
+                RepeatedTime::KeepLast => {
+                    // The later row replaces the kept one.
+                    table.time[kept - 1] = t;
+                    table
+                        .values
+                        .copy_within(r * width..(r + 1) * width, (kept - 1) * width);
+                    std::mem::replace(&mut kept_line, line)
+                }
+            };
+            table.dropped_repeated_rows.push(dropped);
+            let message = if dropped == line {
+                format!("time {t} repeats the time on line {kept_line}{within}: row left out")
+            } else {
+                format!(
+                    "time {t_prev} is repeated on line {line}{within}: row left out (the \
+                     later one is kept)"
+                )
+            };
+            table.warnings.push(FileWarning {
+                file: source.to_string(),
+                line: dropped,
+                element: "column \"time\"".into(),
+                message,
+            });
+            continue;
+        }
+        if kept != r {
+            table.time[kept] = t;
+            table
+                .values
+                .copy_within(r * width..(r + 1) * width, kept * width);
+        }
+        kept += 1;
+        kept_line = line;
+    }
+    table.time.truncate(kept);
+    table.values.truncate(kept * width);
+    Ok(())
 }

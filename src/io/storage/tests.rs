@@ -197,13 +197,16 @@ fn state_labels_use_opensim3_dot_names_in_arm26_states() {
 }
 
 #[test]
-fn repeated_rows_in_gait2392_rra_states_are_an_error_unless_asked_for() {
+fn repeated_rows_in_gait2392_rra_states_are_dropped_with_a_warning_or_an_error_on_request() {
     let rel =
         "Pipelines/Gait2392_Simbody/OutputReference/ResultsRRA/subject01_walk1_RRA_states.sto";
     let Some(p) = reference(rel) else {
         return;
     };
-    match Table::read(&p) {
+    let strict = ReadOptions {
+        repeated_time: RepeatedTime::Error,
+    };
+    match Table::read_with(&p, &strict) {
         Err(Error::Model {
             line,
             element,
@@ -215,6 +218,11 @@ fn repeated_rows_in_gait2392_rra_states_are_an_error_unless_asked_for() {
         }
         other => panic!("{other:?}"),
     }
+    let t = Table::read(&p).unwrap();
+    assert_eq!(t.n_rows(), 3015);
+    assert_eq!(t.dropped_repeated_rows, [3023]);
+    assert_eq!(t.warnings.len(), 1, "{:?}", t.warnings);
+    assert_eq!(t.warnings[0].line, 3023);
     let options = ReadOptions {
         repeated_time: RepeatedTime::KeepLast,
     };
@@ -379,18 +387,32 @@ fn decreasing_time_is_an_error() {
 }
 
 #[test]
-fn repeated_time_is_an_error_by_default_and_kept_first_or_last_on_request() {
+fn repeated_time_is_dropped_by_default_kept_last_or_an_error_on_request() {
     let text = format!("{HEADER}time a\n0 1\n0.1 2\n0.1 3\n0.2 4\n");
-    let (line, element, message) = model_error(&text);
+    let strict = ReadOptions {
+        repeated_time: RepeatedTime::Error,
+    };
+    let e = Table::parse_with(&text, "t", &strict).unwrap_err();
+    let Error::Model {
+        line,
+        element,
+        message,
+        ..
+    } = e
+    else {
+        panic!("{e:?}")
+    };
     assert_eq!((line, element.as_str()), (8, "column \"time\""));
     assert!(message.contains("repeats"), "{message}");
-    let first = ReadOptions {
-        repeated_time: RepeatedTime::KeepFirst,
-    };
-    let t = Table::parse_with(&text, "t", &first).unwrap();
+    let t = Table::parse(&text, "t").unwrap();
     assert_eq!(
         (t.values.as_slice(), t.dropped_repeated_rows.as_slice()),
         (&[1.0, 2.0, 4.0][..], &[8][..])
+    );
+    let w = t.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>();
+    assert_eq!(
+        w,
+        ["t:8: column \"time\": time 0.1 repeats the time on line 7: row left out"]
     );
     let last = ReadOptions {
         repeated_time: RepeatedTime::KeepLast,
@@ -401,6 +423,36 @@ fn repeated_time_is_an_error_by_default_and_kept_first_or_last_on_request() {
         (&[1.0, 3.0, 4.0][..], &[7][..])
     );
     assert_eq!(t.time, [0.0, 0.1, 0.2]);
+    assert_eq!(t.warnings[0].line, 7);
+}
+
+#[test]
+fn a_near_repeated_time_is_dropped_like_an_exact_repeat() {
+    // The last row repeats 2.0 s plus 6.6e-14 s: the same sample written twice.
+    let text = format!("{HEADER}time a\n1.98 1\n1.99 2\n2 3\n2.000000000000066 3.5\n");
+    let t = Table::parse(&text, "walk.mot").unwrap();
+    assert_eq!(t.time, [1.98, 1.99, 2.0]);
+    assert_eq!(t.values, [1.0, 2.0, 3.0]);
+    assert_eq!(t.dropped_repeated_rows, [9]);
+    let w = t.warnings[0].to_string();
+    assert!(
+        w.starts_with("walk.mot:9: column \"time\": time 2.000000000000066 repeats the time on \
+                       line 8 (within 6.6e-14 s)"),
+        "{w}"
+    );
+    // A near-repeat slightly earlier is a repeat too, not a decreasing time.
+    let text = format!("{HEADER}time a\n1.98 1\n1.99 2\n2 3\n1.999999999999934 3.5\n");
+    let t = Table::parse(&text, "walk.mot").unwrap();
+    assert_eq!((t.n_rows(), t.warnings.len()), (3, 1));
+    // A step of a thousandth of the sampling interval is a sample, not a repeat.
+    let text = format!("{HEADER}time a\n1.98 1\n1.99 2\n2 3\n2.00001 3.5\n");
+    let t = Table::parse(&text, "walk.mot").unwrap();
+    assert_eq!((t.n_rows(), t.warnings.len()), (4, 0));
+    // Beyond the tolerance, an earlier time is an error.
+    let text = format!("{HEADER}time a\n1.98 1\n1.99 2\n2 3\n1.99999 3.5\n");
+    let (line, _, message) = model_error(&text);
+    assert_eq!(line, 9);
+    assert!(message.contains("earlier"), "{message}");
 }
 
 #[test]
@@ -441,13 +493,25 @@ fn empty_file_and_missing_endheader_are_errors() {
 }
 
 #[test]
-fn declared_counts_must_match_the_data() {
-    let (line, element, message) =
-        model_error("x\nversion=1\nnRows=3\nnColumns=2\nendheader\ntime a\n0 1\n1 2\n");
-    assert_eq!((line, element.as_str()), (3, "header \"nRows\""));
+fn a_declared_row_count_that_disagrees_is_a_warning_and_a_column_count_an_error() {
+    let text = "x\nversion=1\nnRows=3\nnColumns=2\nendheader\ntime a\n0 1\n1 2\n";
+    let t = Table::parse(text, "few.mot").unwrap();
+    assert_eq!(t.time, [0.0, 1.0]);
+    let w: Vec<String> = t.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(
+        w,
+        ["few.mot:3: header \"nRows\": declares 3 rows, but the file holds 2: all 2 are read"]
+    );
+    // SIMM's `datarows`, declaring fewer rows than there are.
+    let text = "name x\ndatacolumns 2\ndatarows 1\nrange 0 2\nendheader\ntime a\n0 1\n1 2\n2 3\n";
+    let t = Table::parse(text, "simm.mot").unwrap();
+    assert_eq!(t.n_rows(), 3);
     assert!(
-        message.contains("declares 3 rows, but the file has 2"),
-        "{message}"
+        t.warnings[0].to_string().starts_with(
+            "simm.mot:3: header \"datarows\": declares 1 rows, but the file holds 3"
+        ),
+        "{:?}",
+        t.warnings
     );
     let (line, element, _) =
         model_error("x\nversion=1\nnRows=1\nnColumns=3\nendheader\ntime a\n0 1\n");
@@ -690,6 +754,7 @@ fn parse_never_panics_on_mutated_input() {
                 back.dialect = t.dialect;
                 back.dropped_repeated_rows
                     .clone_from(&t.dropped_repeated_rows);
+                back.warnings.clone_from(&t.warnings);
                 assert_eq!(back, t, "round trip of {text:?}");
             }
             Err(Error::Model { .. }) => {}
