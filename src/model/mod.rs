@@ -17,6 +17,7 @@ mod frames;
 pub mod function;
 pub mod mjcf;
 pub mod natural_spline;
+pub mod reserves;
 mod osim;
 pub(crate) mod reduction;
 
