@@ -17,7 +17,7 @@ use musculo::solve::kinematics::fill_missing_coordinates;
 use musculo::solve::static_optimization::{
     SoRun, SoRunOptions, StaticOptimization, StaticOptimizationOptions, run_static_optimization,
 };
-use musculo::{Model, Error};
+use musculo::{Error, Model};
 use std::path::Path;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -35,8 +35,8 @@ fn with_force_set(model_xml: &str, force_set: &str) -> Model {
 fn shipped_reserves_file_is_generated_from_the_shipped_model() {
     let model_path = Path::new(ROOT).join("models/musculo_fullbody.osim");
     let model = Model::from_osim_file(&model_path).unwrap();
-    let text = reserve_force_set(&model, "musculo_fullbody.osim", &ReserveOptions::default())
-        .unwrap();
+    let text =
+        reserve_force_set(&model, "musculo_fullbody.osim", &ReserveOptions::default()).unwrap();
     let shipped =
         std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody_reserves.xml"))
             .expect("models/musculo_fullbody_reserves.xml is shipped");
@@ -66,16 +66,39 @@ fn small_model(root_kind: &str) -> String {
             .collect(),
     };
     let bodies = [
-        body("trunk", 30.0, [0.0, 0.2, 0.0], [1.0, 0.5, 1.0, 0.0, 0.0, 0.0]),
-        body("thigh", 8.0, [0.0, -0.2, 0.0], [0.1, 0.02, 0.1, 0.0, 0.0, 0.0]),
-        body("shank", 3.0, [0.0, -0.2, 0.0], [0.05, 0.01, 0.05, 0.0, 0.0, 0.0]),
+        body(
+            "trunk",
+            30.0,
+            [0.0, 0.2, 0.0],
+            [1.0, 0.5, 1.0, 0.0, 0.0, 0.0],
+        ),
+        body(
+            "thigh",
+            8.0,
+            [0.0, -0.2, 0.0],
+            [0.1, 0.02, 0.1, 0.0, 0.0, 0.0],
+        ),
+        body(
+            "shank",
+            3.0,
+            [0.0, -0.2, 0.0],
+            [0.05, 0.01, 0.05, 0.0, 0.0, 0.0],
+        ),
     ]
     .join("\n");
     let locked = "<Coordinate name=\"ankle\"><default_value>0.1</default_value>\
                   <range>-1 1</range><locked>true</locked></Coordinate>"
         .to_string();
     let joints = [
-        joint(root_kind, "root", "/ground", [0.0, 1.0, 0.0], "/bodyset/trunk", &root_coords, ""),
+        joint(
+            root_kind,
+            "root",
+            "/ground",
+            [0.0, 1.0, 0.0],
+            "/bodyset/trunk",
+            &root_coords,
+            "",
+        ),
         joint(
             "PinJoint",
             "hip",
@@ -143,8 +166,18 @@ fn a_free_root_gets_force_and_torque_residuals_and_each_joint_a_reserve() {
         .collect();
     assert_eq!(read.len(), 7);
     for (name, a) in &read {
-        assert_eq!(a.optimal_force, if *name == "hip_flexion_reserve" { 2.0 } else { 5.0 });
-        assert_eq!((a.min_control, a.max_control), (f64::NEG_INFINITY, f64::INFINITY));
+        assert_eq!(
+            a.optimal_force,
+            if *name == "hip_flexion_reserve" {
+                2.0
+            } else {
+                5.0
+            }
+        );
+        assert_eq!(
+            (a.min_control, a.max_control),
+            (f64::NEG_INFINITY, f64::INFINITY)
+        );
     }
     match &read[1].1.kind {
         ActuatorKind::Point {
@@ -174,10 +207,7 @@ fn a_free_root_gets_force_and_torque_residuals_and_each_joint_a_reserve() {
         }
         other => panic!("MZ read as {other:?}"),
     }
-    assert_eq!(
-        read[6].1.kind,
-        ActuatorKind::Coordinate { coordinate: hip }
-    );
+    assert_eq!(read[6].1.kind, ActuatorKind::Coordinate { coordinate: hip });
 }
 
 #[test]
@@ -190,7 +220,12 @@ fn a_planar_root_gets_coordinate_residuals() {
         .collect();
     assert_eq!(
         names,
-        ["rz_residual", "tx_residual", "ty_residual", "hip_flexion_reserve"]
+        [
+            "rz_residual",
+            "tx_residual",
+            "ty_residual",
+            "hip_flexion_reserve"
+        ]
     );
 }
 
@@ -256,8 +291,8 @@ fn largest(table: &Table, suffix: &str) -> (f64, String) {
 fn with_the_shipped_reserves_a_made_up_motion_without_loads_solves_every_frame() {
     // every coordinate swinging within its range, the body in the air: the pelvis residuals
     // carry its weight and whatever the motion asks of the floating base
-    let text = std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody.osim"))
-        .unwrap();
+    let text =
+        std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody.osim")).unwrap();
     let reserves =
         std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody_reserves.xml"))
             .unwrap();
@@ -299,8 +334,8 @@ fn the_default_model_walk_solves_every_frame_with_its_reserves_not_with_gait2392
     ) else {
         return;
     };
-    let text = std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody.osim"))
-        .unwrap();
+    let text =
+        std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody.osim")).unwrap();
     let ours =
         std::fs::read_to_string(Path::new(ROOT).join("models/musculo_fullbody_reserves.xml"))
             .unwrap();

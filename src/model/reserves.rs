@@ -218,7 +218,8 @@ pub fn reserve_force_set(
         xml_escape(&model.name)
     );
     let _ = writeln!(xml, "\t\t<objects>");
-    let controls = "\t\t\t\t<min_control>-Inf</min_control>\n\t\t\t\t<max_control>Inf</max_control>";
+    let controls =
+        "\t\t\t\t<min_control>-Inf</min_control>\n\t\t\t\t<max_control>Inf</max_control>";
     for a in &actuators {
         match a {
             ReserveActuator::Coordinate {
