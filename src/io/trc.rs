@@ -437,9 +437,12 @@ impl Trc {
                 c => format!("column {} (beyond the last marker)", c + 1),
             }
         };
-        let mut frame_numbers = Vec::with_capacity(num_frames);
-        let mut time: Vec<f64> = Vec::with_capacity(num_frames);
-        let mut positions = Vec::with_capacity(num_frames * nm);
+        // NumFrames is not taken on trust for the capacity: a frame is at least a line of
+        // two bytes, a marker in it at least three (three empty fields).
+        let rows = num_frames.min(text.len() / 2 + 1);
+        let mut frame_numbers = Vec::with_capacity(rows);
+        let mut time: Vec<f64> = Vec::with_capacity(rows);
+        let mut positions = Vec::with_capacity(rows.saturating_mul(nm).min(text.len() / 3 + 1));
         let mut previous_line = 0;
         for (line, raw) in lines {
             if raw.trim().is_empty() {

@@ -159,7 +159,8 @@ impl SkeletonMap {
         Self::parse(&text, &path.display().to_string())
     }
 
-    /// Parses map text; `source` names it in errors.
+    /// Parses map text; `source` names it in errors, with the line of the JSON key that
+    /// holds the bad value (`"weight"` of the target, `"name"` of the segment, …).
     pub fn parse(text: &str, source: &str) -> crate::Result<SkeletonMap> {
         let table_error = |line: usize, message: String| Error::Table {
             table: source.to_string(),
@@ -167,12 +168,26 @@ impl SkeletonMap {
             message,
         };
         let mut map: SkeletonMap =
-            serde_json::from_str(text).map_err(|e| table_error(e.line(), e.to_string()))?;
+            serde_json::from_str(text).map_err(|e| table_error(e.line().max(1), e.to_string()))?;
         map.source = source.to_string();
-        let det = map.axes_matrix()?.determinant();
+        // The n-th occurrence of a key, or the first line: a target is found by its
+        // "marker" key and a segment by its "name" key, which only they have.
+        let keys = KeyLines::new(text);
+        let line = |key: &str, n: usize| keys.line(key, n);
+        let det = map
+            .axes_matrix()
+            .map_err(|e| match e {
+                Error::Table { table, message, .. } => Error::Table {
+                    table,
+                    line: line("axes", 0),
+                    message,
+                },
+                other => other,
+            })?
+            .determinant();
         if det < 0.0 && !map.mirror {
             return Err(table_error(
-                0,
+                line("axes", 0),
                 format!(
                     "axes {:?} mirror the motion (a left-handed input frame); say \"mirror\": \
                      true if that is meant",
@@ -182,20 +197,21 @@ impl SkeletonMap {
         }
         if !(map.scale > 0.0 && map.scale.is_finite()) {
             return Err(table_error(
-                0,
+                line("scale", 0),
                 format!("scale {} must be positive", map.scale),
             ));
         }
         if map.targets.is_empty() {
-            return Err(table_error(0, "no targets".into()));
+            return Err(table_error(line("targets", 0), "no targets".into()));
         }
         for (i, t) in map.targets.iter().enumerate() {
+            let at = line("marker", i);
             if t.source.is_empty() || t.source.iter().any(|s| s.trim().is_empty()) {
-                return Err(table_error(0, format!("target {i}: empty source name")));
+                return Err(table_error(at, format!("target {i}: empty source name")));
             }
             if !(t.weight >= 0.0 && t.weight.is_finite()) {
                 return Err(table_error(
-                    0,
+                    at,
                     format!(
                         "target {i} (`{}`): weight {} must be ≥ 0",
                         t.marker, t.weight
@@ -204,16 +220,17 @@ impl SkeletonMap {
             }
             if let Some(j) = map.targets[..i].iter().position(|o| o.marker == t.marker) {
                 return Err(table_error(
-                    0,
+                    at,
                     format!("targets {j} and {i} both map onto marker `{}`", t.marker),
                 ));
             }
         }
-        for seg in &map.segments {
+        for (k, seg) in map.segments.iter().enumerate() {
+            let at = line("name", k);
             for name in seg.pairs.iter().flatten() {
                 if !map.targets.iter().any(|t| &t.marker == name) {
                     return Err(table_error(
-                        0,
+                        at,
                         format!(
                             "segment `{}`: `{name}` is not a target marker of the map",
                             seg.name
@@ -228,7 +245,7 @@ impl SkeletonMap {
                     .any(|a| !["x", "y", "z"].contains(&a.as_str()))
             {
                 return Err(table_error(
-                    0,
+                    at,
                     format!(
                         "segment `{}`: axes {:?} must be among x, y, z",
                         seg.name, seg.axes
@@ -237,7 +254,7 @@ impl SkeletonMap {
             }
             if seg.bodies.is_empty() || seg.pairs.is_empty() {
                 return Err(table_error(
-                    0,
+                    at,
                     format!("segment `{}` needs bodies and pairs", seg.name),
                 ));
             }
@@ -368,5 +385,58 @@ impl SkeletonMap {
             coordinates: Vec::new(),
         };
         Ok((out, tasks))
+    }
+}
+
+/// The 1-based lines of the object keys of a JSON text, in order (a string followed by `:`;
+/// string contents, escapes included, are skipped, so a key quoted inside a description does
+/// not count).
+struct KeyLines<'t> {
+    keys: Vec<(&'t str, usize)>,
+}
+
+impl<'t> KeyLines<'t> {
+    fn new(text: &'t str) -> KeyLines<'t> {
+        let bytes = text.as_bytes();
+        let mut keys = Vec::new();
+        let (mut i, mut line) = (0, 1);
+        while i < bytes.len() {
+            match bytes[i] {
+                b'\n' => line += 1,
+                b'"' => {
+                    let start = i + 1;
+                    i += 1;
+                    while i < bytes.len() && bytes[i] != b'"' {
+                        if bytes[i] == b'\\' {
+                            i += 1;
+                        } else if bytes[i] == b'\n' {
+                            line += 1;
+                        }
+                        i += 1;
+                    }
+                    let end = i.min(bytes.len());
+                    let next = bytes[end.saturating_add(1).min(bytes.len())..]
+                        .iter()
+                        .find(|b| !b.is_ascii_whitespace());
+                    if next == Some(&b':') {
+                        if let Some(key) = text.get(start..end) {
+                            keys.push((key, line));
+                        }
+                    }
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+        KeyLines { keys }
+    }
+
+    /// The line of the `n`-th (from 0) occurrence of `key`, or 1 when there are fewer.
+    fn line(&self, key: &str, n: usize) -> usize {
+        self.keys
+            .iter()
+            .filter(|(k, _)| *k == key)
+            .nth(n)
+            .map_or(1, |&(_, l)| l)
     }
 }
