@@ -19,6 +19,7 @@ use musculo::solve::static_optimization::{
 };
 use musculo::{Error, Model};
 use std::path::Path;
+use std::process::Command;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -368,4 +369,107 @@ fn the_default_model_walk_solves_every_frame_with_its_reserves_not_with_gait2392
         "{:?}",
         run.problems.first()
     );
+}
+
+/// The command line: `model reserves` writes the force set beside the model; `so` without it
+/// fails every frame of a floating model and says so in two summary lines, with it solves
+/// every frame.
+#[test]
+fn cli_so_summarises_unsolved_frames_and_solves_them_with_model_reserves() {
+    let bin = env!("CARGO_BIN_EXE_musculo");
+    let dir = std::env::temp_dir().join(format!("musculo-reserves-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("m.osim"), small_model("FreeJoint")).unwrap();
+    // weak bounded actuators: the floating base cannot carry the body's weight
+    let mut weak =
+        String::from("<OpenSimDocument Version=\"40000\"><ForceSet name=\"weak\"><objects>");
+    for c in ["rx", "ry", "rz", "tx", "ty", "tz", "hip_flexion"] {
+        weak += &format!(
+            "<CoordinateActuator name=\"{c}_weak\"><coordinate>{c}</coordinate>\
+             <min_control>-1</min_control><max_control>1</max_control>\
+             <optimal_force>1</optimal_force></CoordinateActuator>"
+        );
+    }
+    weak += "</objects></ForceSet></OpenSimDocument>";
+    std::fs::write(dir.join("weak.xml"), weak).unwrap();
+    let mut sto = String::from(
+        "Coordinates\nversion=1\nnRows=50\nnColumns=8\ninDegrees=no\nendheader\n\
+         time\trx\try\trz\ttx\tty\ttz\thip_flexion\n",
+    );
+    for k in 0..50 {
+        let t = k as f64 * 0.02;
+        sto += &format!(
+            "{t}\t{}\t0\t0\t{}\t1\t0\t{}\n",
+            0.1 * t.sin(),
+            0.5 * t,
+            0.3 * (3.0 * t).sin()
+        );
+    }
+    std::fs::write(dir.join("walk.sto"), sto).unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new(bin)
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            String::from_utf8(out.stdout).unwrap(),
+            String::from_utf8(out.stderr).unwrap(),
+        )
+    };
+
+    let (_, stderr) = run(&[
+        "so",
+        "--model",
+        "m.osim",
+        "--coordinates",
+        "walk.sto",
+        "--actuators",
+        "weak.xml",
+        "-o",
+        "out/without",
+    ]);
+    let warnings: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning"))
+        .collect();
+    assert_eq!(warnings.len(), 2, "{stderr}");
+    assert!(
+        warnings[0].starts_with("warning: 50 of 50 frame(s) not solved exactly, at times 0.000000, 0.020000, 0.040000, 0.060000, 0.080000 s, … (from 0.000000 to 0.980000 s)"),
+        "{stderr}"
+    );
+    assert!(
+        warnings[1].starts_with("warning: worst at time "),
+        "{stderr}"
+    );
+    assert!(warnings[1].contains("ty "), "{stderr}");
+
+    let (stdout, _) = run(&["model", "reserves", "m.osim"]);
+    assert!(
+        stdout.starts_with("wrote m_reserves.xml: 7 actuators"),
+        "{stdout}"
+    );
+    let (_, stderr) = run(&[
+        "so",
+        "--model",
+        "m.osim",
+        "--coordinates",
+        "walk.sto",
+        "--actuators",
+        "m_reserves.xml",
+        "-o",
+        "out/with",
+    ]);
+    assert!(!stderr.contains("warning"), "{stderr}");
+    assert!(
+        stderr.contains("; 0 frame(s) not solved exactly"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }
