@@ -180,11 +180,15 @@ impl CheckReport {
     }
 }
 
+/// The most grid points over one coordinate's range: each point computes every muscle
+/// path, so more would only make a check run for hours (or exhaust memory) to no benefit.
+pub const MAX_GRID_POINTS: usize = 10_000;
+
 /// Settings of [`run`], with the defaults in one place.
 #[derive(Clone, Debug)]
 pub struct CheckOptions {
     /// Fewest grid points over each independent coordinate's range for the path, sign and
-    /// moment checks (default 9; at least 2).
+    /// moment checks (default 9; from 2 to [`MAX_GRID_POINTS`]).
     pub grid_points: usize,
     /// Largest spacing of the grid (default 2.5° for angles, scaled by 1 m/rad for
     /// translations): fine enough that a smoothly varying moment arm (a few mm per degree)
@@ -220,8 +224,25 @@ impl Default for CheckOptions {
 /// Runs every check on `model`. Errors only for invalid options or tables; a model that
 /// fails a check is a report with failures, not an error.
 pub fn run(model: &Model, options: &CheckOptions) -> crate::Result<CheckReport> {
-    if options.grid_points < 2 {
-        return Err(Error::invalid("grid_points", "must be at least 2"));
+    run_with_progress(model, options, &mut |_, _| {})
+}
+
+/// [`run`], calling `progress(done, total)` after each independent coordinate's sweeps (the
+/// path, sign and moment checks, which take nearly all the time; `total` = the model's
+/// independent coordinates).
+pub fn run_with_progress(
+    model: &Model,
+    options: &CheckOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> crate::Result<CheckReport> {
+    if !(2..=MAX_GRID_POINTS).contains(&options.grid_points) {
+        return Err(Error::invalid(
+            "grid_points",
+            format!(
+                "{} points: must be from 2 to {MAX_GRID_POINTS}",
+                options.grid_points
+            ),
+        ));
     }
     for (name, v) in [
         ("max_moment_arm_jump", options.max_moment_arm_jump),
@@ -234,12 +255,25 @@ pub fn run(model: &Model, options: &CheckOptions) -> crate::Result<CheckReport> 
             return Err(Error::invalid(name, format!("must be positive, found {v}")));
         }
     }
+    // The widest grid: a coordinate spanning the whole plausible range at the finest step.
+    let widest = 2.0 * options.max_rotation.max(options.max_translation) / options.max_grid_step;
+    if !(widest < MAX_GRID_POINTS as f64) {
+        return Err(Error::invalid(
+            "max_grid_step",
+            format!(
+                "{} over ranges up to ±{} would need {widest:.3e} grid points, more than \
+                 {MAX_GRID_POINTS}",
+                options.max_grid_step,
+                options.max_rotation.max(options.max_translation)
+            ),
+        ));
+    }
     let tables = options.tables.parse()?;
     let mut checks = Vec::new();
     structure::connectivity(model, &mut checks);
     structure::mass_inertia(model, &mut checks);
     structure::coordinates(model, options, &mut checks);
-    muscles::all(model, options, &tables, &mut checks);
+    muscles::all(model, options, &tables, &mut checks, progress);
     checks.sort_by_key(|c| c.family);
     Ok(CheckReport {
         model: model.source.clone(),

@@ -24,6 +24,7 @@ pub(super) fn all(
     options: &CheckOptions,
     tables: &ParsedTables,
     out: &mut Vec<Check>,
+    progress: &mut dyn FnMut(usize, usize),
 ) {
     let hill = parameters(model, tables, out);
     let set = match PathSet::muscles(model) {
@@ -92,11 +93,12 @@ pub(super) fn all(
         if !crossed || !(lo < hi) {
             sweeps.push(None);
             rom_sweeps.push(None);
-            continue;
+        } else {
+            sweeps.push(Some(ctx.sweep(j, lo, hi, options)));
+            let [rlo, rhi] = tables.range_of_motion(&c.name, [lo, hi]);
+            rom_sweeps.push((rlo < hi && rlo <= rhi).then(|| ctx.sweep(j, rlo, rhi, options)));
         }
-        sweeps.push(Some(ctx.sweep(j, lo, hi, options)));
-        let [rlo, rhi] = tables.range_of_motion(&c.name, [lo, hi]);
-        rom_sweeps.push((rlo < hi && rlo <= rhi).then(|| ctx.sweep(j, rlo, rhi, options)));
+        progress(j + 1, n);
     }
     let qname = |j: usize| {
         model.coordinates[model.reduction.independent[j]]
