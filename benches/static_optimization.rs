@@ -200,9 +200,7 @@ fn gait2392() {
     let setup = AnalyzeSetup::read(&setup_path).unwrap();
     let model = Model::from_osim_file_with_force_sets(
         dir.join("subject01_simbody_adjusted_StaticOp.osim"),
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
+        &LoadOptions::default(),
         &setup.force_set_files,
         setup.replace_force_set,
     )

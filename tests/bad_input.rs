@@ -4,7 +4,7 @@
 //! Most cases edit `models/demo.osim` in one place; the expected line is found from the text
 //! itself, so the tests survive edits to the demo model.
 
-use musculo::model::LoadOptions;
+use musculo::model::{LoadOptions, WarningKind};
 use musculo::{Error, Model};
 
 const DEMO: &str = include_str!("../models/demo.osim");
@@ -253,7 +253,7 @@ fn negative_mass_is_an_error_naming_the_body() {
 }
 
 #[test]
-fn inertia_violating_the_triangle_inequality_needs_the_option() {
+fn inertia_violating_the_triangle_inequality_is_a_warning_and_strict_refuses_it() {
     let (xml, _) = replace_after(
         DEMO,
         r#"<Body name="shank">"#,
@@ -261,17 +261,15 @@ fn inertia_violating_the_triangle_inequality_needs_the_option() {
         "<inertia>1 1 3 0 0 0</inertia>",
     );
     let line = line_of(&xml, r#"<Body name="shank">"#);
+    let strict = LoadOptions { strict: true };
     assert_model_error(
-        load(&xml),
+        Model::from_osim_str_with(&xml, SOURCE, &strict),
         r#"Body "shank""#,
         line,
-        &["triangle inequality", "allow_nonphysical_inertia"],
+        &["triangle inequality", "`--strict`"],
     );
 
-    let options = LoadOptions {
-        allow_nonphysical_inertia: true,
-    };
-    let model = Model::from_osim_str_with(&xml, SOURCE, &options).expect("loads with the option");
+    let model = load(&xml).expect("loads by default, as OpenSim's release builds do");
     let warning = model
         .warnings
         .iter()
@@ -279,10 +277,11 @@ fn inertia_violating_the_triangle_inequality_needs_the_option() {
         .unwrap_or_else(|| panic!("no warning names the shank: {:?}", model.warnings));
     assert_eq!(warning.line, line);
     assert!(
-        warning.message.contains("triangle inequality"),
+        warning.message.contains("triangle inequality") && warning.message.contains("< 3.000000e0"),
         "{}",
         warning.message
     );
+    assert_eq!(warning.kind, WarningKind::NonphysicalInertia);
     assert_eq!(model.warnings.len(), 1, "{:?}", model.warnings);
     let shank = model.body_index("shank").unwrap();
     assert_eq!(model.bodies[shank].inertia_about_com[(2, 2)], 3.0);
@@ -304,12 +303,9 @@ fn inertia_that_is_not_positive_semi_definite_is_an_error() {
         line,
         &["not positive semi-definite"],
     );
-    // The option concerns the triangle inequality only.
-    let options = LoadOptions {
-        allow_nonphysical_inertia: true,
-    };
+    // Only the triangle inequality is accepted without `strict`.
     assert_model_error(
-        Model::from_osim_str_with(&xml, SOURCE, &options),
+        load(&xml),
         r#"Body "shank""#,
         line,
         &["not positive semi-definite"],

@@ -38,13 +38,8 @@ fn status(report: &CheckReport, family: Family, name: &str, subject: &str) -> St
 fn load(relative: &str) -> Option<Model> {
     let path = reference_file(relative)?;
     Some(
-        Model::from_osim_file_with(
-            path,
-            &LoadOptions {
-                allow_nonphysical_inertia: false,
-            },
-        )
-        .expect("reference model reads"),
+        Model::from_osim_file_with(path, &LoadOptions { strict: true })
+            .expect("reference model reads"),
     )
 }
 
@@ -123,19 +118,16 @@ fn inertia_violating_the_triangle_inequality_fails_that_check() {
 }
 
 #[test]
-fn triangle_inequality_is_reported_for_a_file_read_with_allow_nonphysical_inertia() {
+fn triangle_inequality_is_reported_for_a_file_read_without_strict() {
     let xml = musculo::DEMO_MODEL_OSIM.replace(
         "<inertia>0.11 0.03 0.12 0.002 0 0</inertia>",
         "<inertia>0.01 0.05 0.01 0 0 0</inertia>",
     );
     assert!(
-        Model::from_osim_str(&xml, "bad").is_err(),
-        "the reader refuses it"
+        Model::from_osim_str_with(&xml, "bad", &LoadOptions { strict: true }).is_err(),
+        "the strict reader refuses it"
     );
-    let options = LoadOptions {
-        allow_nonphysical_inertia: true,
-    };
-    let model = Model::from_osim_str_with(&xml, "bad", &options).unwrap();
+    let model = Model::from_osim_str(&xml, "bad").unwrap();
     assert_eq!(
         failures(&run(&model)),
         BTreeSet::from([(

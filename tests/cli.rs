@@ -56,24 +56,22 @@ fn inspect_json_is_machine_readable() {
 }
 
 #[test]
-fn inspect_lists_unsupported_elements_and_needs_the_option_for_bad_inertia() {
+fn inspect_lists_unsupported_elements_and_strict_refuses_bad_inertia() {
     let Some(p) = reference_file(
         "opensim-models/Tutorials/Estimating_Joint_Reaction_Loads/subject01_simbody_adjusted_StaticOp.osim",
     ) else {
         return;
     };
-    let (ok, _, err) = run_musculo(&["inspect", p.to_str().unwrap()]);
+    let (ok, _, err) = run_musculo(&["inspect", "--strict", p.to_str().unwrap()]);
     assert!(
-        !ok && err.contains("toes_r") && err.contains("triangle inequality"),
+        !ok && err.contains("toes_r")
+            && err.contains("triangle inequality")
+            && err.contains("`--strict`"),
         "{err}"
     );
-    let (ok, out, _) = run_musculo(&[
-        "inspect",
-        "--allow-nonphysical-inertia",
-        p.to_str().unwrap(),
-    ]);
+    let (ok, out, _) = run_musculo(&["inspect", p.to_str().unwrap()]);
     assert!(
-        ok && out.contains("NOT USED BY MUSCULO (2 warnings"),
+        ok && out.contains("NOT USED BY MUSCULO (2 warnings") && out.contains("toes_r"),
         "{out}"
     );
 }
@@ -137,7 +135,6 @@ fn so_runs_opensims_setup_and_writes_activation_and_force_files() {
         setup.to_str().unwrap(),
         "--model",
         model.to_str().unwrap(),
-        "--allow-nonphysical-inertia",
         "-o",
         prefix.to_str().unwrap(),
     ]);

@@ -559,9 +559,8 @@ fn every_reference_opensim_model_loads() {
         println!("skipped: reference data not found ({})", root.display());
         return;
     }
-    let lenient = LoadOptions {
-        allow_nonphysical_inertia: true,
-    };
+    let lenient = LoadOptions::default();
+    let strict = LoadOptions { strict: true };
     let mut failures = Vec::new();
     let mut need_option = Vec::new();
     for f in &files {
@@ -575,7 +574,7 @@ fn every_reference_opensim_model_loads() {
             ),
             Err(e) => failures.push(format!("{rel}: {e}")),
         }
-        if let Err(e) = Model::from_osim_file(f) {
+        if let Err(e) = Model::from_osim_file_with(f, &strict) {
             need_option.push((rel, e));
         }
     }
@@ -590,7 +589,7 @@ fn every_reference_opensim_model_loads() {
     assert_eq!(
         names,
         [NONPHYSICAL_INERTIA_FILE],
-        "models that need allow_nonphysical_inertia"
+        "models that strict reading refuses"
     );
     match &need_option[0].1 {
         Error::Model {

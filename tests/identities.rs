@@ -22,13 +22,7 @@ const STATES: usize = 100;
 const H: f64 = 1e-6;
 
 fn load(path: &Path) -> Model {
-    Model::from_osim_file_with(
-        path,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-    )
-    .unwrap_or_else(|e| panic!("{e}"))
+    Model::from_osim_file_with(path, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Largest relative error seen for each identity, for the summary line.

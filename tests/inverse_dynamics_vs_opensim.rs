@@ -75,13 +75,7 @@ fn run(
     ) else {
         return None;
     };
-    let mut model = Model::from_osim_file_with(
-        &model_path,
-        &LoadOptions {
-            allow_nonphysical_inertia: false,
-        },
-    )
-    .unwrap();
+    let mut model = Model::from_osim_file_with(&model_path, &LoadOptions { strict: true }).unwrap();
     edit(&mut model)?;
     let coordinates = Table::read(&coordinates_path).unwrap();
     let loads = setup
@@ -375,13 +369,7 @@ fn external_loads_reproduce_what_opensim_applied_in_the_joint_reaction_tutorial(
     ) else {
         return;
     };
-    let model = Model::from_osim_file_with(
-        &model_path,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-    )
-    .unwrap();
+    let model = Model::from_osim_file_with(&model_path, &LoadOptions::default()).unwrap();
     let loads = ExternalLoadSet::read(&model, &loads_path).unwrap();
     assert_eq!(loads.forces[0].columns[6], "left_foot_torque_x");
     let kinematics = Table::read(&kin_path).unwrap();

@@ -64,13 +64,7 @@ fn muscle_moments_balance_inverse_dynamics_with_opensim_so_forces_gait2392() {
     ) else {
         return;
     };
-    let model = Model::from_osim_file_with(
-        &model_file,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-    )
-    .unwrap();
+    let model = Model::from_osim_file_with(&model_file, &LoadOptions::default()).unwrap();
     let kinematics = Table::read(&kin_file).unwrap();
     let forces = Table::read(&force_file).unwrap();
     let traj = CoordinateTrajectory::from_table(

@@ -17,13 +17,7 @@ const STATES: usize = 200;
 const TOL: f64 = 1e-9;
 
 fn crosscheck(path: &Path, seed: u64) {
-    let model = Model::from_osim_file_with(
-        path,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-    )
-    .unwrap();
+    let model = Model::from_osim_file_with(path, &LoadOptions::default()).unwrap();
     let name = path.file_name().unwrap().to_string_lossy().to_string();
     let mut twin = MujocoTwin::new(&model).unwrap_or_else(|e| panic!("{name}: {e}"));
     let (n, nf, nb) = (model.nq(), model.n_full(), model.bodies.len());
@@ -160,13 +154,7 @@ fn demo_model_matches_mujoco() {
 #[test]
 fn every_reference_model_loads_into_mujoco() {
     for p in reference_models() {
-        let model = Model::from_osim_file_with(
-            &p,
-            &LoadOptions {
-                allow_nonphysical_inertia: true,
-            },
-        )
-        .unwrap();
+        let model = Model::from_osim_file_with(&p, &LoadOptions::default()).unwrap();
         if let Err(e) = MujocoTwin::new(&model) {
             panic!("{}: {e}", p.display());
         }
@@ -246,13 +234,7 @@ fn exported_models_simulate_in_mujoco_with_their_couplings_held() {
 fn tendon_crosscheck(path: &Path, seed: u64) {
     use musculo::model::PathPointKind;
     use musculo::muscle::path::{PathData, PathSet, compute_paths};
-    let model = Model::from_osim_file_with(
-        path,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-    )
-    .unwrap();
+    let model = Model::from_osim_file_with(path, &LoadOptions::default()).unwrap();
     let name = path.file_name().unwrap().to_string_lossy().to_string();
     let mut twin = MujocoTwin::new(&model).unwrap();
     let set = PathSet::new(&model).unwrap();

@@ -11,13 +11,7 @@ use std::path::Path;
 const H: f64 = 1e-6;
 
 fn load(path: &Path) -> Model {
-    Model::from_osim_file_with(
-        path,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-    )
-    .unwrap()
+    Model::from_osim_file_with(path, &LoadOptions::default()).unwrap()
 }
 
 /// A state is usable for finite differences when no conditional point's coordinate sits

@@ -120,15 +120,9 @@ fn static_optimization_frames_do_not_allocate() {
     ) else {
         return;
     };
-    let model = Model::from_osim_file_with_force_sets(
-        model,
-        &LoadOptions {
-            allow_nonphysical_inertia: true,
-        },
-        &[reserves],
-        false,
-    )
-    .unwrap();
+    let model =
+        Model::from_osim_file_with_force_sets(model, &LoadOptions::default(), &[reserves], false)
+            .unwrap();
     let so = StaticOptimization::new(&model, Default::default()).unwrap();
     let n = model.nq();
     let mut rng = Rng::new(9);

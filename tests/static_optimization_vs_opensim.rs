@@ -35,7 +35,7 @@ fn run(
     setup_path: &Path,
     model_path: &Path,
     coordinates: Option<PathBuf>,
-    allow_nonphysical_inertia: bool,
+    strict: bool,
     use_muscle_physiology: Option<bool>,
     muscle_min_control: Option<f64>,
 ) -> (Model, StaticOptimization, SoRun) {
@@ -46,9 +46,7 @@ fn run(
         .expect("a StaticOptimization analysis");
     let model = Model::from_osim_file_with_force_sets(
         model_path,
-        &LoadOptions {
-            allow_nonphysical_inertia,
-        },
+        &LoadOptions { strict },
         &setup.force_set_files,
         setup.replace_force_set,
     )
@@ -195,7 +193,7 @@ fn static_optimization_matches_opensim_gait2392_walk() {
         "model: {} (the setup's model_file is not in the folder)",
         model.display()
     );
-    let (_, so, result) = run(&setup, &model, None, true, None, None);
+    let (_, so, result) = run(&setup, &model, None, false, None, None);
     let rows = compare(&so, &result, &activation, &force);
     print("gait2392 walk", &result, &rows);
     let muscles: Vec<&Row> = rows.iter().filter(|r| r.is_muscle).collect();
@@ -260,7 +258,7 @@ fn static_optimization_matches_opensim_arm26() {
             &setup,
             &model,
             Some(kinematics.clone()),
-            false,
+            true,
             Some(physiology),
             Some(0.0),
         );

@@ -620,6 +620,7 @@ fn plate_loads(
         source: source.clone(),
         datafile: None,
         forces,
+        prescribed: Vec::new(),
     };
     ExternalLoadSet::new(model, &loads, &table, &source)
 }

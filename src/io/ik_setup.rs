@@ -155,7 +155,7 @@ impl IkSetup {
 fn read_task_set(r: &Reader, set: Node, path: &Path, s: &mut IkSetup) -> crate::Result<()> {
     if let Some(file) = set.attribute("file").filter(|f| !f.trim().is_empty()) {
         // <IKTaskSet file="tasks.xml"/>: the tasks live in another file.
-        let other = base_dir(path).join(file.trim());
+        let other = super::resolve_data_path(base_dir(path), file);
         let text = read_text(&other)?;
         let doc = parse_xml(&text, &other)?;
         let r2 = Reader::new(&doc, &other);

@@ -388,7 +388,7 @@ fn with_set(
         .map(str::trim)
         .filter(|f| !f.is_empty())
     {
-        let path = base.join(file);
+        let path = crate::io::resolve_data_path(base, file);
         let text = read_text(&path).map_err(|e| {
             r.error(
                 set,

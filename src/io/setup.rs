@@ -4,8 +4,10 @@
 //!
 //! - File names (`model_file`, `coordinates_file`, `external_loads_file`, `force_set_files`,
 //!   `results_directory`) are resolved relative to the setup file's directory, as OpenSim's
-//!   tools do (they change to that directory before reading). Empty values and `Unassigned`
-//!   mean "not set".
+//!   tools do (they change to that directory before reading); a name written with Windows
+//!   backslashes (`..\IK\walk.mot`) is read with them as separators when it does not exist
+//!   as written ([`super::resolve_data_path`]). Empty values and `Unassigned` mean "not
+//!   set".
 //! - `lowpass_cutoff_frequency_for_coordinates` < 0 means no filtering (`None`); 0 is an error.
 //! - Settings that musculo does not support but that would change OpenSim's results (a states
 //!   or speeds file, controllers, analyses other than StaticOptimization, body forces at
@@ -16,6 +18,7 @@
 //!   expected, a time range of one number) is [`Error::Model`] naming the file, the line and
 //!   the element (`InverseDynamicsTool "walk" > <time_range>`).
 
+use super::resolve_data_path;
 use crate::error::Error;
 use roxmltree::{Document, Node};
 use std::path::{Path, PathBuf};
@@ -308,8 +311,10 @@ impl<'a, 'i> Reader<'a, 'i> {
         (!t.is_empty() && t != "Unassigned").then(|| t.to_string())
     }
 
+    /// A file named by the element, resolved against the setup's folder
+    /// ([`resolve_data_path`]: Windows separators included).
     pub(crate) fn path(&self, n: Node) -> Option<PathBuf> {
-        Self::text(n).map(|t| base_dir(self.path).join(t))
+        Self::text(n).map(|t| resolve_data_path(base_dir(self.path), &t))
     }
 
     pub(crate) fn number(&self, n: Node) -> crate::Result<f64> {
@@ -501,7 +506,7 @@ impl<'a, 'i> Reader<'a, 'i> {
                 "force_set_files" => {
                     s.force_set_files = Self::words(n)
                         .into_iter()
-                        .map(|w| base_dir(self.path).join(w))
+                        .map(|w| resolve_data_path(base_dir(self.path), &w))
                         .collect()
                 }
                 "states_file" | "speeds_file" | "controls_file" => {

@@ -24,6 +24,7 @@ pub(crate) mod reduction;
 pub use frames::resolve_path;
 pub use function::{Arity, Function};
 pub use osim::{ForceSetFiles, LoadOptions};
+pub(crate) use osim::FunctionReader;
 pub use reduction::Reduction;
 
 use crate::spatial::{Mat3, Transform, Vec3};
@@ -393,13 +394,27 @@ impl ForceElement {
     }
 }
 
-/// Something in the model file that musculo read but does not use, or treats in a
-/// documented simplified way. Never silent: `musculo inspect` lists them.
+/// Something in the model file that musculo read but does not use, treats in a documented
+/// simplified way, or accepts although it is not physical. Never silent: `musculo inspect`
+/// lists them all, and every command that loads a model prints the
+/// [`WarningKind::NonphysicalInertia`] ones.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Warning {
     pub line: u32,
     pub element: String,
     pub message: String,
+    pub kind: WarningKind,
+}
+
+/// What a model [`Warning`] is about.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WarningKind {
+    /// An element read but not used, or used in a documented simplified way.
+    #[default]
+    NotUsed,
+    /// A body whose principal moments of inertia violate the triangle inequality, accepted
+    /// because [`LoadOptions::strict`] is off (as OpenSim's release builds accept it).
+    NonphysicalInertia,
 }
 
 /// The immutable model. Build it with [`Model::from_osim_file`] or [`Model::from_osim_str`].

@@ -18,9 +18,13 @@
 //!   other foot (`torque_identifier left_foot_torque_` on the right foot in OpenSim's joint
 //!   reaction tutorial) is applied that way, as OpenSim applies it.
 //!
+//! A `PrescribedForce` of the file is applied as OpenSim applies it: its functions of time,
+//! force and torque in ground or in its body (`forceIsGlobal`), the point in ground or in its
+//! body (`pointIsGlobal`), the body's origin without a point.
+//!
 //! Deliberate differences: an unknown `force_expressed_in_body` / `point_expressed_in_body` is
-//! an error (OpenSim warns and uses ground), and so is an ExternalLoads file without a
-//! `datafile`.
+//! an error (OpenSim warns and uses ground), and so is an ExternalLoads file with
+//! ExternalForces but without a `datafile`.
 
 use crate::dynamics::{self, Data};
 use crate::error::Error;
@@ -66,11 +70,15 @@ pub struct GroundWrench {
 pub struct ExternalLoadSet {
     /// The ExternalLoads file (for messages).
     pub source: String,
-    /// The data file.
+    /// The data file (the ExternalLoads file when only PrescribedForces are in it).
     pub data_source: String,
+    /// The forces in file order (ExternalForces and PrescribedForces).
     pub forces: Vec<AppliedExternalForce>,
-    /// First and last time of the data file.
+    /// First and last time of the data file and of the PrescribedForces' samples
+    /// (infinite when there are none: constant functions only).
     pub time_span: [f64; 2],
+    /// What the data file's reader reported (a row count that disagrees, repeated times).
+    pub warnings: Vec<crate::io::FileWarning>,
 }
 
 impl ExternalLoadSet {
@@ -80,13 +88,19 @@ impl ExternalLoadSet {
         let loads = ExternalLoads::read(path)?;
         // Body names first: an error in the .xml is reported before the data file is read.
         loads.bodies(model)?;
+        loads.prescribed_bodies(model)?;
         let Some(datafile) = loads.datafile.clone() else {
-            return Err(Error::Model {
-                file: loads.source.clone(),
-                line: 0,
-                element: "<ExternalLoads> > <datafile>".into(),
-                message: "no data file: the forces' columns cannot be found".into(),
-            });
+            if let Some(first) = loads.forces.first() {
+                return Err(Error::Model {
+                    file: loads.source.clone(),
+                    line: first.line,
+                    element: format!("ExternalForce \"{}\"", first.name),
+                    message: "the ExternalLoads file names no <datafile>: the force's columns \
+                              cannot be found"
+                        .into(),
+                });
+            }
+            return Self::build(model, &loads, None);
         };
         let table = Table::read(&datafile)?;
         Self::new(model, &loads, &table, &datafile.display().to_string())
@@ -96,6 +110,65 @@ impl ExternalLoadSet {
     /// in errors): body names, the three columns of every identifier, and the functions of
     /// time OpenSim would build.
     pub fn new(
+        model: &Model,
+        loads: &ExternalLoads,
+        table: &Table,
+        data_source: &str,
+    ) -> crate::Result<ExternalLoadSet> {
+        Self::build(model, loads, Some((table, data_source)))
+    }
+
+    /// [`ExternalLoadSet::new`], with the data table optional (a file of PrescribedForces
+    /// only needs none).
+    fn build(
+        model: &Model,
+        loads: &ExternalLoads,
+        data: Option<(&Table, &str)>,
+    ) -> crate::Result<ExternalLoadSet> {
+        let mut set = match data {
+            Some((table, data_source)) => Self::from_data(model, loads, table, data_source)?,
+            None => ExternalLoadSet {
+                source: loads.source.clone(),
+                data_source: loads.source.clone(),
+                forces: Vec::new(),
+                time_span: [f64::INFINITY, f64::NEG_INFINITY],
+                warnings: Vec::new(),
+            },
+        };
+        let mut lines: Vec<u32> = loads.forces.iter().map(|f| f.line).collect();
+        for (p, body) in loads.prescribed.iter().zip(loads.prescribed_bodies(model)?) {
+            let frame = |global: bool| if global { 0 } else { body };
+            set.forces.push(AppliedExternalForce {
+                name: p.name.clone(),
+                applied_to_body: body,
+                force_expressed_in_body: frame(p.force_is_global),
+                point_expressed_in_body: frame(p.point_is_global),
+                force: p.force.clone(),
+                point: p.point.clone(),
+                torque: p.torque.clone(),
+                columns: Vec::new(),
+            });
+            lines.push(p.line);
+            if let Some([t0, t1]) = p.time_span {
+                set.time_span = [set.time_span[0].min(t0), set.time_span[1].max(t1)];
+            }
+        }
+        if set.time_span[0] > set.time_span[1] {
+            set.time_span = [f64::NEG_INFINITY, f64::INFINITY];
+        }
+        // File order: ExternalForces and PrescribedForces may be interleaved.
+        let mut order: Vec<usize> = (0..set.forces.len()).collect();
+        order.sort_by_key(|&i| lines[i]);
+        let mut forces: Vec<Option<AppliedExternalForce>> = std::mem::take(&mut set.forces)
+            .into_iter()
+            .map(Some)
+            .collect();
+        set.forces = order.iter().filter_map(|&i| forces[i].take()).collect();
+        Ok(set)
+    }
+
+    /// The ExternalForces of `loads`, resolved against the data `table`.
+    fn from_data(
         model: &Model,
         loads: &ExternalLoads,
         table: &Table,
@@ -185,6 +258,7 @@ impl ExternalLoadSet {
             data_source: data_source.to_string(),
             forces,
             time_span: [table.time[0], table.time[n - 1]],
+            warnings: table.warnings.clone(),
         })
     }
 

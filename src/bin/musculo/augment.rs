@@ -63,6 +63,8 @@ pub struct Args {
     /// whose velocity is estimated per clip (default: a floor at rest).
     #[arg(long)]
     treadmill: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
     /// Measured ground reactions for a single trial (an OpenSim ExternalLoads .xml and its
     /// data file), used instead of the estimate from kinematics.
     #[arg(long)]
@@ -120,6 +122,8 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     if args.treadmill {
         options.contact.floor_velocity = None;
     }
+    // Read once here for `--strict` and the model's warnings; the chain reads the same text.
+    args.strict.load_str(&xml, &source)?;
     let chain = Chain::new(xml, source, options)?;
     let layout = describe(&chain)?;
     let clips: Vec<ClipInput> = if args.demo {

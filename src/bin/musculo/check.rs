@@ -2,7 +2,7 @@
 //! is non-zero when a check fails.
 
 use musculo::check::{self, CheckOptions, CheckReport, Family, Status};
-use musculo::model::{LoadOptions, Model};
+use musculo::model::Model;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -20,10 +20,10 @@ pub struct Args {
     /// Print every check, not only the failures.
     #[arg(short, long)]
     verbose: bool,
-    /// Read models whose inertias violate the triangle inequality (as OpenSim release builds
-    /// do); the check still reports them.
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    // Without --strict, a body whose inertia violates the triangle inequality is read, and
+    // the mass-and-inertia check reports it.
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
     /// Grid points over each coordinate's range for the path, sign and moment checks.
     #[arg(long, default_value_t = CheckOptions::default().grid_points)]
     grid_points: usize,
@@ -32,12 +32,7 @@ pub struct Args {
 /// Runs the checks; `Ok(false)` when some check failed.
 pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     let model = match &args.model {
-        Some(p) => Model::from_osim_file_with(
-            p,
-            &LoadOptions {
-                allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-            },
-        )?,
+        Some(p) => args.strict.load(p)?,
         None => Model::demo(),
     };
     let options = CheckOptions {

@@ -1,7 +1,7 @@
 //! `musculo export-mjcf`: write a model as MuJoCo MJCF (the expanded tree, one joint per
 //! movable transform axis), listing what MJCF cannot express.
 
-use musculo::model::{LoadOptions, Model, mjcf};
+use musculo::model::{Model, mjcf};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -15,18 +15,15 @@ pub struct Args {
     /// Output MJCF file.
     #[arg(short, long)]
     output: PathBuf,
-    /// Accept inertias that violate the triangle inequality (exported with MuJoCo's
-    /// balanceinertia).
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    // A body whose inertia violates the triangle inequality is exported with MuJoCo's
+    // balanceinertia.
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
-    let options = LoadOptions {
-        allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-    };
     let model = match &args.model {
-        Some(p) => Model::from_osim_file_with(p, &options)?,
+        Some(p) => args.strict.load(p)?,
         None => Model::demo(),
     };
     let export = mjcf::to_mjcf(&model);

@@ -3,7 +3,6 @@
 
 use crate::tool::{FrameProgress, create_parent_dir, missing, read_coordinates};
 use musculo::io::setup::InverseDynamicsSetup;
-use musculo::model::{LoadOptions, Model};
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::inverse_dynamics::{InverseDynamicsOptions, inverse_dynamics};
 use std::path::PathBuf;
@@ -35,9 +34,8 @@ pub struct Args {
     /// Output .sto file. Default: the setup's results_directory/output_gen_force_file.
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
     /// Hold the model's coordinates that the coordinates file has no column for at their
     /// default values (to apply another model's motion by coordinate name) instead of
     /// stopping with an error.
@@ -86,12 +84,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         options.time_range = Some([r[0], r[1]]);
     }
 
-    let model = Model::from_osim_file_with(
-        &model_path,
-        &LoadOptions {
-            allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-        },
-    )?;
+    let model = args.strict.load(&model_path)?;
     let coordinates = read_coordinates(
         &model,
         &coordinates_path,
@@ -101,6 +94,9 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         .as_deref()
         .map(|p| ExternalLoadSet::read(&model, p))
         .transpose()?;
+    if let Some(l) = &loads {
+        crate::warnings::print(&l.warnings);
+    }
 
     let progress = FrameProgress::new("inverse dynamics");
     let result = inverse_dynamics(

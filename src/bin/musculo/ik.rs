@@ -8,7 +8,7 @@ use crate::tool::{
 };
 use musculo::io::Table;
 use musculo::io::ik_setup::IkSetup;
-use musculo::model::{LoadOptions, Model};
+use musculo::model::Model;
 use musculo::motion::skeleton::SkeletonMap;
 use musculo::motion::{self, Format, Motion, ReadOptions};
 use musculo::solve::ik::{self, Bounds, IkSettings, IkSolution, IkTasks};
@@ -61,9 +61,8 @@ pub struct Args {
     /// Default: the setup's output_motion_file.
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 fn parse_bounds(text: Option<&str>, default: Bounds) -> Bounds {
@@ -181,12 +180,7 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
         .clone()
         .or_else(|| setup.output_path())
         .ok_or_else(|| missing("--output", "output file"))?;
-    let model = Model::from_osim_file_with(
-        &model_path,
-        &LoadOptions {
-            allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-        },
-    )?;
+    let model = args.strict.load(&model_path)?;
     let markers = motion::read(&marker_path, args.format, &ReadOptions::default())?;
     let range = match &args.time_range {
         Some(r) => Some([r[0], r[1]]),
@@ -198,6 +192,9 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
         .as_deref()
         .map(Table::read)
         .transpose()?;
+    if let Some(c) = &coordinates {
+        crate::warnings::print(&c.warnings);
+    }
     let (tasks, warnings) =
         ik_tool::tasks_from_setup(&model, &setup, &markers, coordinates.as_ref())?;
     for w in &warnings {
@@ -256,11 +253,8 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         .output
         .clone()
         .ok_or_else(|| missing("--output", "output file"))?;
-    let load = LoadOptions {
-        allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-    };
     let (base_xml, base_source) = model_text(args.model.as_deref())?;
-    let base_model = Model::from_osim_str_with(&base_xml, &base_source, &load)?;
+    let base_model = args.strict.load_str(&base_xml, &base_source)?;
     let options = read_options(args.length_unit.as_deref())?;
     let auto_scale = match args.scale.as_deref() {
         None => false,

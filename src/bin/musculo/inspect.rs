@@ -1,6 +1,6 @@
 //! `musculo inspect`: a model summary for people (table) or programs (`--json`).
 
-use musculo::model::{CoordinateRole, LoadOptions, Model, MotionType};
+use musculo::model::{CoordinateRole, Model, MotionType};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -16,18 +16,14 @@ pub struct Args {
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
-    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do),
-    /// listing them as warnings.
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
-    let options = LoadOptions {
-        allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-    };
+    // Every warning is listed below, so none is printed at loading.
     let model = match &args.model {
-        Some(p) => Model::from_osim_file_with(p, &options)?,
+        Some(p) => Model::from_osim_file_with(p, &args.strict.load_options())?,
         None => Model::demo(),
     };
     if args.json {

@@ -11,6 +11,7 @@ mod muscles;
 mod scale;
 mod so;
 mod tool;
+mod warnings;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -30,6 +30,8 @@ pub struct ScaleArgs {
     /// Scaled model file to write.
     #[arg(short, long)]
     output: PathBuf,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 /// The height in "reference subject 75 kg, 1.75 m)" of a musculo-built model's credits.
@@ -78,7 +80,7 @@ pub fn run(command: &Command) -> Result<(), musculo::Error> {
                     source,
                 })?;
             let source = args.model.display().to_string();
-            let model = musculo::Model::from_osim_str(&xml, &source)?;
+            let model = args.strict.load_str(&xml, &source)?;
             let model_height = match args.model_height.or_else(|| credited_height(&xml)) {
                 Some(h) => h,
                 None => {

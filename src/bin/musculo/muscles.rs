@@ -3,7 +3,6 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::io::Table;
-use musculo::model::{LoadOptions, Model};
 use musculo::muscle::MuscleSet;
 use musculo::muscle::path::{PathData, compute_paths};
 use musculo::solve::kinematics::independent_columns;
@@ -22,20 +21,15 @@ pub struct Args {
     /// PREFIX_MaxIsometricMoment_<coordinate>.sto (default: the motion file's stem).
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
-    let model = Model::from_osim_file_with(
-        &args.model,
-        &LoadOptions {
-            allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-        },
-    )?;
+    let model = args.strict.load(&args.model)?;
     let set = MuscleSet::new(&model)?;
     let motion = Table::read(&args.coords)?;
+    crate::warnings::print(&motion.warnings);
     let q_columns = independent_columns(&model, &motion, &args.coords.display().to_string())?;
     let (n, m, rows) = (model.nq(), set.len(), motion.n_rows());
     let mut data = Data::new(&model);

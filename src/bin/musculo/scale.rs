@@ -45,6 +45,8 @@ pub struct Args {
     /// Run GenericModelMaker and ModelScaler only (no marker placement).
     #[arg(long)]
     skip_placement: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 /// Writes `text` to `path` through a temporary file beside it, renamed into place.
@@ -118,7 +120,7 @@ fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
         )
     })?;
     let (xml, source) = crate::tool::model_text(args.model.as_deref())?;
-    let model = musculo::Model::from_osim_str(&xml, &source)?;
+    let model = args.strict.load_str(&xml, &source)?;
     let scaling =
         musculo::solve::scale_from_clip::scale_to_clip(&xml, &source, &model, &map, &clip)?;
     write_atomically(&output, &scaling.xml)?;
@@ -156,12 +158,11 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     let options = ToolOptions {
         model_file: args.model.clone(),
         skip_placement: args.skip_placement,
-        ..ToolOptions::default()
+        load: args.strict.load_options(),
     };
     let result = tool::run(&setup, &options)?;
-    for w in &result.warnings {
-        eprintln!("warning: {w}");
-    }
+    crate::warnings::print_model(&result.generic);
+    crate::warnings::print(&result.warnings);
     println!(
         "{}: generic model {} ({:.3} kg)",
         if result.name.is_empty() {

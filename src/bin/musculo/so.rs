@@ -4,7 +4,7 @@
 
 use crate::tool::{FrameProgress, create_parent_dir, missing, read_coordinates};
 use musculo::io::setup::AnalyzeSetup;
-use musculo::model::{LoadOptions, Model};
+use musculo::model::Model;
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::static_optimization::{
     SoRunOptions, SoStatus, StaticOptimization, StaticOptimizationOptions, run_static_optimization,
@@ -59,9 +59,8 @@ pub struct Args {
     /// setup's results_directory/<name>_StaticOptimization.
     #[arg(short, long, value_name = "PREFIX")]
     output: Option<PathBuf>,
-    /// Accept inertias that violate the triangle inequality (as OpenSim release builds do).
-    #[arg(long)]
-    allow_nonphysical_inertia: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
     /// Hold the model's coordinates that the coordinates file has no column for at their
     /// default values (to apply another model's motion by coordinate name) instead of
     /// stopping with an error.
@@ -153,12 +152,11 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
 
     let model = Model::from_osim_file_with_force_sets(
         &model_path,
-        &LoadOptions {
-            allow_nonphysical_inertia: args.allow_nonphysical_inertia,
-        },
+        &args.strict.load_options(),
         &force_sets,
         replace,
     )?;
+    crate::warnings::print_model(&model);
     let so = StaticOptimization::new(&model, options)?;
     let coordinates = read_coordinates(
         &model,
@@ -169,6 +167,9 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         .as_deref()
         .map(|p| ExternalLoadSet::read(&model, p))
         .transpose()?;
+    if let Some(l) = &loads {
+        crate::warnings::print(&l.warnings);
+    }
 
     let progress = FrameProgress::new("static optimization");
     let start = Instant::now();

@@ -64,6 +64,7 @@ pub fn read_coordinates(
     missing_at_default: bool,
 ) -> Result<musculo::io::Table, musculo::Error> {
     let mut table = musculo::io::Table::read(path)?;
+    crate::warnings::print(&table.warnings);
     if missing_at_default {
         let added = musculo::solve::kinematics::fill_missing_coordinates(model, &mut table);
         if !added.is_empty() {

@@ -20,10 +20,41 @@ use roxmltree::{Document, ParsingOptions};
 /// Options for reading a model file.
 #[derive(Clone, Debug, Default)]
 pub struct LoadOptions {
-    /// Accept bodies whose principal moments of inertia violate the triangle inequality
-    /// (I₁ + I₂ ≥ I₃), as release builds of OpenSim do, recording a warning for each instead
-    /// of failing. Off by default: such an inertia cannot belong to a real body.
-    pub allow_nonphysical_inertia: bool,
+    /// Refuse what OpenSim's release builds accept but no real body can have: principal
+    /// moments of inertia that violate the triangle inequality (I₁ + I₂ ≥ I₃; two of
+    /// OpenSim's tutorial models have such toes). Off by default: such a body is read, with
+    /// a [`WarningKind::NonphysicalInertia`](super::WarningKind) warning naming it and its
+    /// moments. The CLI's `--strict`.
+    pub strict: bool,
+}
+
+/// Reads the OpenSim function elements (`NaturalCubicSpline`, `GCVSpline`, `Constant`, …)
+/// of any OpenSim XML document with the model reader's rules, errors naming the file, the
+/// line and the element path (used for ExternalLoads' `PrescribedForce`).
+pub(crate) struct FunctionReader<'a, 'i> {
+    ctx: Ctx<'a, 'i>,
+}
+
+impl<'a, 'i> FunctionReader<'a, 'i> {
+    pub(crate) fn new(doc: &'a Document<'i>, file: &'a str) -> Self {
+        FunctionReader {
+            ctx: Ctx::new(doc, file),
+        }
+    }
+
+    /// True for the tag of an OpenSim function class (read or named as unsupported).
+    pub(crate) fn is_function(node: XNode) -> bool {
+        functions::is_function_tag(node.tag_name().name())
+    }
+
+    pub(crate) fn read(&self, node: XNode) -> Result<super::Function, Error> {
+        parse_function(&self.ctx, node)
+    }
+
+    /// An error at `node` with its element path.
+    pub(crate) fn err(&self, node: XNode, message: impl Into<String>) -> Error {
+        self.ctx.err(node, message)
+    }
 }
 
 /// The oldest file version read: OpenSim 4.0 writes `Version="40000"`.
@@ -33,7 +64,8 @@ const MIN_VERSION: u32 = 40000;
 const MAX_NESTING: usize = 256;
 
 /// Force-set files added to a model as OpenSim's tools do (`<force_set_files>` with
-/// `<replace_force_set>`): each is an `OpenSimDocument` holding one `<ForceSet>`, whose
+/// `<replace_force_set>`): each is an `OpenSimDocument` holding one `<ForceSet>` (or, in files
+/// written for OpenSim 2 and 3, an `<ActuatorSet>`: the same set under its old name), whose
 /// members are appended to the model's forces (or replace them).
 #[derive(Clone, Debug, Default)]
 pub struct ForceSetFiles {
@@ -379,8 +411,9 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         Ok(model)
     }
 
-    /// Appends the members of the `<ForceSet>` of a force-set file. Errors and warnings name
-    /// that file; a name already used by a force of the model is an error.
+    /// Appends the members of the `<ForceSet>` (or OpenSim 2–3 `<ActuatorSet>`) of a
+    /// force-set file. Errors and warnings name that file; a name already used by a force of
+    /// the model is an error.
     fn read_force_set_file(
         &mut self,
         text: &str,
@@ -390,17 +423,19 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         let doc = parse_document(text, file)?;
         let mut ctx = Ctx::new(&doc, file);
         let root = doc.root_element();
-        let set = if root.tag_name().name() == "ForceSet" {
+        let is_set = |n: XNode| matches!(n.tag_name().name(), "ForceSet" | "ActuatorSet");
+        let set = if is_set(root) {
             Some(root)
         } else if root.tag_name().name() == "OpenSimDocument" {
-            elements(root).find(|c| c.tag_name().name() == "ForceSet")
+            elements(root).find(|&c| is_set(c))
         } else {
             None
         };
         let set = set.ok_or_else(|| {
             ctx.err(
                 root,
-                "a force-set file must hold a <ForceSet> (inside <OpenSimDocument>)",
+                "a force-set file must hold a <ForceSet> (or OpenSim 2–3's <ActuatorSet>), \
+                 inside <OpenSimDocument>",
             )
         })?;
         for f in set_members(set) {
@@ -624,16 +659,24 @@ fn check_inertia(
             "inertia violates the triangle inequality: principal moments {:.6e} + {:.6e} < {:.6e}",
             p[0], p[1], p[2]
         );
-        if options.allow_nonphysical_inertia {
-            ctx.warn(
+        if options.strict {
+            return Err(ctx.err(
                 b,
-                format!("{msg} (accepted: LoadOptions::allow_nonphysical_inertia)"),
-            );
-        } else {
-            return Err(ctx.err(b, format!(
-                "{msg}; no rigid body has such an inertia (load with allow_nonphysical_inertia to accept it as OpenSim does)"
-            )));
+                format!(
+                    "{msg}; no rigid body has such an inertia, and strict reading (`--strict`) \
+                     refuses it (without `--strict` the body is read with a warning, as \
+                     OpenSim's release builds read it)"
+                ),
+            ));
         }
+        ctx.warn_kind(
+            b,
+            super::WarningKind::NonphysicalInertia,
+            format!(
+                "{msg}: no rigid body has such an inertia; read as OpenSim's release builds \
+                 read it (`--strict` refuses it)"
+            ),
+        );
     }
     Ok(())
 }

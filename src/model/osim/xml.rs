@@ -2,7 +2,7 @@
 //! names the file, the line and the element (as a path of named ancestors).
 
 use crate::error::Error;
-use crate::model::{RawElement, Warning};
+use crate::model::{RawElement, Warning, WarningKind};
 use crate::spatial::Vec3;
 use roxmltree::{Document, Node};
 
@@ -93,10 +93,15 @@ impl<'a, 'i> Ctx<'a, 'i> {
     }
 
     pub fn warn(&mut self, node: XNode, message: impl Into<String>) {
+        self.warn_kind(node, WarningKind::NotUsed, message);
+    }
+
+    pub fn warn_kind(&mut self, node: XNode, kind: WarningKind, message: impl Into<String>) {
         let w = Warning {
             line: self.line(node),
             element: self.describe(node),
             message: message.into(),
+            kind,
         };
         self.warnings.push(w);
     }

@@ -260,7 +260,9 @@ fn tasks(
                             ));
                         };
                         if coordinate_table.is_none() {
-                            coordinate_table = Some(Table::read(file)?);
+                            let table = Table::read(file)?;
+                            warnings.extend(table.warnings.iter().cloned());
+                            coordinate_table = Some(table);
                         }
                         let table = coordinate_table.as_ref().expect("read above");
                         let col = table.column_index(name).ok_or_else(|| {
