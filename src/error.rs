@@ -27,6 +27,11 @@ pub enum Error {
         message: String,
     },
 
+    /// An output file could not be written, or may not be: it would overwrite one of the
+    /// command's inputs, it is a folder, or its name leaves its results folder.
+    #[error("cannot write output {}: {message}", path.display())]
+    Output { path: PathBuf, message: String },
+
     /// The XML is well-formed but describes an invalid or unsupported model.
     /// `element` names the element (e.g. `CustomJoint "knee_r" > TransformAxis "translation1"`).
     #[error("{file}:{line}: {element}: {message}")]

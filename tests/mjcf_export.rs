@@ -122,6 +122,11 @@ fn export_mjcf_command_writes_the_file_and_lists_notes() {
     );
     let xml = std::fs::read_to_string(&out).unwrap();
     assert_eq!(xml, to_mjcf(&Model::demo()).xml);
-    assert!(!dir.join("demo.xml.partial").exists());
+    // nothing but the file: no temporary left beside it
+    let entries: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(entries, ["demo.xml"]);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -158,7 +158,7 @@ fn npy_write_replaces_atomically_and_reports_unwritable_paths() {
     assert_eq!(dir.entries(), vec!["out.npy".to_string()]);
     let missing = dir.join("no/such/folder/out.npz");
     let e = npy::write_npz(&missing, &[("a", ramp(&[2]).view())], true).unwrap_err();
-    assert!(matches!(e, Error::Io { .. }), "{e}");
+    assert!(matches!(e, Error::Output { .. }), "{e}");
     assert!(e.to_string().contains("no/such/folder"), "{e}");
 }
 

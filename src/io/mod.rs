@@ -3,10 +3,12 @@
 //! * [`storage`]: OpenSim `.sto` / `.mot` tables ([`Table`]).
 //! * [`external_loads`]: OpenSim ExternalLoads `.xml` (forces applied to bodies from data columns).
 //! * [`trc`]: marker trajectories (`.trc`), read and written.
+//! * [`output`]: writing a command's output files whole or not at all.
 //! * [`setup`]: OpenSim tool setup files (Inverse Dynamics, Analyze with Static Optimization).
 
 pub mod external_loads;
 pub mod ik_setup;
+pub mod output;
 pub mod scale_setup;
 pub mod setup;
 pub mod storage;

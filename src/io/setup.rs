@@ -297,6 +297,18 @@ impl<'a, 'i> Reader<'a, 'i> {
 
     pub(crate) fn tool_element(&self) -> crate::Result<Node<'a, 'i>> {
         let root = self.doc.root_element();
+    /// Refuses `name` (an attribute or element of `n`) as part of an output file name when it
+    /// would put the file outside the results folder (`AnalyzeTool name="../../x"`).
+    pub(crate) fn plain_name(&self, n: Node, what: &str, name: &str) -> crate::Result<()> {
+        match crate::io::output::plain_name_problem(name) {
+            Some(problem) => Err(self.error(
+                n,
+                format!("{what} `{name}` {problem}; use a plain file name"),
+            )),
+            None => Ok(()),
+        }
+    }
+
         if root.has_tag_name("OpenSimDocument") {
             root.first_element_child()
                 .ok_or_else(|| self.error(root, "no tool element inside <OpenSimDocument>".into()))
@@ -440,7 +452,12 @@ impl<'a, 'i> Reader<'a, 'i> {
                 "coordinates_file" => s.coordinates_file = self.path(n),
                 "external_loads_file" => s.external_loads_file = self.path(n),
                 "results_directory" => s.results_directory = self.path(n),
-                "output_gen_force_file" => s.output_gen_force_file = Self::text(n),
+                "output_gen_force_file" => {
+                    s.output_gen_force_file = Self::text(n);
+                    if let Some(name) = &s.output_gen_force_file {
+                        self.plain_name(n, "the output file name", name)?;
+                    }
+                }
                 "lowpass_cutoff_frequency_for_coordinates" => {
                     s.lowpass_cutoff_hz = self.cutoff(n)?
                 }
@@ -482,6 +499,8 @@ impl<'a, 'i> Reader<'a, 'i> {
             coordinates_file: None,
             external_loads_file: None,
             lowpass_cutoff_hz: None,
+        // The results are written as results_directory/<name>_<analysis>_….
+        self.plain_name(tool, "the tool name", &s.name)?;
             initial_time: None,
             final_time: None,
             results_directory: None,
@@ -576,6 +595,7 @@ impl<'a, 'i> Reader<'a, 'i> {
         a: Node,
         warnings: &mut Vec<SetupWarning>,
     ) -> crate::Result<StaticOptimizationSetup> {
+        self.plain_name(a, "the analysis name", &so.name)?;
         let mut so = StaticOptimizationSetup {
             name: a
                 .attribute("name")

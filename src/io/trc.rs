@@ -33,6 +33,12 @@
 //! few or too many values, time that does not increase, duplicate marker names, a label count
 //! that contradicts `NumMarkers`, a frame count that contradicts `NumFrames`, unknown units.
 //!
+//! A frame whose time repeats the previous frame's — exactly, or within
+//! [`REPEAT_TOLERANCE`](crate::io::storage::REPEAT_TOLERANCE) of the sampling interval
+//! 1/`DataRate` — is the same sample written twice: it is left out, with a warning in
+//! [`Trc::warnings`] naming its line and time (as `.mot`/`.sto` files are read). It still
+//! counts as a row of the file for `NumFrames`.
+//!
 //! # Writing
 //!
 //! [`Trc::write`] produces the layout above exactly as OpenSim's `TRCFileAdapter` writes it
@@ -469,7 +475,7 @@ impl Trc {
                 err(
                     line,
                     column_name(0),
-                    format!("row {row}: `{}` is not a frame number", f[0]),
+                    format!("`{}` is not a frame number", f[0]),
                 )
             })?;
             let t = f[1]
@@ -480,7 +486,7 @@ impl Trc {
                     err(
                         line,
                         column_name(1),
-                        format!("row {row}: `{}` is not a finite time", f[1]),
+                        format!("`{}` is not a finite time", f[1]),
                     )
                 })?;
             if let Some(&t_prev) = time.last()

@@ -10,23 +10,24 @@
 //! and returned in standard (C) layout. `.npz` archives are opened with the `zip` crate and
 //! each member goes through the same `.npy` path.
 //!
-//! Writing goes to a temporary file in the destination's folder which is flushed, synced and
-//! then renamed over the destination: an interrupted run leaves either the old file or the
-//! new one, never half of one.
+//! Writing goes through [`crate::io::output`]: a temporary file in the destination's folder,
+//! flushed, synced and then renamed over the destination, so an interrupted run leaves
+//! either the old file or the new one, never half of one.
 //!
 //! Errors: a file that cannot be read or written is [`Error::Io`]; a file that is not an
 //! `.npy`, or holds another dtype or rank, is [`Error::Motion`] naming the file (and the
 //! archive member for `.npz`).
 
 use crate::error::Error;
+use crate::io::output::AtomicFile;
+pub use crate::io::output::{is_temporary_name, write_file_atomic};
 use ndarray::{ArrayD, ArrayViewD, Dimension};
 use ndarray_npy::{
     NpzWriter, ReadNpyExt, ReadableElement, ViewElement, ViewNpyError, ViewNpyExt, WritableElement,
     WriteNpyExt,
 };
 use std::io::{Read, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 /// The float element types musculo reads and writes (`f32`, `f64`).
 pub trait NpyFloat:
@@ -249,75 +250,8 @@ pub fn read_npz_as_f64(path: &Path) -> crate::Result<Vec<(String, ArrayD<f64>)>>
     read_npz_with(path, parse_array_as_f64)
 }
 
-/// A temporary file beside `path`, renamed over it by [`AtomicFile::commit`] and removed if
-/// dropped uncommitted.
-struct AtomicFile {
-    temp: PathBuf,
-    target: PathBuf,
-}
-
-impl AtomicFile {
-    fn create(target: &Path) -> crate::Result<(AtomicFile, std::fs::File)> {
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let name = target.file_name().ok_or_else(|| {
-            io_error(
-                target,
-                std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
-            )
-        })?;
-        let mut temp_name = std::ffi::OsString::from(".");
-        temp_name.push(name);
-        temp_name.push(format!(
-            ".tmp-{}-{}",
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let temp = target.with_file_name(temp_name);
-        let file = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&temp)
-            .map_err(|e| io_error(&temp, e))?;
-        let atomic = AtomicFile {
-            temp,
-            target: target.to_path_buf(),
-        };
-        Ok((atomic, file))
-    }
-
-    fn commit(mut self, file: std::fs::File) -> crate::Result<()> {
-        file.sync_all().map_err(|e| io_error(&self.temp, e))?;
-        drop(file);
-        std::fs::rename(&self.temp, &self.target).map_err(|e| io_error(&self.target, e))?;
-        self.temp = PathBuf::new();
-        Ok(())
-    }
-}
-
-impl Drop for AtomicFile {
-    fn drop(&mut self) {
-        if !self.temp.as_os_str().is_empty() {
-            let _ = std::fs::remove_file(&self.temp);
-        }
-    }
-}
-
 fn write_error(path: &Path, e: impl std::fmt::Display) -> Error {
     io_error(path, std::io::Error::other(e.to_string()))
-}
-
-/// Writes `bytes` to `path` atomically (a temporary file beside it, synced, then renamed):
-/// an interrupted write leaves the old file or the new one, never part of one.
-pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
-    let (atomic, mut file) = AtomicFile::create(path)?;
-    file.write_all(bytes).map_err(|e| io_error(path, e))?;
-    atomic.commit(file)
-}
-
-/// True for the name of a temporary file this module writes (`.<name>.tmp-<pid>-<n>`): left
-/// behind only when a process is killed mid-write, and safe to delete.
-pub fn is_temporary_name(name: &str) -> bool {
-    name.starts_with('.') && name.contains(".tmp-")
 }
 
 /// Writes `array` as an `.npy` file (little-endian, C order), atomically.

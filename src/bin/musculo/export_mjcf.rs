@@ -1,8 +1,9 @@
 //! `musculo export-mjcf`: write a model as MuJoCo MJCF (the expanded tree, one joint per
 //! movable transform axis), listing what MJCF cannot express.
 
+use musculo::io::output::name_in_folder;
 use musculo::model::{Model, mjcf};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -12,7 +13,7 @@ pub struct Args {
     /// Export the built-in demonstration model instead of a file.
     #[arg(long)]
     demo: bool,
-    /// Output MJCF file.
+    /// Output MJCF file; a path ending in `/` is a folder (<model name>.xml in it).
     #[arg(short, long)]
     output: PathBuf,
     // A body whose inertia violates the triangle inequality is exported with MuJoCo's
@@ -27,17 +28,16 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         None => Model::demo(),
     };
     let export = mjcf::to_mjcf(&model);
-    // Write next to the target and rename, so an interrupted run never leaves half a file.
-    let tmp = args.output.with_extension("xml.partial");
-    let io = |source| musculo::Error::Io {
-        path: args.output.clone(),
-        source,
+    let default_name = match &args.model {
+        Some(p) => format!("{}.xml", crate::tool::stem(p)),
+        None => "demo.xml".to_string(),
     };
-    std::fs::write(&tmp, &export.xml).map_err(io)?;
-    std::fs::rename(&tmp, &args.output).map_err(io)?;
+    let output = name_in_folder(&args.output, &default_name);
+    let inputs: Vec<&Path> = args.model.iter().map(PathBuf::as_path).collect();
+    crate::tool::write_output(&output, export.xml.as_bytes(), &inputs)?;
     eprintln!(
         "wrote {} ({} bodies, {} joints = full coordinates)",
-        args.output.display(),
+        output.display(),
         model.bodies.len() - 1,
         model.n_full()
     );

@@ -1,7 +1,8 @@
 //! `musculo id`: OpenSim's Inverse Dynamics tool — generalized forces from a motion and
 //! its external loads, written as an OpenSim .sto file.
 
-use crate::tool::{FrameProgress, create_parent_dir, missing, read_coordinates};
+use crate::tool::{FrameProgress, missing, read_coordinates};
+use musculo::io::output::{OutputSet, name_in_folder};
 use musculo::io::setup::InverseDynamicsSetup;
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::inverse_dynamics::{InverseDynamicsOptions, inverse_dynamics};
@@ -31,7 +32,9 @@ pub struct Args {
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
     #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
     time_range: Option<Vec<f64>>,
-    /// Output .sto file. Default: the setup's results_directory/output_gen_force_file.
+    /// Output .sto file; a path ending in `/` is a folder (the setup's output_gen_force_file,
+    /// else inverse_dynamics.sto, in it). It may not be an input. Default: the setup's
+    /// results_directory/output_gen_force_file.
     #[arg(short, long)]
     output: Option<PathBuf>,
     #[command(flatten)]
@@ -68,11 +71,15 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         .external_loads
         .clone()
         .or_else(|| setup.as_ref()?.external_loads_file.clone());
-    let output = args
-        .output
-        .clone()
-        .or_else(|| setup.as_ref()?.output_path())
-        .ok_or_else(|| missing("--output", "output file"))?;
+    let output = match (&args.output, setup.as_ref()) {
+        (Some(o), s) => {
+            let name = s.and_then(|s| s.output_gen_force_file.clone());
+            name_in_folder(o, name.as_deref().unwrap_or("inverse_dynamics.sto"))
+        }
+        (None, s) => s
+            .and_then(InverseDynamicsSetup::output_path)
+            .ok_or_else(|| missing("--output", "output file"))?,
+    };
     let mut options = setup
         .as_ref()
         .map(InverseDynamicsOptions::from_setup)
@@ -97,6 +104,16 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     if let Some(l) = &loads {
         crate::warnings::print(&l.warnings);
     }
+    let data_path = loads.as_ref().map(|l| PathBuf::from(&l.data_source));
+    let inputs = [
+        Some(&model_path),
+        Some(&coordinates_path),
+        loads_path.as_ref(),
+        data_path.as_ref(),
+        args.setup.as_ref(),
+    ];
+    let mut outputs = OutputSet::new(inputs.into_iter().flatten().map(PathBuf::as_path));
+    outputs.check(&output)?;
 
     let progress = FrameProgress::new("inverse dynamics");
     let result = inverse_dynamics(
@@ -112,8 +129,8 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    create_parent_dir(&output)?;
-    out.table.write(&output)?;
+    outputs.add(&output, out.table.to_file_string()?.as_bytes())?;
+    crate::tool::commit(outputs)?;
     let t = &out.table;
     eprintln!(
         "wrote {}: {} rows ({:.6} – {:.6} s) × {} generalized forces{}{}",

@@ -3,11 +3,10 @@
 //! it. Either an OpenSim InverseKinematicsTool setup (`--setup`), or a motion dataset file
 //! mapped onto a model's markers by a skeleton map.
 
-use crate::tool::{
-    FrameProgress, create_parent_dir, invalid, missing, model_text, read_options, skeleton_map,
-};
+use crate::tool::{FrameProgress, invalid, missing, model_text, read_options, skeleton_map};
 use musculo::io::Table;
 use musculo::io::ik_setup::IkSetup;
+use musculo::io::output::{OutputSet, name_in_folder};
 use musculo::model::Model;
 use musculo::motion::skeleton::SkeletonMap;
 use musculo::motion::{self, Format, Motion, ReadOptions};
@@ -57,8 +56,10 @@ pub struct Args {
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
     #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
     time_range: Option<Vec<f64>>,
-    /// Output .mot file; with several inputs, a folder receiving <input stem>.mot each.
-    /// Default: the setup's output_motion_file.
+    /// Output .mot file; with several inputs, or ending in `/`, a folder receiving
+    /// <input stem>.mot each (with --setup: the setup's output file name). Written with the
+    /// marker-error tables beside it, all or none; missing folders are created. Default: the
+    /// setup's output_motion_file.
     #[arg(short, long)]
     output: Option<PathBuf>,
     #[command(flatten)]
@@ -83,18 +84,32 @@ fn beside(output: &Path, suffix: &str) -> PathBuf {
     output.with_file_name(format!("{stem}{suffix}"))
 }
 
-fn write_outputs(
+/// Adds the motion and its two marker-error tables (`out.mot`, `out_ik_marker_errors.sto`,
+/// `out_ik_marker_errors_by_marker.sto`) to `outputs`.
+fn add_outputs(
+    outputs: &mut OutputSet,
     model: &Model,
     solution: &IkSolution,
     tasks: &IkTasks,
     output: &Path,
 ) -> Result<(), musculo::Error> {
-    create_parent_dir(output)?;
-    ik_tool::coordinates_table(model, solution)?.write(output)?;
-    ik_tool::marker_errors_table(solution, tasks)?
-        .write(&beside(output, "_ik_marker_errors.sto"))?;
-    ik_tool::marker_errors_by_marker(model, solution, tasks)?
-        .write(&beside(output, "_ik_marker_errors_by_marker.sto"))?;
+    let tables = [
+        (
+            output.to_path_buf(),
+            ik_tool::coordinates_table(model, solution)?,
+        ),
+        (
+            beside(output, "_ik_marker_errors.sto"),
+            ik_tool::marker_errors_table(solution, tasks)?,
+        ),
+        (
+            beside(output, "_ik_marker_errors_by_marker.sto"),
+            ik_tool::marker_errors_by_marker(model, solution, tasks)?,
+        ),
+    ];
+    for (path, table) in tables {
+        outputs.add(&path, table.to_file_string()?.as_bytes())?;
+    }
     Ok(())
 }
 
@@ -175,11 +190,26 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
         .cloned()
         .or_else(|| setup.marker_file.clone())
         .ok_or_else(|| missing("--input", "marker file"))?;
-    let output = args
-        .output
-        .clone()
-        .or_else(|| setup.output_path())
-        .ok_or_else(|| missing("--output", "output file"))?;
+    let output = match &args.output {
+        Some(o) => {
+            let name = setup
+                .output_path()
+                .and_then(|p| Some(p.file_name()?.to_owned()));
+            let default = format!("{}_ik.mot", crate::tool::stem(&marker_path));
+            name_in_folder(
+                o,
+                &name.map_or(default, |n| n.to_string_lossy().into_owned()),
+            )
+        }
+        None => setup
+            .output_path()
+            .ok_or_else(|| missing("--output", "output file"))?,
+    };
+    let inputs = [model_path.as_path(), marker_path.as_path(), setup_path]
+        .into_iter()
+        .chain(setup.coordinate_file.as_deref());
+    let mut outputs = OutputSet::new(inputs);
+    outputs.check(&output)?;
     let model = args.strict.load(&model_path)?;
     let markers = motion::read(&marker_path, args.format, &ReadOptions::default())?;
     let range = match &args.time_range {
@@ -215,7 +245,8 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
     progress.finish();
     let solution = solution?;
     let seconds = start.elapsed().as_secs_f64();
-    write_outputs(&model, &solution, &tasks, &output)?;
+    add_outputs(&mut outputs, &model, &solution, &tasks, &output)?;
+    crate::tool::commit(outputs)?;
     summarize(&model, &solution, &tasks, &output, seconds);
     Ok(())
 }
@@ -253,6 +284,8 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         .output
         .clone()
         .ok_or_else(|| missing("--output", "output file"))?;
+    let inputs = args.input.iter().chain(&args.model).map(PathBuf::as_path);
+    let mut outputs = OutputSet::new(inputs);
     let (base_xml, base_source) = model_text(args.model.as_deref())?;
     let base_model = args.strict.load_str(&base_xml, &base_source)?;
     let options = read_options(args.length_unit.as_deref())?;
@@ -309,12 +342,13 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
             base_model.clone()
         };
         let (targets, tasks) = targets_and_tasks(&model, &clip, map.as_ref())?;
+        let name = format!("{}.mot", crate::tool::stem(path));
         let out = if several {
-            let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-            output.join(format!("{stem}.mot"))
+            output.join(name)
         } else {
-            output.clone()
+            name_in_folder(&output, &name)
         };
+        outputs.check(&out)?;
         jobs.push((path.clone(), model, targets, tasks, out));
     }
     let settings = IkSettings {
@@ -343,17 +377,23 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
     progress.finish();
     let _ = start;
     let mut failed = 0;
+    let mut solved = Vec::new();
     for ((path, model, _, tasks, out), (result, seconds)) in jobs.iter().zip(results) {
         match result {
             Ok(solution) => {
-                write_outputs(model, &solution, tasks, out)?;
-                summarize(model, &solution, tasks, out, seconds);
+                add_outputs(&mut outputs, model, &solution, tasks, out)?;
+                solved.push((model, solution, tasks, out, seconds));
             }
             Err(e) => {
                 eprintln!("error: {}: {e}", path.display());
                 failed += 1;
             }
         }
+    }
+    // The solved clips' files, all together (a failed clip writes none).
+    crate::tool::commit(outputs)?;
+    for (model, solution, tasks, out, seconds) in &solved {
+        summarize(model, solution, tasks, out, *seconds);
     }
     if failed > 0 {
         return Err(invalid(

@@ -1,7 +1,17 @@
-//! `musculo model build`: the default full-body model from its parameter tables.
+//! `musculo model build`: the default full-body model from its parameter tables;
+//! `musculo model scale`: uniform scaling; `musculo model reserves`: the residual and reserve
+//! actuators static optimization needs, as a force-set file.
 
+use musculo::io::output::name_in_folder;
 use musculo::model::builder::{ModelTables, build_osim};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// The files of the parameter-table folder (which the built model may not overwrite).
+fn table_files(folder: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(folder)
+        .map(|entries| entries.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default()
+}
 
 #[derive(clap::Subcommand)]
 pub enum Command {
@@ -11,6 +21,30 @@ pub enum Command {
     /// masses by M / M_model, inertias by both, fiber and tendon slack lengths keeping their
     /// ratio to the musculotendon length at the default pose.
     Scale(ScaleArgs),
+    /// Write the residual and reserve actuators for static optimization as an OpenSim
+    /// force-set file: on the floating base three forces and three torques at its centre of
+    /// mass (FX … MZ, as OpenSim's gait examples), one CoordinateActuator per other
+    /// independent coordinate; controls unbounded, so every frame can be balanced.
+    Reserves(ReservesArgs),
+}
+
+#[derive(clap::Args)]
+pub struct ReservesArgs {
+    /// OpenSim 4.x model file (.osim).
+    #[arg(default_value = "models/musculo_fullbody.osim")]
+    model: PathBuf,
+    /// Optimal force of each joint reserve (N·m or N).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    reserve_optimal_force: f64,
+    /// Optimal force of each floating-base residual (N or N·m).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    residual_optimal_force: f64,
+    /// Force-set file to write (a path ending in `/` is a folder). Default: the model's path
+    /// with `_reserves.xml` for `.osim`.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 #[derive(clap::Args)]
@@ -27,7 +61,8 @@ pub struct ScaleArgs {
     /// ("reference subject … kg, … m") when not given.
     #[arg(long)]
     model_height: Option<f64>,
-    /// Scaled model file to write.
+    /// Scaled model file to write; a path ending in `/` is a folder (the input's file name in
+    /// it). It may not be the input model.
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
@@ -48,25 +83,59 @@ pub struct BuildArgs {
     /// Folder of the parameter tables.
     #[arg(long, default_value = "data/model")]
     data: PathBuf,
-    /// Model file to write.
+    /// Model file to write; a path ending in `/` is a folder (musculo_fullbody.osim in it).
     #[arg(short, long, default_value = "models/musculo_fullbody.osim")]
     output: PathBuf,
 }
 
+/// `models/x.osim` → `models/x_reserves.xml`.
+fn reserves_path(model: &std::path::Path) -> PathBuf {
+    let stem = model.file_stem().map(|s| s.to_string_lossy().into_owned());
+    model.with_file_name(format!("{}_reserves.xml", stem.unwrap_or_default()))
+}
+
+fn reserves(args: &ReservesArgs) -> Result<(), musculo::Error> {
+    use musculo::model::reserves::{ReserveOptions, reserve_actuators, reserve_force_set};
+    let model = args.strict.load(&args.model)?;
+    let options = ReserveOptions {
+        reserve_optimal_force: args.reserve_optimal_force,
+        residual_optimal_force: args.residual_optimal_force,
+    };
+    // the header names the model by its file name, so the text does not depend on the folder
+    let label = args.model.file_name().map_or_else(
+        || args.model.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let xml = reserve_force_set(&model, &label, &options)?;
+    let count = reserve_actuators(&model, &options)?.len();
+    let output = match &args.output {
+        Some(o) => name_in_folder(o, &reserves_path(Path::new(&label)).to_string_lossy()),
+        None => reserves_path(&args.model),
+    };
+    crate::tool::write_output(&output, xml.as_bytes(), &[&args.model])?;
+    println!(
+        "wrote {}: {count} actuators for the {} independent coordinates of {}",
+        output.display(),
+        model.nq(),
+        args.model.display()
+    );
+    Ok(())
+}
+
 pub fn run(command: &Command) -> Result<(), musculo::Error> {
     match command {
+        Command::Reserves(args) => reserves(args),
         Command::Build(args) => {
             let tables =
                 ModelTables::read(&args.data).map_err(musculo::model::builder::BuildError::from)?;
             let xml = build_osim(&tables)?;
-            crate::tool::create_parent_dir(&args.output)?;
-            std::fs::write(&args.output, xml).map_err(|source| musculo::Error::Io {
-                path: args.output.clone(),
-                source,
-            })?;
+            let output = name_in_folder(&args.output, "musculo_fullbody.osim");
+            let tables_read = table_files(&args.data);
+            let inputs: Vec<&Path> = tables_read.iter().map(PathBuf::as_path).collect();
+            crate::tool::write_output(&output, xml.as_bytes(), &inputs)?;
             println!(
                 "wrote {} ({} bodies rows, {} joints, {} muscles)",
-                args.output.display(),
+                output.display(),
                 tables.bodies.len(),
                 tables.joints.len(),
                 tables.muscles.len()
@@ -104,14 +173,12 @@ pub fn run(command: &Command) -> Result<(), musculo::Error> {
                     scaled.replace_range(at..end, &stated);
                 }
             }
-            crate::tool::create_parent_dir(&args.output)?;
-            std::fs::write(&args.output, scaled).map_err(|source| musculo::Error::Io {
-                path: args.output.clone(),
-                source,
-            })?;
+            let default_name = args.model.file_name().unwrap_or_default().to_string_lossy();
+            let output = name_in_folder(&args.output, &default_name);
+            crate::tool::write_output(&output, scaled.as_bytes(), &[&args.model])?;
             println!(
                 "wrote {}: lengths × {:.4}, masses × {:.4} ({} kg, {} m from {:.2} kg, {} m)",
-                args.output.display(),
+                output.display(),
                 factors.length,
                 factors.mass,
                 args.mass,

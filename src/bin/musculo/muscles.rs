@@ -3,6 +3,7 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::io::Table;
+use musculo::io::output::{OutputSet, name_in_folder, with_suffix};
 use musculo::muscle::MuscleSet;
 use musculo::muscle::path::{PathData, compute_paths};
 use musculo::solve::kinematics::independent_columns;
@@ -18,7 +19,9 @@ pub struct Args {
     #[arg(long)]
     coords: PathBuf,
     /// Output prefix: writes PREFIX_Length.sto, PREFIX_MomentArm_<coordinate>.sto and
-    /// PREFIX_MaxIsometricMoment_<coordinate>.sto (default: the motion file's stem).
+    /// PREFIX_MaxIsometricMoment_<coordinate>.sto, all or none (default: the motion file's
+    /// path without its extension). A prefix ending in `/` is a folder, the files named after
+    /// the motion file in it; missing folders are created.
     #[arg(short, long)]
     output: Option<PathBuf>,
     #[command(flatten)]
@@ -30,6 +33,13 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     let set = MuscleSet::new(&model)?;
     let motion = Table::read(&args.coords)?;
     crate::warnings::print(&motion.warnings);
+    let stem = crate::tool::stem(&args.coords);
+    let prefix = match &args.output {
+        Some(o) => name_in_folder(o, &stem),
+        None => args.coords.with_file_name(&stem),
+    };
+    let mut outputs = OutputSet::new([args.model.as_path(), args.coords.as_path()]);
+    outputs.check(&with_suffix(&prefix, "_Length.sto"))?;
     let q_columns = independent_columns(&model, &motion, &args.coords.display().to_string())?;
     let (n, m, rows) = (model.nq(), set.len(), motion.n_rows());
     let mut data = Data::new(&model);
@@ -63,46 +73,47 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     }
     bar.finish_and_clear();
 
-    let prefix = args
-        .output
-        .clone()
-        .unwrap_or_else(|| args.coords.with_extension(""));
     let labels: Vec<String> = set.names().map(str::to_string).collect();
-    let write =
-        |suffix: &str, values: Vec<f64>, description: &str| -> Result<PathBuf, musculo::Error> {
-            let path = PathBuf::from(format!("{}_{suffix}.sto", prefix.display()));
-            let mut table = Table::new(
-                suffix.to_string(),
-                labels.clone(),
-                motion.time.clone(),
-                values,
-            )?;
-            table.in_degrees = Some(false);
-            table.description = vec![description.to_string()];
-            table.write(&path)?;
-            Ok(path)
-        };
-    let mut written = vec![write(
+    let mut add = |suffix: &str, values: Vec<f64>, description: &str| {
+        let mut table = Table::new(
+            suffix.to_string(),
+            labels.clone(),
+            motion.time.clone(),
+            values,
+        )?;
+        table.in_degrees = Some(false);
+        table.description = vec![description.to_string()];
+        let path = with_suffix(&prefix, &format!("_{suffix}.sto"));
+        outputs.add(&path, table.to_file_string()?.as_bytes())
+    };
+    add(
         "Length",
         lengths,
         "Musculotendon length (m) of each muscle, computed by musculo.",
-    )?];
+    )?;
     let names = model.q_names();
     for j in 0..n {
         if arms[j].iter().all(|&r| r.abs() < 1e-12) {
             continue; // no muscle crosses this coordinate
         }
-        written.push(write(
+        add(
             &format!("MomentArm_{}", names[j]),
             std::mem::take(&mut arms[j]),
-            &format!("Moment arm r = -dl/dq of each muscle about {} (m, or dimensionless for a translation).", names[j]),
-        )?);
-        written.push(write(
+            &format!(
+                "Moment arm r = -dl/dq of each muscle about {} (m, or dimensionless for a translation).",
+                names[j]
+            ),
+        )?;
+        add(
             &format!("MaxIsometricMoment_{}", names[j]),
             std::mem::take(&mut moments[j]),
-            &format!("Moment about {} of each muscle at full activation, isometric (N m): r times the isometric tendon force.", names[j]),
-        )?);
+            &format!(
+                "Moment about {} of each muscle at full activation, isometric (N m): r times the isometric tendon force.",
+                names[j]
+            ),
+        )?;
     }
+    let written = crate::tool::commit(outputs)?;
     eprintln!(
         "{} muscles, {rows} frames: wrote {} files",
         m,

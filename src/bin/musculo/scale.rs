@@ -3,6 +3,7 @@
 //! `musculo scale --from-clip FILE -o scaled.osim`: a model (the default one unless
 //! `--model`) scaled to a joint-centre clip's bone lengths, its convention markers placed.
 
+use musculo::io::output::{OutputSet, name_in_folder};
 use musculo::io::scale_setup::ScaleSetup;
 use musculo::solve::scale::tool::{self, OutputKind, ToolOptions};
 use std::path::{Path, PathBuf};
@@ -35,7 +36,8 @@ pub struct Args {
     #[arg(long)]
     model: Option<PathBuf>,
     /// The final model (after marker placement, or after scaling when placement does not
-    /// run) is written here instead of to the setup's output_model_file.
+    /// run) is written here instead of to the setup's output_model_file; a path ending in `/`
+    /// is a folder. Every output is written together (all or none) and none may be an input.
     #[arg(short, long)]
     output: Option<PathBuf>,
     /// Write every output the setup names into this folder under its file name, instead of
@@ -49,29 +51,20 @@ pub struct Args {
     strict: crate::warnings::Strict,
 }
 
-/// Writes `text` to `path` through a temporary file beside it, renamed into place.
-fn write_atomically(path: &Path, text: &str) -> Result<(), musculo::Error> {
-    crate::tool::create_parent_dir(path)?;
-    let io = |source| musculo::Error::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let name = path.file_name().ok_or_else(|| {
-        io(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a file path",
-        ))
-    })?;
-    let tmp = path.with_file_name(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    std::fs::write(&tmp, text).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
-    })
+/// The files a Scale run reads, which its outputs may not overwrite.
+fn scale_inputs(setup_path: &Path, setup: &ScaleSetup, generic: &Path) -> Vec<PathBuf> {
+    let mut inputs = vec![setup_path.to_path_buf(), generic.to_path_buf()];
+    if let Some(g) = &setup.generic_model_maker {
+        inputs.extend(g.marker_set_file.clone());
+    }
+    if let Some(m) = &setup.model_scaler {
+        inputs.extend(m.marker_file.clone());
+    }
+    if let Some(p) = &setup.marker_placer {
+        inputs.extend(p.marker_file.clone());
+        inputs.extend(p.coordinate_file.clone());
+    }
+    inputs
 }
 
 fn kind_name(kind: OutputKind) -> &'static str {
@@ -123,7 +116,10 @@ fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
     let model = args.strict.load_str(&xml, &source)?;
     let scaling =
         musculo::solve::scale_from_clip::scale_to_clip(&xml, &source, &model, &map, &clip)?;
-    write_atomically(&output, &scaling.xml)?;
+    let output = name_in_folder(&output, &format!("{}.osim", crate::tool::stem(clip_path)));
+    let model_input: Vec<&Path> = args.model.iter().map(PathBuf::as_path).collect();
+    let inputs = [&[clip_path][..], &model_input].concat();
+    crate::tool::write_output(&output, scaling.xml.as_bytes(), &inputs)?;
     for (segment, factor) in &scaling.factors {
         println!("{segment:<18} ×{factor:.4}");
     }
@@ -240,24 +236,46 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     } else {
         OutputKind::ScaledModel
     };
-    let mut final_written = false;
+    let final_name = (result.outputs.iter())
+        .find(|o| o.kind == final_kind)
+        .and_then(|o| o.path.file_name())
+        .map_or_else(
+            || {
+                format!(
+                    "{}.osim",
+                    if setup.name.is_empty() {
+                        "scaled"
+                    } else {
+                        &setup.name
+                    }
+                )
+            },
+            |n| n.to_string_lossy().into_owned(),
+        );
+    let final_output = args.output.as_ref().map(|o| name_in_folder(o, &final_name));
+    let inputs = scale_inputs(setup_path, &setup, &result.generic_file);
+    let mut outputs = OutputSet::new(inputs.iter().map(PathBuf::as_path));
+    let mut kinds = Vec::new();
     for out in &result.outputs {
-        let mut path = match &args.output_dir {
-            Some(dir) => dir.join(out.path.file_name().unwrap_or(out.path.as_os_str())),
-            None => out.path.clone(),
+        let path = match (&final_output, &args.output_dir) {
+            (Some(o), _) if out.kind == final_kind => o.clone(),
+            (_, Some(dir)) => dir.join(out.path.file_name().unwrap_or(out.path.as_os_str())),
+            _ => out.path.clone(),
         };
-        if out.kind == final_kind {
-            if let Some(o) = &args.output {
-                path = o.clone();
-            }
-            final_written = true;
-        }
-        write_atomically(&path, &out.text)?;
-        println!("wrote {} ({})", path.display(), kind_name(out.kind));
+        outputs.add(&path, out.text.as_bytes())?;
+        kinds.push(out.kind);
     }
-    if let (Some(o), false) = (&args.output, final_written) {
-        write_atomically(o, result.final_model().0)?;
-        println!("wrote {} ({})", o.display(), kind_name(final_kind));
+    if let Some(o) = final_output
+        .as_ref()
+        .filter(|_| !kinds.contains(&final_kind))
+    {
+        outputs.add(o, result.final_model().0.as_bytes())?;
+        kinds.push(final_kind);
+    }
+    // Every file is written before any gets its name: all of them or none.
+    let written = crate::tool::commit(outputs)?;
+    for (path, kind) in written.iter().zip(kinds) {
+        println!("wrote {} ({})", path.display(), kind_name(kind));
     }
     if result.outputs.is_empty() && args.output.is_none() {
         eprintln!("note: the setup names no output file and no -o was given: nothing written");

@@ -2,14 +2,15 @@
 //! analysis) — muscle activations and actuator forces per frame, written as OpenSim's
 //! `_activation.sto` and `_force.sto`.
 
-use crate::tool::{FrameProgress, create_parent_dir, missing, read_coordinates};
+use crate::tool::{FrameProgress, missing, read_coordinates};
+use musculo::io::output::{OutputSet, name_in_folder, with_suffix};
 use musculo::io::setup::AnalyzeSetup;
 use musculo::model::Model;
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::static_optimization::{
     SoRunOptions, SoStatus, StaticOptimization, StaticOptimizationOptions, run_static_optimization,
 };
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -55,8 +56,10 @@ pub struct Args {
     /// Also apply each muscle's passive fiber force (OpenSim does not).
     #[arg(long)]
     passive_fiber_force: bool,
-    /// Output prefix: writes PREFIX_activation.sto and PREFIX_force.sto. Default: the
-    /// setup's results_directory/<name>_StaticOptimization.
+    /// Output prefix: writes PREFIX_activation.sto and PREFIX_force.sto, both or neither. A
+    /// prefix ending in `/` is a folder (files named <name>_StaticOptimization_… with a setup,
+    /// else after the coordinates file); missing folders are created. Default: the setup's
+    /// results_directory/<name>_StaticOptimization.
     #[arg(short, long, value_name = "PREFIX")]
     output: Option<PathBuf>,
     #[command(flatten)]
@@ -66,13 +69,6 @@ pub struct Args {
     /// stopping with an error.
     #[arg(long)]
     missing_coordinates_at_default: bool,
-}
-
-/// `prefix` + `suffix` as a path (`out/run` + `_force.sto`).
-fn with_suffix(prefix: &Path, suffix: &str) -> PathBuf {
-    let mut s = prefix.as_os_str().to_os_string();
-    s.push(suffix);
-    PathBuf::from(s)
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
@@ -113,16 +109,26 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     } else {
         (args.actuators.clone(), false)
     };
-    let prefix = args
-        .output
-        .clone()
-        .or_else(|| {
-            let s = setup.as_ref()?;
-            let dir = s.results_directory.clone()?;
-            let analysis = so_setup.as_ref().map_or("StaticOptimization", |a| &a.name);
-            Some(dir.join(format!("{}_{analysis}", s.name)))
-        })
-        .ok_or_else(|| missing("--output", "output prefix"))?;
+    // OpenSim names the files <tool name>_<analysis name>_activation.sto.
+    let setup_stem = setup.as_ref().map(|s| {
+        let analysis = so_setup.as_ref().map_or("StaticOptimization", |a| &a.name);
+        format!("{}_{analysis}", s.name)
+    });
+    let prefix = match (&args.output, setup.as_ref()) {
+        (Some(o), _) => name_in_folder(
+            o,
+            &setup_stem
+                .clone()
+                .unwrap_or_else(|| crate::tool::stem(&coordinates_path)),
+        ),
+        (None, Some(s)) => s
+            .results_directory
+            .as_ref()
+            .zip(setup_stem.as_ref())
+            .map(|(dir, stem)| dir.join(stem))
+            .ok_or_else(|| missing("--output", "output prefix"))?,
+        (None, None) => return Err(missing("--output", "output prefix")),
+    };
 
     let defaults = so_setup.clone().unwrap_or_default();
     let options = StaticOptimizationOptions {
@@ -170,6 +176,18 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     if let Some(l) = &loads {
         crate::warnings::print(&l.warnings);
     }
+    let data_path = loads.as_ref().map(|l| PathBuf::from(&l.data_source));
+    let inputs = [&model_path, &coordinates_path]
+        .into_iter()
+        .chain(&loads_path)
+        .chain(&data_path)
+        .chain(&force_sets)
+        .chain(&args.setup);
+    let mut outputs = OutputSet::new(inputs.map(PathBuf::as_path));
+    let activation_path = with_suffix(&prefix, "_activation.sto");
+    let force_path = with_suffix(&prefix, "_force.sto");
+    outputs.check(&activation_path)?;
+    outputs.check(&force_path)?;
 
     let progress = FrameProgress::new("static optimization");
     let start = Instant::now();
@@ -210,11 +228,12 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             }
         );
     }
-    create_parent_dir(&prefix)?;
-    let activation_path = with_suffix(&prefix, "_activation.sto");
-    let force_path = with_suffix(&prefix, "_force.sto");
-    out.activation.write(&activation_path)?;
-    out.force.write(&force_path)?;
+    outputs.add(
+        &activation_path,
+        out.activation.to_file_string()?.as_bytes(),
+    )?;
+    outputs.add(&force_path, out.force.to_file_string()?.as_bytes())?;
+    crate::tool::commit(outputs)?;
     let rows = out.activation.n_rows();
     eprintln!(
         "wrote {} and {}: {} frames ({:.6} – {:.6} s) × {} actuators ({} muscles); {} frame(s) \

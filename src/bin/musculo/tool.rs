@@ -1,8 +1,9 @@
 //! Pieces shared by the commands that run OpenSim-style tools (`id`, `so`): the error for a
-//! missing input, the frame progress bar, and the output folder.
+//! missing input, the frame progress bar, and writing the outputs.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::Path;
+use musculo::io::output::OutputSet;
+use std::path::{Path, PathBuf};
 
 /// The error for an input given neither as a flag nor by the setup file.
 pub fn missing(argument: &'static str, what: &str) -> musculo::Error {
@@ -43,17 +44,28 @@ impl FrameProgress {
     }
 }
 
-/// Creates the folder that will hold `file`.
-pub fn create_parent_dir(file: &Path) -> Result<(), musculo::Error> {
-    if let Some(dir) = file.parent()
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).map_err(|source| musculo::Error::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
+/// Names the outputs together (see `musculo::io::output`) and says on stderr what was tidied
+/// from interrupted runs; returns the files written.
+pub fn commit(outputs: OutputSet) -> Result<Vec<PathBuf>, musculo::Error> {
+    let done = outputs.commit()?;
+    for note in &done.notes {
+        eprintln!("note: {note}");
     }
-    Ok(())
+    Ok(done.files)
+}
+
+/// Writes one output file whole or not at all, refusing to overwrite any of `inputs`.
+pub fn write_output(path: &Path, bytes: &[u8], inputs: &[&Path]) -> Result<(), musculo::Error> {
+    let mut outputs = OutputSet::new(inputs.iter().copied());
+    outputs.add(path, bytes)?;
+    commit(outputs).map(|_| ())
+}
+
+/// The last component of `path` without its extension (`walk` for `data/walk.mot`).
+pub fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// The coordinates file, with the model's coordinates it lacks held at their defaults when

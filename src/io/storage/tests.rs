@@ -675,7 +675,7 @@ fn write_refuses_invalid_tables_and_reports_io_errors_with_the_path() {
 
     let bad = Path::new("/nonexistent/dir/out.sto");
     match awkward_table().write(bad) {
-        Err(Error::Io { path, .. }) => assert_eq!(path, bad),
+        Err(Error::Output { path, .. }) => assert_eq!(path, bad),
         other => panic!("{other:?}"),
     }
 }

@@ -1,9 +1,8 @@
 //! Writing: the checks a table must pass to be written and read back unchanged, the
-//! OpenSim-4-style text, and the write through a temporary file.
+//! OpenSim-4-style text, and the atomic write.
 
 use std::collections::HashMap;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::{
     HeaderLine, STRUCTURAL_KEYS, Table, WRITTEN_OPENSIM_VERSION, classify_header_line,
@@ -144,38 +143,10 @@ impl Table {
         Ok(s)
     }
 
-    /// Writes the table (see the module documentation): to a temporary file beside `path`,
-    /// then renamed onto `path`.
+    /// Writes the table (see the module documentation) atomically: to a temporary file beside
+    /// `path`, then renamed onto it ([`crate::io::output::write_file_atomic`]).
     pub fn write(&self, path: &Path) -> Result<()> {
-        let text = self.to_file_string()?;
-        let io_err = |source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let Some(file_name) = path.file_name() else {
-            return Err(io_err(std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                "not a file path",
-            )));
-        };
-        // Unique per process and call, so concurrent writers never share a temporary file.
-        static WRITES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-        let serial = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let mut temp_name = std::ffi::OsString::from(".");
-        temp_name.push(file_name);
-        temp_name.push(format!(".{}-{serial}.tmp", std::process::id()));
-        let temp: PathBuf = path.with_file_name(temp_name);
-        let result = (|| {
-            let mut file = std::fs::File::create(&temp)?;
-            file.write_all(text.as_bytes())?;
-            file.sync_all()?;
-            std::fs::rename(&temp, path)
-        })();
-        if let Err(source) = result {
-            let _ = std::fs::remove_file(&temp);
-            return Err(io_err(source));
-        }
-        Ok(())
+        crate::io::output::write_file_atomic(path, self.to_file_string()?.as_bytes())
     }
 }
 
