@@ -279,6 +279,44 @@ fn a_near_repeated_last_row_no_longer_makes_inverse_dynamics_ring() {
     );
 }
 
+#[test]
+fn a_repeated_trc_frame_is_dropped_with_a_warning_exact_or_near() {
+    let trc = |last_time: &str| {
+        format!(
+            "PathFileType\t4\t(X/Y/Z)\tt.trc\n\
+             DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t\
+             OrigDataStartFrame\tOrigNumFrames\n\
+             100\t100\t4\t1\tmm\t100\t1\t4\n\
+             Frame#\tTime\tA\t\t\n\
+             \t\tX1\tY1\tZ1\n\
+             \n\
+             1\t0\t1\t2\t3\n\
+             2\t0.01\t4\t5\t6\n\
+             3\t0.02\t7\t8\t9\n\
+             4\t{last_time}\t7\t8\t9.5\n"
+        )
+    };
+    for last in ["0.02", "0.020000000000000066", "0.019999999999999934"] {
+        let t = musculo::io::trc::Trc::parse(&trc(last), "walk.trc").unwrap();
+        assert_eq!(t.time, [0.0, 0.01, 0.02], "{last}");
+        assert_eq!(t.positions.len(), 3, "{last}");
+        let w = t.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>();
+        assert_eq!(w.len(), 1, "{last}: {w:?}");
+        assert!(
+            w[0].starts_with("walk.trc:10: column \"Time\": time ")
+                && w[0].contains("repeats the time on line 9"),
+            "{w:?}"
+        );
+    }
+    // A real step, and a time that goes back, are what they were.
+    let t = musculo::io::trc::Trc::parse(&trc("0.03"), "walk.trc").unwrap();
+    assert!(t.warnings.is_empty() && t.time.len() == 4);
+    let e = musculo::io::trc::Trc::parse(&trc("0.015"), "walk.trc")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("walk.trc:10"), "{e}");
+}
+
 // ---------------------------------------------------------------------------------------
 // 5. Inertia violating the triangle inequality.
 

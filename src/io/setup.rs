@@ -297,6 +297,14 @@ impl<'a, 'i> Reader<'a, 'i> {
 
     pub(crate) fn tool_element(&self) -> crate::Result<Node<'a, 'i>> {
         let root = self.doc.root_element();
+        if root.has_tag_name("OpenSimDocument") {
+            root.first_element_child()
+                .ok_or_else(|| self.error(root, "no tool element inside <OpenSimDocument>".into()))
+        } else {
+            Ok(root)
+        }
+    }
+
     /// Refuses `name` (an attribute or element of `n`) as part of an output file name when it
     /// would put the file outside the results folder (`AnalyzeTool name="../../x"`).
     pub(crate) fn plain_name(&self, n: Node, what: &str, name: &str) -> crate::Result<()> {
@@ -306,14 +314,6 @@ impl<'a, 'i> Reader<'a, 'i> {
                 format!("{what} `{name}` {problem}; use a plain file name"),
             )),
             None => Ok(()),
-        }
-    }
-
-        if root.has_tag_name("OpenSimDocument") {
-            root.first_element_child()
-                .ok_or_else(|| self.error(root, "no tool element inside <OpenSimDocument>".into()))
-        } else {
-            Ok(root)
         }
     }
 
@@ -499,8 +499,6 @@ impl<'a, 'i> Reader<'a, 'i> {
             coordinates_file: None,
             external_loads_file: None,
             lowpass_cutoff_hz: None,
-        // The results are written as results_directory/<name>_<analysis>_….
-        self.plain_name(tool, "the tool name", &s.name)?;
             initial_time: None,
             final_time: None,
             results_directory: None,
@@ -509,6 +507,8 @@ impl<'a, 'i> Reader<'a, 'i> {
             static_optimization: None,
             warnings: Vec::new(),
         };
+        // The results are written as results_directory/<name>_<analysis>_….
+        self.plain_name(tool, "the tool name", &s.name)?;
         for n in tool.children().filter(Node::is_element) {
             let tag = n.tag_name().name();
             match tag {
@@ -595,7 +595,6 @@ impl<'a, 'i> Reader<'a, 'i> {
         a: Node,
         warnings: &mut Vec<SetupWarning>,
     ) -> crate::Result<StaticOptimizationSetup> {
-        self.plain_name(a, "the analysis name", &so.name)?;
         let mut so = StaticOptimizationSetup {
             name: a
                 .attribute("name")
@@ -604,6 +603,7 @@ impl<'a, 'i> Reader<'a, 'i> {
             line: self.line(a),
             ..Default::default()
         };
+        self.plain_name(a, "the analysis name", &so.name)?;
         for n in a.children().filter(Node::is_element) {
             match n.tag_name().name() {
                 "on" => so.on = self.boolean(n)?,

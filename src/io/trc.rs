@@ -123,6 +123,9 @@ pub struct Trc {
     /// Row-major positions in ground, metres: marker `m` of frame `f` is
     /// `positions[f * markers.len() + m]`; NaN where missing.
     pub positions: Vec<Vec3>,
+    /// What the reader accepted but reports: frames left out because their time repeated
+    /// the previous frame's. Empty for trajectories built in memory.
+    pub warnings: Vec<crate::io::FileWarning>,
 }
 
 impl Trc {
@@ -147,6 +150,7 @@ impl Trc {
             frame_numbers: (1..=n as i64).collect(),
             time,
             positions,
+            warnings: Vec::new(),
         };
         trc.validate()?;
         Ok(trc)
@@ -450,6 +454,10 @@ impl Trc {
         let mut time: Vec<f64> = Vec::with_capacity(rows);
         let mut positions = Vec::with_capacity(rows.saturating_mul(nm).min(text.len() / 3 + 1));
         let mut previous_line = 0;
+        let mut rows_in_file = 0;
+        let mut warnings = Vec::new();
+        // Two frames closer than this are one sample (module documentation).
+        let repeat_tolerance = crate::io::storage::REPEAT_TOLERANCE / data_rate;
         for (line, raw) in lines {
             if raw.trim().is_empty() {
                 continue;
@@ -489,6 +497,25 @@ impl Trc {
                         format!("`{}` is not a finite time", f[1]),
                     )
                 })?;
+            rows_in_file += 1;
+            if let Some(&t_prev) = time.last()
+                && (t - t_prev).abs() <= repeat_tolerance
+            {
+                let within = if t == t_prev {
+                    String::new()
+                } else {
+                    format!(" (within {:.1e} s)", (t - t_prev).abs())
+                };
+                warnings.push(crate::io::FileWarning {
+                    file: source.to_string(),
+                    line: u32::try_from(line).unwrap_or(u32::MAX),
+                    element: column_name(1),
+                    message: format!(
+                        "time {t} repeats the time on line {previous_line}{within}: frame left out"
+                    ),
+                });
+                continue;
+            }
             if let Some(&t_prev) = time.last()
                 && t <= t_prev
             {
@@ -532,14 +559,11 @@ impl Trc {
             }
             previous_line = line;
         }
-        if time.len() != num_frames {
+        if rows_in_file != num_frames {
             return Err(err(
                 lv,
                 "header \"NumFrames\"".into(),
-                format!(
-                    "NumFrames is {num_frames}, but the file has {} data rows",
-                    time.len()
-                ),
+                format!("NumFrames is {num_frames}, but the file has {rows_in_file} data rows"),
             ));
         }
         Ok(Trc {
@@ -554,6 +578,7 @@ impl Trc {
             frame_numbers,
             time,
             positions,
+            warnings,
         })
     }
 
