@@ -66,6 +66,18 @@ pub enum Error {
         message: String,
     },
 
+    /// A text file (model, motion, setup, …) is not UTF-8. `line` and `column` (1-based,
+    /// column in characters) and `offset` (bytes from the start of the file) locate the
+    /// first byte that is not.
+    #[error("{file}:{line}:{column}: byte offset {offset}: {message}")]
+    Encoding {
+        file: String,
+        line: u32,
+        column: u32,
+        offset: usize,
+        message: String,
+    },
+
     /// MuJoCo (feature `mujoco`) refused the model or is the wrong version.
     #[error("MuJoCo: {message}")]
     Mujoco { message: String },

@@ -300,7 +300,7 @@ impl Chain {
         for f in 0..frames {
             let r = f * n..(f + 1) * n;
             let (a, b, c) = (&mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r]);
-            trajectory.eval(times[f], a, b, c);
+            trajectory.eval_finite(times[f], a, b, c)?;
         }
         // The dynamics are computed for the kinematics as emitted (float32), so that
         // M q̈ + C q̇ + G = τ + J_cᵀλ holds for the arrays in the file, not only for values

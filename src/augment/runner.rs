@@ -219,6 +219,10 @@ pub fn shard_clips(clips: &[ClipInput], shard: Option<(usize, usize)>) -> Vec<&C
 /// Runs `chain` on `clips` (the whole dataset's list: the shard is taken from it), in
 /// parallel on the current rayon pool. Unsharded, writes the manifest and statistics at the
 /// end; sharded, writes the shard's list for `musculo merge`.
+/// The most variants per clip: every variant is a full run of the chain and a set of output
+/// files, and the list of work items is allocated up front.
+pub const MAX_VARIANTS: usize = 100_000;
+
 pub fn run(
     chain: &Chain,
     layout: &LayoutDescription,
@@ -226,8 +230,11 @@ pub fn run(
     options: &RunOptions,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> crate::Result<RunReport> {
-    if options.variants == 0 {
-        return Err(Error::invalid("--variants", "must be at least 1"));
+    if !(1..=MAX_VARIANTS).contains(&options.variants) {
+        return Err(Error::invalid(
+            "--variants",
+            format!("{}: must be from 1 to {MAX_VARIANTS}", options.variants),
+        ));
     }
     if let Some((k, n)) = options.shard
         && (n == 0 || k >= n)
@@ -510,10 +517,7 @@ pub fn merge(out: &Path) -> crate::Result<Manifest> {
             })?
             .path();
         if path.extension().is_some_and(|e| e == "json") {
-            let text = std::fs::read_to_string(&path).map_err(|source| Error::Io {
-                path: path.clone(),
-                source,
-            })?;
+            let text = crate::io::text::read_text(&path)?;
             let list: ShardList = serde_json::from_str(&text).map_err(|e| Error::Motion {
                 file: path.display().to_string(),
                 location: format!("line {}", e.line()),

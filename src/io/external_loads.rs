@@ -74,10 +74,7 @@ pub struct ExternalLoads {
 
 impl ExternalLoads {
     pub fn read(path: &Path) -> crate::Result<ExternalLoads> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::io::text::read_text(path)?;
         let mut loads = Self::parse(&text, &path.display().to_string())?;
         if let Some(d) = &loads.datafile {
             let base = crate::io::setup::base_dir(path);
@@ -87,12 +84,7 @@ impl ExternalLoads {
     }
 
     pub fn parse(text: &str, source: &str) -> crate::Result<ExternalLoads> {
-        let doc = roxmltree::Document::parse(text).map_err(|e| Error::Xml {
-            file: source.to_string(),
-            line: e.pos().row,
-            column: e.pos().col,
-            message: e.to_string(),
-        })?;
+        let doc = super::xml::parse(text, source)?;
         let line = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row;
         let err = |n: roxmltree::Node, element: String, message: String| Error::Model {
             file: source.to_string(),
@@ -120,6 +112,7 @@ impl ExternalLoads {
         let mut prescribed = Vec::new();
         let functions = FunctionReader::new(&doc, source);
         let objects = root.children().find(|c| c.has_tag_name("objects"));
+        let mut seen = std::collections::HashMap::new();
         for f in objects
             .iter()
             .flat_map(|o| o.children())
@@ -127,6 +120,16 @@ impl ExternalLoads {
         {
             let name = f.attribute("name").unwrap_or("").to_string();
             let element = format!("{} \"{name}\"", f.tag_name().name());
+            if let Some(first) = seen.insert(name.clone(), line(f)) {
+                return Err(err(
+                    f,
+                    element,
+                    format!(
+                        "a second force named \"{name}\" (the first is at line {first}): the \
+                         forces of an ExternalLoads file need distinct names"
+                    ),
+                ));
+            }
             if !f.has_tag_name("ExternalForce") && !f.has_tag_name("PrescribedForce") {
                 return Err(err(
                     f,

@@ -209,19 +209,11 @@ impl AnalyzeSetup {
 }
 
 pub(crate) fn read_text(path: &Path) -> crate::Result<String> {
-    std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    crate::io::text::read_text(path)
 }
 
 pub(crate) fn parse_xml<'i>(text: &'i str, path: &Path) -> crate::Result<Document<'i>> {
-    Document::parse(text).map_err(|e| Error::Xml {
-        file: path.display().to_string(),
-        line: e.pos().row,
-        column: e.pos().col,
-        message: e.to_string(),
-    })
+    super::xml::parse(text, &path.display().to_string())
 }
 
 pub(crate) fn base_dir(path: &Path) -> &Path {

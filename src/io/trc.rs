@@ -51,8 +51,7 @@
 
 use crate::error::Error;
 use crate::spatial::Vec3;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Length unit of a `.trc` file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -232,7 +231,7 @@ impl Trc {
         for r in 0..n {
             if !self.time[r].is_finite() || (r > 0 && self.time[r] <= self.time[r - 1]) {
                 return bad(format!(
-                    "column \"Time\": row {r}: {} does not increase",
+                    "column \"Time\": time {} does not increase",
                     self.time[r]
                 ));
             }
@@ -243,9 +242,9 @@ impl Trc {
             .position(|p| p.iter().any(|v| v.is_infinite()))
         {
             return bad(format!(
-                "marker \"{}\": row {}: infinite position",
+                "marker \"{}\" at time {} s: infinite position",
                 self.markers[i % nm],
-                i / nm
+                self.time[i / nm]
             ));
         }
         if !(self.data_rate > 0.0 && self.camera_rate > 0.0 && self.orig_data_rate > 0.0) {
@@ -259,10 +258,7 @@ impl Trc {
 
     /// Reads a `.trc` file.
     pub fn read(path: &Path) -> crate::Result<Trc> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::io::text::read_text(path)?;
         Trc::parse(&text, &path.display().to_string())
     }
 
@@ -462,7 +458,6 @@ impl Trc {
             if raw.trim().is_empty() {
                 continue;
             }
-            let row = time.len();
             let mut f = fields(raw);
             while f.len() > expected && f.last().is_some_and(|s| s.is_empty()) {
                 f.pop();
@@ -473,7 +468,7 @@ impl Trc {
                     line,
                     column_name(c),
                     format!(
-                        "row {row} has {} values, expected {expected} (Frame#, Time and 3 for \
+                        "the row has {} values, expected {expected} (Frame#, Time and 3 for \
                          each of {nm} markers)",
                         f.len()
                     ),
@@ -523,8 +518,8 @@ impl Trc {
                     line,
                     column_name(1),
                     format!(
-                        "row {row}: time {t} does not exceed the previous row's {t_prev} (line \
-                         {previous_line}); time must increase strictly"
+                        "time {t} does not exceed the time {t_prev} on line {previous_line}; \
+                         time must increase strictly"
                     ),
                 ));
             }
@@ -550,7 +545,7 @@ impl Trc {
                             err(
                                 line,
                                 column_name(c + k),
-                                format!("row {row}: `{}` is not a number", parts[k]),
+                                format!("`{}` is not a number", parts[k]),
                             )
                         })?
                         / per_metre;
@@ -642,38 +637,15 @@ impl Trc {
         Ok(s)
     }
 
-    /// Writes the file (module documentation) through a temporary file beside `path`.
+    /// Writes the file (module documentation) atomically, through a temporary file beside
+    /// `path` ([`crate::io::output::write_file_atomic`]).
     pub fn write(&self, path: &Path) -> crate::Result<()> {
         let file_name = path
             .file_name()
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default();
         let text = self.to_file_string(&file_name)?;
-        let io_err = |source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        if file_name.is_empty() {
-            return Err(io_err(std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                "not a file path",
-            )));
-        }
-        static WRITES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-        let serial = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let temp: PathBuf =
-            path.with_file_name(format!(".{file_name}.{}-{serial}.tmp", std::process::id()));
-        let result = (|| {
-            let mut file = std::fs::File::create(&temp)?;
-            file.write_all(text.as_bytes())?;
-            file.sync_all()?;
-            std::fs::rename(&temp, path)
-        })();
-        if let Err(source) = result {
-            let _ = std::fs::remove_file(&temp);
-            return Err(io_err(source));
-        }
-        Ok(())
+        crate::io::output::write_file_atomic(path, text.as_bytes())
     }
 }
 
@@ -737,12 +709,12 @@ Frame#\tTime\tA\t\t\tB\t\t\n\
     }
 
     #[test]
-    fn bad_content_names_file_line_marker_and_row() {
+    fn bad_content_names_file_line_and_marker() {
         let e = Trc::parse(&TRC.replace("40\t50", "40\tx50"), "t.trc")
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("t.trc:8") && e.contains("marker \"B\" (column Y2)") && e.contains("row 1"),
+            e.contains("t.trc:8") && e.contains("marker \"B\" (column Y2)") && !e.contains("row 1"),
             "{e}"
         );
         let e = Trc::parse(&TRC.replace("\tB\t", "\tA\t"), "t.trc")
@@ -756,7 +728,7 @@ Frame#\tTime\tA\t\t\tB\t\t\n\
         .unwrap_err()
         .to_string();
         assert!(
-            e.contains("t.trc:7") && e.contains("row 0 has 7 values, expected 8"),
+            e.contains("t.trc:7") && e.contains("the row has 7 values, expected 8"),
             "{e}"
         );
         let e = Trc::parse(&TRC.replace("\tmm\t", "\tinch\t"), "t.trc")

@@ -457,10 +457,7 @@ impl Model {
         options: &LoadOptions,
     ) -> crate::Result<Model> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| crate::Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::io::text::read_text(path)?;
         osim::parse(&text, &path.display().to_string(), options)
     }
 
@@ -474,10 +471,7 @@ impl Model {
         replace: bool,
     ) -> crate::Result<Model> {
         let read = |p: &Path| {
-            std::fs::read_to_string(p).map_err(|source| crate::Error::Io {
-                path: p.to_path_buf(),
-                source,
-            })
+            crate::io::text::read_text(p)
         };
         let path = path.as_ref();
         let text = read(path)?;

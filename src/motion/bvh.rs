@@ -244,23 +244,9 @@ fn is(token: &str, keyword: &str) -> bool {
 impl Bvh {
     /// Reads and parses a BVH file.
     pub fn read(path: &Path) -> crate::Result<Bvh> {
-        let bytes = std::fs::read(path).map_err(|e| Error::Io {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
         let source = path.display().to_string();
-        let text = std::str::from_utf8(&bytes).map_err(|e| {
-            let line = 1 + bytes[..e.valid_up_to()]
-                .iter()
-                .filter(|&&b| b == b'\n')
-                .count();
-            Error::Motion {
-                file: source.clone(),
-                location: format!("line {line}"),
-                message: "not UTF-8 text".into(),
-            }
-        })?;
-        Bvh::parse(text, &source)
+        let text = crate::io::text::read_text(path)?;
+        Bvh::parse(&text, &source)
     }
 
     /// Parses BVH text; `source` names it in errors.

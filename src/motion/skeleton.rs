@@ -152,10 +152,7 @@ impl SkeletonMap {
 
     /// Reads a map file.
     pub fn read(path: &std::path::Path) -> crate::Result<SkeletonMap> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::io::text::read_text(path)?;
         Self::parse(&text, &path.display().to_string())
     }
 

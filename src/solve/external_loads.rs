@@ -176,12 +176,8 @@ impl ExternalLoadSet {
     ) -> crate::Result<ExternalLoadSet> {
         let bodies = loads.bodies(model)?;
         let n = table.n_rows();
-        let err = |element: String, message: String| Error::Model {
-            file: data_source.to_string(),
-            line: 0,
-            element,
-            message,
-        };
+        let locator = table.locator(data_source);
+        let err = |element: String, message: String| locator.labels(element, message);
         if n == 0 {
             return Err(err("table".into(), "no rows".into()));
         }

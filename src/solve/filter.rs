@@ -1,6 +1,8 @@
 //! Low-pass filtering of sampled signals, as OpenSim's tools do it: odd-reflection padding at
 //! both ends, then a third-order Butterworth filter run forward and backward (zero lag).
 
+use crate::io::text::short_number;
+
 /// Pads a signal with `pad` points at each end by odd reflection about its end values,
 /// x(−i) = 2 x(0) − x(i), which keeps value and slope continuous (OpenSim's Signal::Pad; the
 /// time column is padded the same way, extending the sampling grid).
@@ -21,6 +23,57 @@ pub fn pad_odd(signal: &[f64], pad: usize) -> Vec<f64> {
     out
 }
 
+/// The most samples [`accumulated_grid`] makes: ten million rows (about 80 MB a column) is
+/// far beyond any recorded motion, and refusing more turns an absurd time column into an
+/// error instead of an allocation failure.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
+/// The times first, first + dt, first + 2dt, … accumulated by repeated addition while ≤
+/// `last`, as OpenSim's `GCVSplineSet::constructStorage` loop makes them (so they carry the
+/// same drift). Errors (as a message) when `dt` is not a positive finite number, when
+/// `first` or `last` is not finite, when the grid would hold more than [`MAX_SAMPLES`]
+/// times, or when the times are so large that adding `dt` no longer changes them.
+pub fn accumulated_grid(first: f64, last: f64, dt: f64) -> Result<Vec<f64>, String> {
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(format!(
+            "the sampling interval {dt} s must be a positive finite number"
+        ));
+    }
+    if !(first.is_finite() && last.is_finite()) || last < first {
+        return Err(format!(
+            "the times [{}, {}] s are not a finite span",
+            short_number(first),
+            short_number(last)
+        ));
+    }
+    // Rounded up, plus the one sample the drift of repeated addition can add.
+    let expected = (last - first) / dt + 2.0;
+    if !(expected <= MAX_SAMPLES as f64) {
+        return Err(format!(
+            "resampling {} s to {} s every {} s would need {expected:.3e} samples, more than \
+             the {MAX_SAMPLES} allowed: check the time column",
+            short_number(first),
+            short_number(last),
+            short_number(dt)
+        ));
+    }
+    let cap = expected as usize + 1;
+    let mut grid = Vec::with_capacity(cap);
+    let mut x = first;
+    while x <= last {
+        if grid.len() == cap || (!grid.is_empty() && x + dt == x) {
+            return Err(format!(
+                "the sampling interval {} s is below the resolution of the times near {} s",
+                short_number(dt),
+                short_number(x)
+            ));
+        }
+        grid.push(x);
+        x += dt;
+    }
+    Ok(grid)
+}
+
 /// Third-order low-pass Butterworth filter with cutoff `cutoff` Hz for samples `dt` apart,
 /// applied forward then backward (zero phase; the amplitude response is squared, so the
 /// effective cutoff is lower, as in OpenSim's Signal::LowpassIIR).
@@ -33,15 +86,15 @@ pub fn pad_odd(signal: &[f64], pad: usize) -> Vec<f64> {
 ///   b₃ = (ω_a − 1)(ω_a² − ω_a + 1)/D,
 /// started (like OpenSim) from the first three samples copied unchanged. A cutoff at or above half the
 /// sampling frequency is lowered to 0.49 of it, as OpenSim does. Errors (as a message) on
-/// fewer than 4 samples or a non-positive step or cutoff.
+/// fewer than 4 samples or a step or cutoff that is not a positive finite number.
 pub fn lowpass_butterworth3(signal: &[f64], dt: f64, cutoff: f64) -> Result<Vec<f64>, String> {
     let n = signal.len();
     if n < 4 {
         return Err(format!("at least 4 samples are needed to filter, got {n}"));
     }
-    if !(dt > 0.0) || !(cutoff > 0.0) {
+    if !(dt > 0.0 && dt.is_finite() && cutoff > 0.0 && cutoff.is_finite()) {
         return Err(format!(
-            "sampling interval {dt} and cutoff {cutoff} Hz must be positive"
+            "sampling interval {dt} s and cutoff {cutoff} Hz must be positive finite numbers"
         ));
     }
     let fc = cutoff.min(0.49 / dt);
@@ -124,5 +177,38 @@ mod tests {
         assert!(lowpass_butterworth3(&[1.0, 2.0, 3.0], 0.01, 6.0).is_err());
         assert!(lowpass_butterworth3(&[1.0; 10], 0.0, 6.0).is_err());
         assert!(lowpass_butterworth3(&[1.0; 10], 0.01, -1.0).is_err());
+        assert!(lowpass_butterworth3(&[1.0; 10], f64::INFINITY, 6.0).is_err());
+        assert!(lowpass_butterworth3(&[1.0; 10], 0.01, f64::NAN).is_err());
+        assert!(lowpass_butterworth3(&[1.0; 10], 0.01, f64::INFINITY).is_err());
+    }
+
+    #[test]
+    fn the_grid_accumulates_like_opensim_and_is_bounded() {
+        let g = accumulated_grid(0.0, 0.4, 0.1).unwrap();
+        assert_eq!(g.len(), 5, "{g:?}");
+        assert_eq!(
+            g[3],
+            0.1 + 0.1 + 0.1,
+            "the drift of repeated addition is kept"
+        );
+        // 0.1 added three times is 0.30000000000000004 > 0.3: OpenSim's loop stops before.
+        assert_eq!(accumulated_grid(0.0, 0.3, 0.1).unwrap().len(), 3);
+        assert_eq!(accumulated_grid(1.0, 1.0, 0.5).unwrap(), vec![1.0]);
+        for (first, last, dt) in [
+            (0.0, 1.0, 0.0),
+            (0.0, 1.0, -0.1),
+            (0.0, 1.0, f64::NAN),
+            (0.0, 1.0, f64::INFINITY),
+            (0.0, f64::INFINITY, 0.1),
+            (f64::NEG_INFINITY, 1.0, 0.1),
+            (0.0, 1e308, 0.01),
+            (0.0, 1.0, 1e-8),
+        ] {
+            let e = accumulated_grid(first, last, dt).unwrap_err();
+            assert!(e.contains("s"), "{e}");
+        }
+        // Times so large that adding the step changes nothing: an error, not an endless loop.
+        let e = accumulated_grid(1e20, 1e20 + 1e5, 1.0).unwrap_err();
+        assert!(e.contains("resolution"), "{e}");
     }
 }

@@ -55,12 +55,13 @@
 //!   `inDegrees=no`); the header is still honoured.
 
 use super::external_loads::ExternalLoadSet;
-use super::filter::{lowpass_butterworth3, pad_odd};
+use super::filter::{accumulated_grid, lowpass_butterworth3, pad_odd};
 use super::kinematics::{
     CoordinateTrajectory, Differentiation, KinematicsOptions, independent_columns,
 };
 use crate::dynamics::{self, Data};
 use crate::error::Error;
+use crate::io::text::short_number;
 use crate::io::{Dialect, Table};
 use crate::model::natural_spline::NaturalSpline;
 use crate::model::{Model, MotionType};
@@ -166,12 +167,8 @@ pub fn prepare_coordinates(
     differentiation: Differentiation,
     warnings: &mut Vec<String>,
 ) -> crate::Result<PreparedCoordinates> {
-    let err = |element: String, message: String| Error::Model {
-        file: source.to_string(),
-        line: 0,
-        element,
-        message,
-    };
+    let locator = table.locator(source);
+    let err = |element: String, message: String| locator.labels(element, message);
     let in_degrees = opensim_in_degrees(table, source);
     let mut columns = independent_columns(model, table, source)?;
     let names = model.q_names();
@@ -208,6 +205,17 @@ pub fn prepare_coordinates(
         // Storage::pad(n/2): odd reflection of every column, time included.
         let pad = n / 2;
         time = pad_odd(&time, pad);
+        if let Some(t) = time.iter().find(|t| !t.is_finite()) {
+            return Err(err(
+                "column \"time\"".into(),
+                format!(
+                    "the times {} s to {} s are too large to pad for the low-pass filter \
+                     (reflecting them gives {t})",
+                    short_number(recorded_span[0]),
+                    short_number(recorded_span[1])
+                ),
+            ));
+        }
         for col in columns.iter_mut() {
             *col = pad_odd(col, pad);
         }
@@ -229,13 +237,18 @@ pub fn prepare_coordinates(
             if (last - first) / dt > MAX_RESAMPLE_SIZE {
                 dt = (last - first) / MAX_RESAMPLE_SIZE;
             }
-            // GCVSplineSet::constructStorage: for (x = min; x <= max; x += dx).
-            let mut new_time = Vec::with_capacity(((last - first) / dt) as usize + 2);
-            let mut x = first;
-            while x <= last {
-                new_time.push(x);
-                x += dt;
-            }
+            // GCVSplineSet::constructStorage: for (x = min; x <= max; x += dx), bounded.
+            let new_time = accumulated_grid(first, last, dt).map_err(|m| {
+                err(
+                    "column \"time\"".into(),
+                    format!(
+                        "cannot resample the rows (recorded {} s to {} s) for the low-pass \
+                         filter: {m}",
+                        short_number(recorded_span[0]),
+                        short_number(recorded_span[1])
+                    ),
+                )
+            })?;
             for (col, name) in columns.iter_mut().zip(&names) {
                 let spline = NaturalSpline::interpolating(3, time.clone(), std::mem::take(col))
                     .map_err(|m| err(format!("column \"{name}\""), m))?;
@@ -261,7 +274,7 @@ pub fn prepare_coordinates(
     let mut prepared = Table::new("prepared coordinates", labels, time.clone(), values)
         .map_err(|e| err("table".into(), format!("prepared coordinates: {e}")))?;
     prepared.in_degrees = Some(false);
-    let trajectory = CoordinateTrajectory::from_table(
+    let mut trajectory = CoordinateTrajectory::from_table(
         model,
         &prepared,
         source,
@@ -269,7 +282,15 @@ pub fn prepare_coordinates(
             lowpass_hz: None,
             differentiation,
         },
-    )?;
+    )
+    .map_err(|e| match e {
+        // A spline through a prepared column: name the column at the file's label line.
+        Error::Motion {
+            location, message, ..
+        } => err(location, message),
+        e => e,
+    })?;
+    trajectory.locate_in(table, source);
     Ok(PreparedCoordinates {
         trajectory,
         time,
@@ -302,8 +323,11 @@ fn degrees_suspicion(
             if v.abs() > p { (i, v.abs()) } else { (r, p) }
         });
         if peak > two_pi {
+            let at = table
+                .row_line(row)
+                .map_or(String::new(), |line| format!(":{line}"));
             warnings.push(format!(
-                "{source}: column \"{}\", row {row} (time {}): {} rad exceeds 2π while the \
+                "{source}{at}: column \"{}\" (time {}): {} rad exceeds 2π while the \
                  model's range is [{}, {}] rad; the file reads as radians (inDegrees={}) but \
                  its values look like degrees",
                 coord.name,
@@ -412,9 +436,28 @@ pub fn inverse_dynamics(
     let mut external = vec![0.0; n];
     let mut values = Vec::with_capacity(rows * n);
     for (k, &t) in time[i0..=i1].iter().enumerate() {
-        prepared.trajectory.eval(t, &mut q, &mut qd, &mut qdd);
+        prepared
+            .trajectory
+            .eval_finite(t, &mut q, &mut qd, &mut qdd)?;
         // τ = M q̈ + C q̇ + G (this also leaves the pose in `data` for the loads).
         let tau = dynamics::rnea(model, &mut data, &q, &qd, &qdd)?;
+        if let Some(j) = tau.iter().position(|v| !v.is_finite()) {
+            let k = CoordinateTrajectory::largest(&q, &qd, &qdd);
+            return Err(prepared.trajectory.error_at(
+                t,
+                k,
+                format!(
+                    "the generalized force `{}` is {}: this coordinate's value {}, speed {} \
+                     and acceleration {} (the largest at this time) are beyond what the \
+                     dynamics can compute",
+                    generalized_force_label(model, model.reduction.independent[j]),
+                    tau[j],
+                    short_number(q[k]),
+                    short_number(qd[k]),
+                    short_number(qdd[k]),
+                ),
+            ));
+        }
         values.extend_from_slice(tau.as_slice());
         if let Some(l) = loads {
             external.fill(0.0);

@@ -16,7 +16,7 @@
 
 use super::filter::{lowpass_butterworth3, pad_odd};
 use crate::error::Error;
-use crate::io::Table;
+use crate::io::{Table, TableLocator};
 use crate::model::natural_spline::NaturalSpline;
 use crate::model::{Model, MotionType};
 
@@ -44,6 +44,10 @@ pub struct CoordinateTrajectory {
     q: Vec<NaturalSpline>,
     /// Splines of the speeds, for `SplineOfSpeeds`.
     qd: Option<Vec<NaturalSpline>>,
+    /// Where the coordinates came from, for [`Self::eval_finite`]'s errors.
+    locator: TableLocator,
+    /// The column of each independent coordinate, in q order.
+    names: Vec<String>,
 }
 
 impl CoordinateTrajectory {
@@ -57,13 +61,8 @@ impl CoordinateTrajectory {
         source: &str,
         options: &KinematicsOptions,
     ) -> crate::Result<CoordinateTrajectory> {
-        let file = source.to_string();
-        let err = |element: String, message: String| Error::Model {
-            file: file.clone(),
-            line: 0,
-            element,
-            message,
-        };
+        let locator = table.locator(source);
+        let err = |element: String, message: String| locator.labels(element, message);
         let mut columns = independent_columns(model, table, source)?;
         let mut time = table.time.clone();
         if let Some(fc) = options.lowpass_hz {
@@ -113,7 +112,59 @@ impl CoordinateTrajectory {
             time: table.time.clone(),
             q,
             qd,
+            names: model.q_names().iter().map(|s| s.to_string()).collect(),
+            locator,
         })
+    }
+
+    /// Makes errors name the rows and lines of `table` (read from `source`): for a
+    /// trajectory fitted to a table prepared from it (filtered, resampled).
+    pub fn locate_in(&mut self, table: &Table, source: &str) {
+        self.locator = table.locator(source);
+    }
+
+    /// The error for a value the trajectory or a stage after it cannot use at time `t`,
+    /// about coordinate `j` (in q order): at the file line of the row at (or nearest) `t`
+    /// and the coordinate's column.
+    pub fn error_at(&self, t: f64, j: usize, message: impl Into<String>) -> Error {
+        let name = self.names.get(j).map_or("?", String::as_str);
+        self.locator
+            .at_time(t, format!("column \"{name}\""), message)
+    }
+
+    /// [`Self::eval`], with an error at the row and column when q, q̇ or q̈ is not finite
+    /// (values so large or rows so close that the spline overflows).
+    pub fn eval_finite(
+        &self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+        qdd: &mut [f64],
+    ) -> crate::Result<()> {
+        self.eval(t, q, qd, qdd);
+        for (what, values) in [("value", &*q), ("speed", &*qd), ("acceleration", &*qdd)] {
+            if let Some(j) = values.iter().position(|v| !v.is_finite()) {
+                return Err(self.error_at(
+                    t,
+                    j,
+                    format!(
+                        "the coordinate's {what} from the spline through the column is {} \
+                         (values too large or times too close to differentiate)",
+                        values[j]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The coordinate (q order) whose value, speed or acceleration is largest in magnitude: the one to name when a result computed
+    /// from all of them overflows.
+    pub fn largest(q: &[f64], qd: &[f64], qdd: &[f64]) -> usize {
+        let size = |j: usize| q[j].abs().max(qd[j].abs()).max(qdd[j].abs());
+        (0..q.len())
+            .max_by(|&a, &b| size(a).total_cmp(&size(b)))
+            .unwrap_or(0)
     }
 
     /// q, q̇, q̈ at time t (outside the data the splines extrapolate as OpenSim's do).
@@ -146,14 +197,14 @@ pub fn independent_columns(
             .labels
             .iter()
             .position(|l| column_names_coordinate(l, &coord.name))
-            .ok_or_else(|| Error::Model {
-                file: source.to_string(),
-                line: 0,
-                element: format!("column \"{}\"", coord.name),
-                message: format!(
-                    "no column for the model's independent coordinate `{}`",
-                    coord.name
-                ),
+            .ok_or_else(|| {
+                table.locator(source).labels(
+                    format!("column \"{}\"", coord.name),
+                    format!(
+                        "no column for the model's independent coordinate `{}`",
+                        coord.name
+                    ),
+                )
             })?;
         let scale = if degrees && coord.motion_type == MotionType::Rotational {
             std::f64::consts::PI / 180.0

@@ -28,13 +28,14 @@
 use crate::dynamics::{self, Data, Stage};
 use crate::error::Error;
 use crate::io::Table;
+use crate::io::text::short_number;
 use crate::model::{ActuatorKind, Model};
 use crate::muscle::MuscleSet;
 use crate::muscle::hill::{MuscleKind, MuscleStatus};
 use crate::muscle::path::{PathData, compute_paths};
 use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::inverse_dynamics::{prepare_coordinates, rows_in_range};
-use crate::solve::kinematics::Differentiation;
+use crate::solve::kinematics::{CoordinateTrajectory, Differentiation};
 use crate::solve::qp::{QpProblem, QpSettings, QpStatus, QpWorkspace};
 use crate::spatial::Vec3;
 use nalgebra::DMatrix;
@@ -568,7 +569,9 @@ pub fn run_static_optimization(
     let names = model.q_names();
     for (k, &i) in rows.iter().enumerate() {
         let t = prepared.time[i];
-        prepared.trajectory.eval(t, &mut q, &mut qd, &mut qdd);
+        prepared
+            .trajectory
+            .eval_finite(t, &mut q, &mut qd, &mut qdd)?;
         // τ = M q̈ + C q̇ + G − Σ Jᵀ w_ext
         tau.copy_from_slice(dynamics::rnea(model, &mut data, &q, &qd, &qdd)?.as_slice());
         if let Some(l) = loads {
@@ -578,8 +581,25 @@ pub fn run_static_optimization(
                 *v -= e;
             }
         }
+        if let Some(j) = tau.iter().position(|v| !v.is_finite()) {
+            let k = CoordinateTrajectory::largest(&q, &qd, &qdd);
+            return Err(prepared.trajectory.error_at(
+                t,
+                k,
+                format!(
+                    "the generalized force on `{}` to balance is {}: this coordinate's value \
+                     {}, speed {} and acceleration {} (the largest at this time) are beyond \
+                     what the dynamics can compute",
+                    names[j],
+                    tau[j],
+                    short_number(q[k]),
+                    short_number(qd[k]),
+                    short_number(qdd[k]),
+                ),
+            ));
+        }
         so.solve_frame(model, &data, &tau, &mut ws, &mut frame)
-            .map_err(|e| frame_error(source, t, e))?;
+            .map_err(|e| frame_error(&prepared.trajectory, &q, &qd, &qdd, t, e))?;
         iterations += frame.iterations as u64;
         if frame.status != SoStatus::Solved {
             // What misses: above the solver's tolerance and not negligible next to the
@@ -635,12 +655,22 @@ pub fn run_static_optimization(
 }
 
 /// Names the frame in an error from one frame's solve.
-fn frame_error(source: &str, t: f64, e: Error) -> Error {
+fn frame_error(
+    trajectory: &CoordinateTrajectory,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    t: f64,
+    e: Error,
+) -> Error {
     match e {
-        Error::InvalidArgument { argument, message } => Error::InvalidArgument {
-            argument,
-            message: format!("{source}, time {t} s: {message}"),
-        },
+        // A value the frame's solve could not use: at the row of this time, in the column of
+        // the coordinate that is largest then (the likeliest cause).
+        Error::InvalidArgument { argument, message } => trajectory.error_at(
+            t,
+            CoordinateTrajectory::largest(q, qd, qdd),
+            format!("static optimization (`{argument}`): {message}"),
+        ),
         other => other,
     }
 }

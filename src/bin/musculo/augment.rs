@@ -38,13 +38,13 @@ pub struct Args {
     model: Option<PathBuf>,
     /// Variants per clip: 1 = the clips as recorded; each further variant perturbs body
     /// height and mass, adds a carried load and warps time (seeded).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = variants)]
     variants: usize,
     /// Seed of the perturbations.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = jobs)]
     jobs: Option<usize>,
     /// Run shard K of N (0 ≤ K < N), e.g. `--shard $SLURM_ARRAY_TASK_ID/8`; finish with
     /// `musculo merge OUT`.
@@ -101,6 +101,28 @@ fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
         return Err(bad());
     }
     Ok((k, n))
+}
+
+/// `--jobs`: 1 to 1024 worker threads (a larger count would start thousands of threads
+/// before the system refused one).
+fn jobs(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (1..=1024).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{text}`: give a whole number of threads from 1 to 1024"
+        )),
+    }
+}
+
+/// `--variants`: a count from 1 to [`runner::MAX_VARIANTS`].
+fn variants(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (1..=runner::MAX_VARIANTS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{text}`: give a whole number from 1 to {}",
+            runner::MAX_VARIANTS
+        )),
+    }
 }
 
 pub fn run(args: &Args) -> Result<bool, musculo::Error> {
@@ -197,12 +219,22 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             report.temporaries_removed
         );
     }
-    for r in &failed {
+    // the first few failures in full; all of them are in the manifest
+    const SHOWN: usize = 10;
+    for r in failed.iter().take(SHOWN) {
         eprintln!(
             "failed: {} ({}): {}",
             r.clip,
             r.input,
             r.reason.as_deref().unwrap_or("")
+        );
+    }
+    if failed.len() > SHOWN {
+        eprintln!(
+            "failed: … and {} more clip(s), each with its reason in {} (after `musculo merge` \
+             for a sharded run)",
+            failed.len() - SHOWN,
+            args.out.join("manifest.json").display()
         );
     }
     eprintln!(

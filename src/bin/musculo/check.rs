@@ -24,9 +24,21 @@ pub struct Args {
     // the mass-and-inertia check reports it.
     #[command(flatten)]
     strict: crate::warnings::Strict,
-    /// Grid points over each coordinate's range for the path, sign and moment checks.
-    #[arg(long, default_value_t = CheckOptions::default().grid_points)]
+    /// Grid points over each coordinate's range for the path, sign and moment checks
+    /// (2 to 10000).
+    #[arg(long, default_value_t = CheckOptions::default().grid_points, value_parser = grid_points)]
     grid_points: usize,
+}
+
+/// `--grid-points`: a count from 2 to [`check::MAX_GRID_POINTS`].
+fn grid_points(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (2..=check::MAX_GRID_POINTS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{text}`: give a whole number from 2 to {}",
+            check::MAX_GRID_POINTS
+        )),
+    }
 }
 
 /// Runs the checks; `Ok(false)` when some check failed.
@@ -39,7 +51,16 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         grid_points: args.grid_points,
         ..CheckOptions::default()
     };
-    let report = check::run(&model, &options)?;
+    // a bar over the coordinates swept (drawn on a terminal only; hidden when piped)
+    let bar = indicatif::ProgressBar::new(model.nq() as u64).with_style(
+        indicatif::ProgressStyle::with_template("check [{bar:30}] {pos}/{len} coordinates swept")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let report = check::run_with_progress(&model, &options, &mut |done, _| {
+        bar.set_position(done as u64)
+    });
+    bar.finish_and_clear();
+    let report = report?;
     if args.json {
         println!(
             "{}",

@@ -27,7 +27,7 @@ pub struct Args {
     setup: Option<PathBuf>,
     /// Low-pass cutoff (Hz) for the coordinates; a negative value means no filtering.
     /// Default: the setup's lowpass_cutoff_frequency_for_coordinates, else no filtering.
-    #[arg(long, allow_negative_numbers = true, value_name = "HZ")]
+    #[arg(long, allow_negative_numbers = true, value_name = "HZ", value_parser = crate::tool::lowpass_hz)]
     lowpass: Option<f64>,
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
     #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
@@ -85,7 +85,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         .map(InverseDynamicsOptions::from_setup)
         .unwrap_or_default();
     if let Some(hz) = args.lowpass {
-        options.lowpass_hz = (hz >= 0.0).then_some(hz);
+        options.lowpass_hz = (hz > 0.0).then_some(hz);
     }
     if let Some(r) = &args.time_range {
         options.time_range = Some([r[0], r[1]]);

@@ -143,11 +143,7 @@ pub fn run(command: &Command) -> Result<(), musculo::Error> {
             Ok(())
         }
         Command::Scale(args) => {
-            let xml =
-                std::fs::read_to_string(&args.model).map_err(|source| musculo::Error::Io {
-                    path: args.model.clone(),
-                    source,
-                })?;
+            let xml = musculo::io::text::read_text(&args.model)?;
             let source = args.model.display().to_string();
             let model = args.strict.load_str(&xml, &source)?;
             let model_height = match args.model_height.or_else(|| credited_height(&xml)) {

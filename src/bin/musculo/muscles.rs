@@ -60,6 +60,23 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         }
         dynamics::forward_kinematics(&model, &mut data, &q)?;
         compute_paths(&model, &data, &set.paths, &mut paths)?;
+        if let Some(k) = paths.length.iter().position(|l| !l.is_finite()) {
+            // Name the coordinate largest in magnitude: the likeliest cause.
+            let j = (0..n)
+                .max_by(|&a, &b| q[a].abs().total_cmp(&q[b].abs()))
+                .unwrap_or(0);
+            return Err(motion.locator(&args.coords.display().to_string()).row(
+                r,
+                format!("column \"{}\"", model.q_names()[j]),
+                format!(
+                    "the length of muscle `{}` is {} with this row's coordinates (the \
+                     largest, {}, is beyond what the muscle paths can compute)",
+                    set.names().nth(k).unwrap_or("?"),
+                    paths.length[k],
+                    musculo::io::text::short_number(q[j])
+                ),
+            ));
+        }
         lengths.extend_from_slice(&paths.length);
         for k in 0..m {
             let f_iso = set.muscles[k].isometric_force(paths.length[k]);

@@ -36,7 +36,7 @@ pub struct Args {
     setup: Option<PathBuf>,
     /// Low-pass cutoff (Hz) for the coordinates; a negative value means no filtering.
     /// Default: the setup's lowpass_cutoff_frequency_for_coordinates, else no filtering.
-    #[arg(long, allow_negative_numbers = true, value_name = "HZ")]
+    #[arg(long, allow_negative_numbers = true, value_name = "HZ", value_parser = crate::tool::lowpass_hz)]
     lowpass: Option<f64>,
     /// Time range START END (s). Default: the setup's initial_time and final_time, else the
     /// whole motion.
@@ -150,7 +150,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         step_interval: args.step_interval.unwrap_or(defaults.step_interval),
     };
     if let Some(hz) = args.lowpass {
-        run_options.lowpass_hz = (hz >= 0.0).then_some(hz);
+        run_options.lowpass_hz = (hz > 0.0).then_some(hz);
     }
     if let Some(r) = &args.time_range {
         run_options.time_range = Some([r[0], r[1]]);

@@ -94,13 +94,7 @@ pub fn read_coordinates(
 /// The text of `--model FILE` and its name for messages, or the built-in default model's.
 pub fn model_text(model: Option<&Path>) -> Result<(String, String), musculo::Error> {
     match model {
-        Some(p) => Ok((
-            std::fs::read_to_string(p).map_err(|source| musculo::Error::Io {
-                path: p.to_path_buf(),
-                source,
-            })?,
-            p.display().to_string(),
-        )),
+        Some(p) => Ok((musculo::io::text::read_text(p)?, p.display().to_string())),
         None => Ok((
             musculo::DEFAULT_MODEL_OSIM.to_string(),
             "models/musculo_fullbody.osim".to_string(),
@@ -148,4 +142,19 @@ pub fn read_options(
             })
             .transpose()?,
     })
+}
+
+/// `--lowpass HZ` of `id` and `so`: a positive cutoff, or a negative number for no filtering
+/// (OpenSim's −1). 0, NaN and infinities are refused when the arguments are parsed.
+pub fn lowpass_hz(text: &str) -> Result<f64, String> {
+    let hz: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number of Hz"))?;
+    if !hz.is_finite() || hz == 0.0 {
+        return Err(format!(
+            "{hz} Hz: give a positive finite cutoff, or a negative number for no filtering"
+        ));
+    }
+    Ok(hz)
 }

@@ -34,9 +34,10 @@
 //! [`Table::parse`] (the path for [`Table::read`]) and whose `line` is the 1-based line of
 //! the file where the problem is: for a data value, the line of its row. `element` names
 //! the column — `column "knee_angle_r"`, `column "time"`, or `column 25 (beyond the last
-//! label)` for a surplus value — or `header "nRows"` for a header line, or `table`. A
-//! message about a data row also gives its row index, counted from 0 as in
-//! [`Table::time`]. Values must be finite numbers, every row must have one value per
+//! label)` for a surplus value — or `header "nRows"` for a header line, or `table`. Rows
+//! are named by their line only (never by a row index counted from 0 beside it), and
+//! [`Table::lines`] keeps the line of the labels and of every row for the checks of later
+//! stages. Values must be finite numbers, every row must have one value per
 //! label, time must not decrease, labels must be unique and the table must have rows.
 //!
 //! # Repeated times
@@ -69,10 +70,13 @@
 use crate::io::FileWarning;
 use crate::{Error, Result};
 
+mod locate;
 mod read;
 #[cfg(test)]
 mod tests;
 mod write;
+
+pub use locate::TableLocator;
 
 /// The header dialect a table was read in (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,6 +120,18 @@ pub struct Table {
     /// header that disagrees with the data, repeated times dropped. Empty for tables built
     /// in memory.
     pub warnings: Vec<FileWarning>,
+    /// Where the labels and rows are in the file read; `None` for a table built in memory.
+    pub lines: Option<TableLines>,
+}
+
+/// The 1-based file lines of a table read from a file, so that a problem found later (a
+/// value the dynamics cannot use, a missing column) can name the line it comes from.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TableLines {
+    /// The line of the column labels.
+    pub labels: u32,
+    /// The line of every row of [`Table::time`], in order (rows left out are not here).
+    pub rows: Vec<u32>,
 }
 
 /// Two rows whose times differ by at most this fraction of the median sampling interval are
@@ -253,9 +269,20 @@ impl Table {
             values,
             dropped_repeated_rows: Vec::new(),
             warnings: Vec::new(),
+            lines: None,
         };
         table.validate()?;
         Ok(table)
+    }
+
+    /// The file line of the column labels, when the table was read from a file.
+    pub fn label_line(&self) -> Option<u32> {
+        self.lines.as_ref().map(|l| l.labels)
+    }
+
+    /// The file line of row `r`, when the table was read from a file.
+    pub fn row_line(&self, r: usize) -> Option<u32> {
+        self.lines.as_ref().and_then(|l| l.rows.get(r).copied())
     }
 
     /// Number of rows (time samples).

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use super::{
-    Dialect, HeaderLine, REPEAT_TOLERANCE, ReadOptions, RepeatedTime, Table,
+    Dialect, HeaderLine, REPEAT_TOLERANCE, ReadOptions, RepeatedTime, Table, TableLines,
     classify_header_line, looks_like_data_row,
 };
 use crate::io::FileWarning;
@@ -39,10 +39,7 @@ impl Table {
 
     /// Reads a `.sto` or `.mot` file with options.
     pub fn read_with(path: &Path, options: &ReadOptions) -> Result<Table> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::io::text::read_text(path)?;
         Table::parse_with(&text, &path.display().to_string(), options)
     }
 
@@ -65,6 +62,7 @@ impl Table {
             values: Vec::new(),
             dropped_repeated_rows: Vec::new(),
             warnings: Vec::new(),
+            lines: None,
         };
         let header_err = |line: u32, key: &str, message: String| {
             content_error(source, line, format!("header \"{key}\""), message)
@@ -300,7 +298,6 @@ impl Table {
                 continue;
             }
             let line = line_u32(index);
-            let row = table.time.len();
             let mut count = 0;
             for (c, token) in raw.split_whitespace().enumerate() {
                 count += 1;
@@ -316,7 +313,7 @@ impl Table {
                             source,
                             line,
                             column_name(c),
-                            format!("row {row}: `{token}` is not a finite number"),
+                            format!("`{token}` is not a finite number"),
                         )
                     })?;
                 if c == 0 {
@@ -332,7 +329,7 @@ impl Table {
                     line,
                     column_name(c),
                     format!(
-                        "row {row} has {count} values, expected {} (time and {width} labels)",
+                        "the row has {count} values, expected {} (time and {width} labels)",
                         width + 1
                     ),
                 ));
@@ -349,6 +346,13 @@ impl Table {
         }
         let rows_in_file = table.time.len();
         drop_repeated_times(&mut table, &row_lines, source, options)?;
+        let dropped: std::collections::HashSet<u32> =
+            table.dropped_repeated_rows.iter().copied().collect();
+        row_lines.retain(|l| !dropped.contains(l));
+        table.lines = Some(TableLines {
+            labels: label_line,
+            rows: row_lines,
+        });
         if let Some(d) = &declared_rows
             && d.value != rows_in_file
         {
@@ -404,8 +408,8 @@ fn drop_repeated_times(
                 line,
                 "column \"time\"".into(),
                 format!(
-                    "row {r}: time {t} is earlier than the previous row's {t_prev} (line \
-                     {kept_line}); time must increase"
+                    "time {t} is earlier than the time {t_prev} on line {kept_line}; time \
+                     must increase"
                 ),
             ));
         }
@@ -422,8 +426,8 @@ fn drop_repeated_times(
                         line,
                         "column \"time\"".into(),
                         format!(
-                            "row {r}: time {t} repeats the previous row's {t_prev}{within} \
-                             (line {kept_line}); time must increase strictly"
+                            "time {t} repeats the time {t_prev} on line {kept_line}{within}; \
+                             time must increase strictly"
                         ),
                     ));
                 }

@@ -49,20 +49,24 @@ impl Table {
         }
         for (r, &t) in self.time.iter().enumerate() {
             if !t.is_finite() {
-                return bad(format!("column \"time\": row {r}: {t} is not finite"));
+                return bad(format!(
+                    "column \"time\": the time after {} is {t}, not a finite number",
+                    r.checked_sub(1)
+                        .map_or("the start".to_string(), |p| format!("{} s", self.time[p]))
+                ));
             }
             if r > 0 && t <= self.time[r - 1] {
                 return bad(format!(
-                    "column \"time\": row {r}: time {t} does not exceed the previous {}",
+                    "column \"time\": time {t} does not exceed the previous {}",
                     self.time[r - 1]
                 ));
             }
         }
         if let Some(i) = self.values.iter().position(|v| !v.is_finite()) {
             return bad(format!(
-                "column \"{}\": row {}: {} is not finite",
+                "column \"{}\" at time {} s: {} is not finite",
                 self.labels[i % w],
-                i / w,
+                self.time[i / w],
                 self.values[i]
             ));
         }

@@ -220,6 +220,7 @@ pub(super) fn read_force(
     };
     let is_muscle = kind.ends_with("Muscle") || kind.contains("Muscle_");
     if is_muscle {
+        check_muscle_numbers(ctx, f)?;
         for (tag, min_exclusive) in [
             ("optimal_fiber_length", true),
             ("max_isometric_force", false),
@@ -267,6 +268,83 @@ pub(super) fn read_force(
         raw: ctx.raw(f),
         line: ctx.line(f),
     })
+}
+
+/// The range of a muscle property every muscle class shares, in radians or seconds:
+/// (tag, lowest, highest, whether the highest is excluded).
+const MUSCLE_RANGES: &[(&str, f64, f64, bool)] = &[
+    (
+        "pennation_angle_at_optimal",
+        0.0,
+        std::f64::consts::FRAC_PI_2,
+        true,
+    ),
+    (
+        "maximum_pennation_angle",
+        0.0,
+        std::f64::consts::FRAC_PI_2,
+        false,
+    ),
+    (
+        "activation_time_constant",
+        f64::MIN_POSITIVE,
+        f64::INFINITY,
+        true,
+    ),
+    (
+        "deactivation_time_constant",
+        f64::MIN_POSITIVE,
+        f64::INFINITY,
+        true,
+    ),
+    ("default_activation", 0.0, 1.0, false),
+    ("minimum_activation", 0.0, 1.0, false),
+];
+
+/// Refuses, at the element that holds it, a number a muscle's force model cannot use: any
+/// numeric property of the muscle or of its curve objects that is NaN or infinite (its
+/// geometry path is read and checked on its own; control bounds may be infinite), and the
+/// shared properties of [`MUSCLE_RANGES`] outside their range. OpenSim reads `NaN` and
+/// `Inf` as numbers, so without this check a model with a NaN pennation angle would be
+/// inspected, exported and scaled as if nothing were wrong.
+fn check_muscle_numbers(ctx: &Ctx, f: XNode) -> Result<(), Error> {
+    let mut stack: Vec<XNode> = elements(f).collect();
+    while let Some(c) = stack.pop() {
+        let tag = c.tag_name().name();
+        if matches!(tag, "GeometryPath" | "min_control" | "max_control") {
+            continue;
+        }
+        if elements(c).next().is_some() {
+            stack.extend(elements(c));
+            continue;
+        }
+        let text = c.text().unwrap_or("").trim();
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .map_while(|t| t.parse::<f64>().ok())
+            .collect();
+        if values.is_empty() || values.len() != text.split_whitespace().count() {
+            continue; // not numeric (a name, a boolean, a socket path)
+        }
+        if values.iter().any(|v| !v.is_finite()) {
+            return Err(ctx.err(c, format!("<{tag}> `{text}` is not a finite number")));
+        }
+        if c.parent_element() != Some(f) {
+            continue;
+        }
+        if let Some(&(_, lo, hi, open)) = MUSCLE_RANGES.iter().find(|r| r.0 == tag) {
+            let v = values[0];
+            if values.len() != 1 || v < lo || v > hi || (open && v == hi) {
+                let range = match (lo == f64::MIN_POSITIVE, hi.is_finite(), open) {
+                    (true, false, _) => "positive".to_string(),
+                    (_, _, true) => format!("in [{lo}, {hi})"),
+                    _ => format!("in [{lo}, {hi}]"),
+                };
+                return Err(ctx.err(c, format!("<{tag}> must be {range}, found `{text}`")));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A control bound: a number, `Inf`/`-Inf` allowed.

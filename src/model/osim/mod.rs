@@ -15,7 +15,7 @@ use super::frames::{FrameRegistry, OffsetFrameDef, resolve_path};
 use super::{Body, CoordinateRole, CouplerConstraint, Model, reduction::Reduction};
 use crate::error::Error;
 use crate::spatial::{Mat3, Transform, Vec3};
-use roxmltree::{Document, ParsingOptions};
+use roxmltree::Document;
 
 /// Options for reading a model file.
 #[derive(Clone, Debug, Default)]
@@ -76,35 +76,7 @@ pub struct ForceSetFiles {
 }
 
 fn parse_document<'i>(text: &'i str, source: &str) -> Result<Document<'i>, Error> {
-    Document::parse_with_options(
-        text,
-        ParsingOptions {
-            allow_dtd: true,
-            ..ParsingOptions::default()
-        },
-    )
-    .map_err(|e| {
-        let pos = e.pos();
-        let (line, column, message) = match e {
-            // roxmltree gives these no position: the problem is where the text ends.
-            roxmltree::Error::UnexpectedEndOfStream | roxmltree::Error::UnclosedRootNode => {
-                let line = text.matches('\n').count() as u32 + 1;
-                let column = text.rsplit('\n').next().unwrap_or("").chars().count() as u32 + 1;
-                (
-                    line,
-                    column,
-                    format!("{e} (the file ends inside an element: is it truncated?)"),
-                )
-            }
-            _ => (pos.row, pos.col, e.to_string()),
-        };
-        Error::Xml {
-            file: source.to_string(),
-            line,
-            column,
-            message,
-        }
-    })
+    crate::io::xml::parse(text, source)
 }
 
 /// Reads a model file's text, adding the forces of `force_sets`.
@@ -386,10 +358,20 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 model.wrap_objects.push(obj);
             }
         }
+        let mut marker_names = std::collections::HashSet::new();
         for &m in &self.marker_nodes {
-            model
-                .markers
-                .push(forces::read_marker(ctx, m, &mut self.frames)?);
+            let marker = forces::read_marker(ctx, m, &mut self.frames)?;
+            if !marker_names.insert(marker.name.clone()) {
+                return Err(ctx.err(
+                    m,
+                    format!(
+                        "two markers are named \"{}\": a marker file could not say which one \
+                         it tracks",
+                        marker.name
+                    ),
+                ));
+            }
+            model.markers.push(marker);
         }
         for &c in &self.contact_nodes {
             if let Some(g) = forces::read_contact_geometry(ctx, c, &mut self.frames)? {
@@ -398,8 +380,23 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         }
         let replace = force_sets.is_some_and(|f| f.replace);
         if !replace {
+            let mut by_name = std::collections::HashMap::new();
             for &f in &self.force_nodes {
                 let force = forces::read_force(ctx, f, &mut self.frames, &model)?;
+                if let Some(first) = by_name
+                    .insert(force.name.clone(), model.forces.len())
+                    .map(|i| &model.forces[i])
+                {
+                    return Err(ctx.err(
+                        f,
+                        format!(
+                            "two forces are named \"{}\" (the first, a {}, at line {}): \
+                             OpenSim names forces uniquely, and tables of muscles and \
+                             actuators are keyed by name",
+                            force.name, first.kind, first.line
+                        ),
+                    ));
+                }
                 model.forces.push(force);
             }
         }

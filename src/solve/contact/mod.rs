@@ -118,12 +118,18 @@ pub fn group_for_body(body_name: &str) -> String {
     }
 }
 
-fn model_error(model: &Model, element: &str, message: String) -> Error {
-    Error::Model {
-        file: model.source.clone(),
-        line: 0,
-        element: element.to_string(),
-        message,
+/// An error about `element` of `model`: at its line of the model file when it has one (a
+/// line of 0 marks built-in elements), else about the model as a whole.
+fn model_error(model: &Model, line: u32, element: &str, message: String) -> Error {
+    if line > 0 {
+        Error::Model {
+            file: model.source.clone(),
+            line,
+            element: element.to_string(),
+            message,
+        }
+    } else {
+        Error::invalid("model", format!("{}: {element}: {message}", model.source))
     }
 }
 
@@ -134,9 +140,15 @@ fn floating_base(model: &Model) -> crate::Result<(Vec<usize>, Vec<bool>)> {
         .filter(|&j| model.joints[j].parent_body == 0 && !model.joints[j].coordinates.is_empty())
         .collect();
     let [root] = roots[..] else {
+        // Name the second root joint: with it the model has one too many.
+        let (line, element) = match roots.get(1).map(|&j| &model.joints[j]) {
+            Some(j) => (j.line, format!("{} \"{}\"", j.kind.name(), j.name)),
+            None => (0, "root joint".to_string()),
+        };
         return Err(model_error(
             model,
-            "root joint",
+            line,
+            &element,
             format!(
                 "model \"{}\" has {} joints with coordinates attached to ground; contact \
                  estimation needs exactly one floating root joint",
@@ -172,6 +184,7 @@ fn floating_base(model: &Model) -> crate::Result<(Vec<usize>, Vec<bool>)> {
     if translations == 0 || rotations == 0 {
         return Err(model_error(
             model,
+            joint.line,
             &format!("{} \"{}\"", joint.kind.name(), joint.name),
             format!(
                 "model \"{}\": the root joint has {translations} free translations and \
@@ -205,6 +218,7 @@ impl ContactSet {
         if points.is_empty() {
             return Err(model_error(
                 model,
+                0,
                 "ContactGeometrySet",
                 format!(
                     "model \"{}\" has no ContactSphere; give the contact points with \
@@ -328,14 +342,18 @@ pub fn points_from_json(
     source: &str,
     scale: Option<f64>,
 ) -> crate::Result<Vec<ContactPoint>> {
-    let err = |element: String, message: String| Error::Model {
+    // serde_json's values keep no positions: an element is named by its JSON path.
+    let err = |element: String, message: String| Error::Motion {
         file: source.to_string(),
-        line: 0,
-        element,
+        location: element,
         message,
     };
-    let doc: serde_json::Value =
-        serde_json::from_str(json).map_err(|e| err("document".into(), e.to_string()))?;
+    let doc: serde_json::Value = serde_json::from_str(json).map_err(|e| Error::Model {
+        file: source.to_string(),
+        line: u32::try_from(e.line()).unwrap_or(u32::MAX),
+        element: format!("column {}", e.column()),
+        message: format!("not a JSON document: {e}"),
+    })?;
     let scale = match scale {
         Some(s) if s > 0.0 && s.is_finite() => s,
         Some(s) => return Err(Error::invalid("scale", format!("{s} must be positive"))),

@@ -234,22 +234,10 @@ pub fn scale_uniform(
     Ok(scale_osim(xml, source, model, &ScaleSet::uniform(model, s), &options)?.xml)
 }
 
-/// Parses a model file's XML as the `.osim` reader does (DTDs allowed).
+/// Parses a model file's XML as the `.osim` reader does ([`crate::io::xml::parse`]).
 pub(crate) fn parse_document<'i>(
     xml: &'i str,
     source: &str,
 ) -> crate::Result<roxmltree::Document<'i>> {
-    roxmltree::Document::parse_with_options(
-        xml,
-        roxmltree::ParsingOptions {
-            allow_dtd: true,
-            ..roxmltree::ParsingOptions::default()
-        },
-    )
-    .map_err(|e| Error::Xml {
-        file: source.to_string(),
-        line: e.pos().row,
-        column: e.pos().col,
-        message: e.to_string(),
-    })
+    crate::io::xml::parse(xml, source)
 }

@@ -80,10 +80,7 @@ impl ScaleToolResult {
 }
 
 fn read(path: &Path) -> crate::Result<String> {
-    std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    crate::io::text::read_text(path)
 }
 
 /// Reads a `.trc` static trial as a [`Motion`] (metres).

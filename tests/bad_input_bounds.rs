@@ -1,0 +1,318 @@
+//! Bad input that used to kill the process or run without bound: a time column that asks
+//! the low-pass filter's resampling for unbounded memory, XML entities that expand to
+//! gigabytes, and counts or cutoffs from the command line with no limit. Each is now a
+//! located error, returned quickly and with bounded memory. Every input is generated here.
+
+mod common;
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+
+use common::{ScratchDir, musculo_cli};
+use counting_alloc::peak_bytes_during;
+use musculo::io::Table;
+use musculo::io::external_loads::ExternalLoads;
+use musculo::model::{ForceSetFiles, LoadOptions};
+use musculo::solve::inverse_dynamics::{InverseDynamicsOptions, inverse_dynamics};
+use musculo::{Error, Model};
+use std::time::{Duration, Instant};
+
+const DEMO: &str = include_str!("../models/demo.osim");
+
+/// A `.mot` of the demo model's coordinates at `times`, all at rest. Its label row is line 7
+/// and row k is line 8 + k.
+fn motion(times: &[&str]) -> String {
+    let mut s = format!(
+        "Coordinates\nversion=1\nnRows={}\nnColumns=7\ninDegrees=no\nendheader\n\
+         time\tpelvis_tilt\tpelvis_tx\tpelvis_ty\thip_flexion\tknee_angle\tankle_angle\n",
+        times.len()
+    );
+    for t in times {
+        s.push_str(&format!("{t}\t0\t0\t0.93\t0\t0\t0\n"));
+    }
+    s
+}
+
+/// Runs inverse dynamics on the demo model with a 6 Hz cutoff, returning the result and the
+/// most bytes held at once.
+fn filtered_id(text: &str) -> (usize, musculo::Result<Table>) {
+    let model = Model::demo();
+    let table = Table::parse(text, "m.mot").unwrap();
+    let options = InverseDynamicsOptions {
+        lowpass_hz: Some(6.0),
+        ..InverseDynamicsOptions::default()
+    };
+    peak_bytes_during(|| {
+        inverse_dynamics(&model, &table, "m.mot", None, &options, &mut |_, _| {}).map(|o| o.table)
+    })
+}
+
+#[test]
+fn a_last_time_of_1e308_with_a_lowpass_is_a_located_error_not_an_abort() {
+    // Padding reflects 1e308 to infinity: the resampling once looped without end,
+    // allocating until the process aborted.
+    let (peak, result) = filtered_id(&motion(&["0", "0.01", "0.02", "0.03", "1e308"]));
+    match result {
+        Err(Error::Model {
+            file,
+            line,
+            element,
+            message,
+        }) => {
+            assert_eq!(
+                (file.as_str(), line, element.as_str()),
+                ("m.mot", 7, "column \"time\"")
+            );
+            assert!(
+                message.contains("1e308") && message.contains("pad"),
+                "{message}"
+            );
+        }
+        other => panic!("expected a located error, got {other:?}"),
+    }
+    assert!(peak < 1 << 20, "{peak} bytes for a 5-row motion");
+}
+
+#[test]
+fn huge_but_finite_time_spans_resample_within_a_bounded_number_of_rows() {
+    // 1e300 pads to a finite 2e300; the resampling grid is bounded (OpenSim's 100,000 rows),
+    // and whatever follows fails or succeeds without an allocation beyond that.
+    for last in ["1e300", "1e200", "3e9"] {
+        let (peak, result) = filtered_id(&motion(&["0", "0.01", "0.02", "0.03", last]));
+        assert!(
+            peak < 200 << 20,
+            "{last}: {peak} bytes held resampling a 5-row motion"
+        );
+        if let Err(e) = result {
+            let text = e.to_string();
+            assert!(text.starts_with("m.mot:"), "{last}: {text}");
+            assert!(!text.starts_with("m.mot:0:"), "{last}: {text}");
+        }
+    }
+}
+
+#[test]
+fn the_cli_reports_the_1e308_motion_and_exits_cleanly() {
+    let d = ScratchDir::new("bounds-id-1e308");
+    let mot = d.join("m.mot");
+    std::fs::write(&mot, motion(&["0", "0.01", "0.02", "0.03", "1e308"])).unwrap();
+    let model = d.join("demo.osim");
+    std::fs::write(&model, DEMO).unwrap();
+    let out = d.join("out.sto");
+    let (ok, _, stderr) = musculo_cli(
+        "id --model {} --coordinates {} --lowpass 6 -o {}",
+        &[&model, &mot, &out],
+    );
+    assert!(!ok);
+    assert!(
+        stderr.contains("m.mot:7: column \"time\"") && stderr.contains("1e308"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("memory allocation"), "{stderr}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn lowpass_cutoffs_that_cannot_filter_are_refused_by_the_cli() {
+    let d = ScratchDir::new("bounds-lowpass");
+    let mot = d.join("m.mot");
+    std::fs::write(&mot, motion(&["0", "0.01", "0.02", "0.03", "0.04"])).unwrap();
+    let model = d.join("demo.osim");
+    std::fs::write(&model, DEMO).unwrap();
+    let out = d.join("out.sto");
+    for bad in ["NaN", "inf", "-inf", "0", "six"] {
+        for command in ["id", "so"] {
+            let pattern =
+                format!("{command} --model {{}} --coordinates {{}} --lowpass={bad} -o {{}}");
+            let (ok, _, stderr) = musculo_cli(&pattern, &[&model, &mot, &out]);
+            assert!(!ok, "{command} --lowpass={bad} was accepted");
+            assert!(
+                stderr.contains("--lowpass") && stderr.contains(bad),
+                "{command} --lowpass={bad}: {stderr}"
+            );
+        }
+    }
+    // A negative cutoff still means no filtering, as in OpenSim's setups.
+    let (ok, _, stderr) = musculo_cli(
+        "id --model {} --coordinates {} --lowpass=-1 -o {}",
+        &[&model, &mot, &out],
+    );
+    assert!(ok, "{stderr}");
+}
+
+#[test]
+fn check_grid_points_are_bounded() {
+    let (ok, _, stderr) = musculo_cli("check --demo --grid-points 100000000000", &[]);
+    assert!(!ok);
+    assert!(
+        stderr.contains("--grid-points") && stderr.contains("10000"),
+        "{stderr}"
+    );
+    let (ok, _, stderr) = musculo_cli("check --demo --grid-points 1", &[]);
+    assert!(!ok && stderr.contains("--grid-points"), "{stderr}");
+    // The library refuses the same, and a grid step that would need as many points.
+    let options = musculo::check::CheckOptions {
+        grid_points: musculo::check::MAX_GRID_POINTS + 1,
+        ..Default::default()
+    };
+    let e = musculo::check::run(&Model::demo(), &options).unwrap_err();
+    assert!(e.to_string().contains("grid_points"), "{e}");
+    let options = musculo::check::CheckOptions {
+        max_grid_step: 1e-9,
+        ..Default::default()
+    };
+    let e = musculo::check::run(&Model::demo(), &options).unwrap_err();
+    assert!(e.to_string().contains("max_grid_step"), "{e}");
+}
+
+/// A document type declaration with one entity of `size` bytes, and `uses` references to it:
+/// expanded, size × uses bytes.
+fn entity_bomb(root: &str, size: usize, uses: usize) -> (String, String) {
+    let doctype = format!(
+        "<!DOCTYPE {root} [\n  <!ENTITY big \"{}\">\n]>\n",
+        "x".repeat(size)
+    );
+    (doctype, "&big;".repeat(uses))
+}
+
+/// Asserts `result` is an XML error at line 3 (the `<!ENTITY` line) of `file`, and that the
+/// refusal took little time and memory.
+#[track_caller]
+fn assert_entity_refused<T: std::fmt::Debug>(
+    file: &str,
+    run: impl FnOnce() -> musculo::Result<T>,
+    text_len: usize,
+) {
+    let start = Instant::now();
+    let (peak, result) = peak_bytes_during(run);
+    let elapsed = start.elapsed();
+    match result {
+        Err(Error::Xml {
+            file: f,
+            line,
+            column,
+            message,
+        }) => {
+            assert_eq!((f.as_str(), line, column), (file, 3, 3), "{message}");
+            assert!(message.contains("<!ENTITY big"), "{message}");
+        }
+        other => panic!("{file}: expected an XML error, got {other:?}"),
+    }
+    assert!(
+        peak < 4 * text_len + (1 << 20),
+        "{file}: {peak} bytes held for a {text_len}-byte file"
+    );
+    assert!(elapsed < Duration::from_secs(2), "{file}: {elapsed:?}");
+}
+
+/// The demo model behind `doctype`, with `credits` added to its `<Model>`.
+fn with_doctype(doctype: &str, credits: &str) -> String {
+    let root = DEMO.find("<OpenSimDocument").unwrap();
+    format!("<?xml version=\"1.0\"?>\n{doctype}{}", &DEMO[root..]).replacen(
+        "</Model>",
+        &format!("<credits>{credits}</credits></Model>"),
+        1,
+    )
+}
+
+#[test]
+fn a_model_with_an_expanding_entity_is_refused_quickly_and_without_big_memory() {
+    // 1 MB × 10,000 references: 10 GB if expanded.
+    let (doctype, uses) = entity_bomb("OpenSimDocument", 1 << 20, 10_000);
+    let xml = with_doctype(&doctype, &uses);
+    assert_entity_refused(
+        "bomb.osim",
+        || Model::from_osim_str(&xml, "bomb.osim"),
+        xml.len(),
+    );
+}
+
+#[test]
+fn force_set_external_loads_and_setup_files_refuse_entities_the_same_way() {
+    let (doctype, uses) = entity_bomb("OpenSimDocument", 1 << 20, 10_000);
+    let force_set = format!(
+        "<?xml version=\"1.0\"?>\n{doctype}<OpenSimDocument Version=\"40000\"><ForceSet \
+         name=\"reserves\"><objects><CoordinateActuator name=\"r\"><coordinate>knee_angle\
+         </coordinate><optimal_force>{uses}</optimal_force></CoordinateActuator></objects>\
+         </ForceSet></OpenSimDocument>\n"
+    );
+    let sets = ForceSetFiles {
+        files: vec![(force_set.clone(), "reserves.xml".into())],
+        replace: false,
+    };
+    assert_entity_refused(
+        "reserves.xml",
+        || Model::from_osim_str_with_force_sets(DEMO, "demo.osim", &LoadOptions::default(), &sets),
+        force_set.len(),
+    );
+    let loads = format!(
+        "<?xml version=\"1.0\"?>\n{doctype}<OpenSimDocument Version=\"40000\"><ExternalLoads \
+         name=\"grf\"><objects><ExternalForce name=\"{uses}\"/></objects></ExternalLoads>\
+         </OpenSimDocument>\n"
+    );
+    assert_entity_refused(
+        "grf.xml",
+        || ExternalLoads::parse(&loads, "grf.xml"),
+        loads.len(),
+    );
+    let setup = format!(
+        "<?xml version=\"1.0\"?>\n{doctype}<OpenSimDocument Version=\"40000\">\
+         <InverseDynamicsTool name=\"id\"><model_file>{uses}</model_file>\
+         </InverseDynamicsTool></OpenSimDocument>\n"
+    );
+    assert_entity_refused(
+        "setup.xml",
+        || musculo::io::setup::parse(&setup, std::path::Path::new("setup.xml")),
+        setup.len(),
+    );
+}
+
+#[test]
+fn a_model_with_an_entity_bomb_is_refused_by_every_command_that_reads_models() {
+    let d = ScratchDir::new("bounds-entity-cli");
+    let (doctype, uses) = entity_bomb("OpenSimDocument", 1 << 20, 4_000);
+    let xml = with_doctype(&doctype, &uses);
+    let model = d.join("bomb.osim");
+    std::fs::write(&model, &xml).unwrap();
+    let out = d.join("out.xml");
+    for pattern in [
+        "inspect {}",
+        "export-mjcf {} -o {}",
+        "model scale {} --mass 70 --height 1.8 --model-height 1.7 -o {}",
+        "check {}",
+    ] {
+        let paths: Vec<&std::path::Path> = if pattern.matches("{}").count() == 2 {
+            vec![&model, &out]
+        } else {
+            vec![&model]
+        };
+        let start = Instant::now();
+        let (ok, _, stderr) = musculo_cli(pattern, &paths);
+        assert!(!ok, "{pattern}");
+        assert!(
+            stderr.contains("bomb.osim:3:3") && stderr.contains("<!ENTITY big"),
+            "{pattern}: {stderr}"
+        );
+        assert!(start.elapsed() < Duration::from_secs(10), "{pattern}");
+        assert!(!out.exists(), "{pattern}");
+    }
+}
+
+#[test]
+fn augment_counts_from_the_command_line_are_bounded() {
+    let d = ScratchDir::new("bounds-augment-counts");
+    let out = d.join("out");
+    for (flag, value) in [
+        ("--variants", "100000000000"),
+        ("--variants", "0"),
+        ("--jobs", "100000000000"),
+        ("--jobs", "0"),
+    ] {
+        let (ok, _, stderr) = musculo_cli(
+            &format!("augment --demo {flag} {value} --out {{}}"),
+            &[&out],
+        );
+        assert!(!ok, "{flag} {value} was accepted");
+        assert!(stderr.contains(flag) && stderr.contains(value), "{stderr}");
+        assert!(!out.exists(), "{flag} {value} started a run");
+    }
+}
