@@ -10,16 +10,33 @@ mod model;
 mod muscles;
 mod scale;
 mod so;
+mod summary;
 mod tool;
 mod warnings;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+/// `musculo --version`: the version and the file formats (with their versions) it reads and
+/// writes.
+const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    "\n",
+    "reads:\n",
+    "  models       OpenSim 4.x .osim (OpenSimDocument Version >= 40000; OpenSim 3 models are \
+     refused: save them in OpenSim 4 first)\n",
+    "  OpenSim xml  force-set, ExternalLoads, marker-set and tool setup files (IK, ID, Analyze/SO, \
+     Scale) of OpenSim 2.3 to 4.x\n",
+    "  tables       .sto/.mot (version=1 and OpenSim 4 headers, SIMM .mot), .trc markers\n",
+    "  motion       C3D (force platforms of types 1-4), BVH, HumanML3D and KIT-ML .npy, .npy/.npz\n",
+    "writes:\n",
+    "  .osim (Version 40000), .sto/.mot (OpenSim 4 headers), MuJoCo MJCF (MuJoCo 3.x), .npz",
+);
+
 #[derive(Parser)]
 #[command(
     name = "musculo",
-    version,
+    version = VERSION,
     about = "Musculoskeletal dynamics for motion datasets"
 )]
 struct Cli {

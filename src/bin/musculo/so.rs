@@ -2,6 +2,7 @@
 //! analysis) — muscle activations and actuator forces per frame, written as OpenSim's
 //! `_activation.sto` and `_force.sto`.
 
+use crate::summary::{FrameWarning, frame_warnings};
 use crate::tool::{FrameProgress, missing, read_coordinates};
 use musculo::io::output::{OutputSet, name_in_folder, with_suffix};
 use musculo::io::setup::AnalyzeSetup;
@@ -206,27 +207,38 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    for p in &out.problems {
-        let what = match p.status {
-            SoStatus::Infeasible => "infeasible (the actuators cannot produce τ)",
-            SoStatus::NotConverged => "not converged",
-            SoStatus::Solved => "solved",
-        };
-        let list = p
-            .unbalanced
-            .iter()
-            .map(|(c, r)| format!("{c} {r:+.4}"))
-            .collect::<Vec<_>>()
-            .join(", ");
-        eprintln!(
-            "warning: time {:.6} s: {what}; unbalanced τ − Σ r F x: {}",
-            p.time,
-            if list.is_empty() {
-                "none above tolerance".into()
-            } else {
-                list
+    let problems: Vec<FrameWarning> = (out.problems.iter())
+        .map(|p| {
+            let what = match p.status {
+                SoStatus::Infeasible => "infeasible (the actuators cannot produce τ)",
+                SoStatus::NotConverged => "not converged",
+                SoStatus::Solved => "solved",
+            };
+            let list = (p.unbalanced.iter())
+                .map(|(c, r)| format!("{c} {r:+.4}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            FrameWarning {
+                time: p.time,
+                size: p
+                    .unbalanced
+                    .iter()
+                    .map(|(_, r)| r.abs())
+                    .fold(0.0, f64::max),
+                text: format!(
+                    "{what}; unbalanced τ − Σ r F x: {}",
+                    if list.is_empty() {
+                        "none above tolerance".into()
+                    } else {
+                        list
+                    }
+                ),
             }
-        );
+        })
+        .collect();
+    let frames = out.activation.n_rows();
+    for line in frame_warnings("frame(s) not solved exactly", frames, &problems) {
+        eprintln!("warning: {line}");
     }
     outputs.add(
         &activation_path,
