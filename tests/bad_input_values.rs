@@ -513,3 +513,62 @@ fn has_row_index(message: &str) -> bool {
         .skip(1)
         .any(|rest| rest.starts_with(|c: char| c.is_ascii_digit()))
 }
+
+#[test]
+fn a_muscle_of_a_force_set_file_is_reported_in_that_file() {
+    use musculo::model::{ForceSetFiles, LoadOptions};
+    let start = DEMO.find("<Thelen2003Muscle name=\"vasti\">").unwrap();
+    let end = DEMO.find("</Thelen2003Muscle>").unwrap() + "</Thelen2003Muscle>".len();
+    let muscle = DEMO[start..end].replace("name=\"vasti\"", "name=\"vasti2\"");
+    let set = |muscle: &str| {
+        let text = format!(
+            "<?xml version=\"1.0\"?>\n<OpenSimDocument Version=\"40000\">\n<ForceSet \
+             name=\"extra\">\n<objects>\n{muscle}\n</objects>\n</ForceSet>\n</OpenSimDocument>\n"
+        );
+        (
+            ForceSetFiles {
+                files: vec![(text.clone(), "extra.xml".into())],
+                replace: false,
+            },
+            text,
+        )
+    };
+    let load = |sets: &ForceSetFiles| {
+        Model::from_osim_str_with_force_sets(DEMO, "demo.osim", &LoadOptions::default(), sets)
+    };
+    // Caught when the file is read: the element in the force-set file.
+    let (sets, text) = set(&muscle.replacen(
+        "<pennation_angle_at_optimal>0.05<",
+        "<pennation_angle_at_optimal>inf<",
+        1,
+    ));
+    let (file, line, _, _) = model_error(load(&sets));
+    assert_eq!(
+        (file.as_str(), line),
+        (
+            "extra.xml",
+            line_of(&text, "<pennation_angle_at_optimal>inf")
+        )
+    );
+    // Caught by the muscle model (a curve parameter that must be positive): the muscle's
+    // line in the force-set file, not the model file.
+    let (sets, text) = set(&muscle.replacen(
+        "<max_contraction_velocity>",
+        "<FmaxTendonStrain>-0.04</FmaxTendonStrain><max_contraction_velocity>",
+        1,
+    ));
+    let model = load(&sets).unwrap();
+    let (file, line, element, message) =
+        model_error(musculo::muscle::MuscleSet::new(&model).map(|_| ()));
+    assert_eq!(
+        (file.as_str(), line),
+        (
+            "extra.xml",
+            line_of(&text, "<Thelen2003Muscle name=\"vasti2\">")
+        )
+    );
+    assert!(
+        element.contains("vasti2") && message.contains("FmaxTendonStrain"),
+        "{message}"
+    );
+}

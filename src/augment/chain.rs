@@ -429,7 +429,7 @@ impl Chain {
         let mut series = vec![0.0; frames];
         for (k, muscle) in so.muscles.muscles.iter().enumerate() {
             let force = &model.forces[so.muscles.paths.paths[k].force];
-            let dynamics = ActivationDynamics::from_muscle(force, &model.source)?;
+            let dynamics = ActivationDynamics::from_muscle(force, force.file_or(&model.source))?;
             let (lo, hi) = dynamics.range();
             for f in 0..frames {
                 series[f] = per_frame.activation[f * m + k].clamp(lo, hi);
@@ -780,6 +780,7 @@ fn add_reserves(model: &mut Model, optimal_force: f64) {
             }),
             raw: RawElement::default(),
             line: 0,
+            file: String::new(),
         });
     }
 }

@@ -345,6 +345,9 @@ pub struct ForceElement {
     pub actuator: Option<ScalarActuator>,
     pub raw: RawElement,
     pub line: u32,
+    /// The file the element was read from (the model's, or the force-set file that added
+    /// it), for messages; empty for elements built in code.
+    pub file: String,
 }
 
 /// A scalar actuator: one control x produces the force (or torque) x · `optimal_force`,
@@ -391,6 +394,16 @@ impl ForceElement {
     /// True for OpenSim muscle classes.
     pub fn is_muscle(&self) -> bool {
         self.kind.ends_with("Muscle")
+    }
+
+    /// The file to name in a message about this element: the one it was read from, or the
+    /// model's (`model_source`) for an element built in code.
+    pub fn file_or<'a>(&'a self, model_source: &'a str) -> &'a str {
+        if self.file.is_empty() {
+            model_source
+        } else {
+            &self.file
+        }
     }
 }
 
@@ -470,9 +483,7 @@ impl Model {
         force_set_files: &[impl AsRef<Path>],
         replace: bool,
     ) -> crate::Result<Model> {
-        let read = |p: &Path| {
-            crate::io::text::read_text(p)
-        };
+        let read = crate::io::text::read_text;
         let path = path.as_ref();
         let text = read(path)?;
         let mut sets = ForceSetFiles {

@@ -25,7 +25,8 @@ impl MuscleSet {
             .map(|p| {
                 let f = &model.forces[p.force];
                 HillMuscle::from_force_element(f).map_err(|message| Error::Model {
-                    file: model.source.clone(),
+                    // A muscle of a force-set file is reported in that file.
+                    file: f.file_or(&model.source).to_string(),
                     line: f.line,
                     element: format!("{} \"{}\"", f.kind, f.name),
                     message,

@@ -194,7 +194,7 @@ impl StaticOptimization {
                 continue;
             }
             let model_err = |message: String| Error::Model {
-                file: model.source.clone(),
+                file: f.file_or(&model.source).to_string(),
                 line: f.line,
                 element: format!("{} \"{}\"", f.kind, f.name),
                 message,

@@ -267,6 +267,7 @@ pub(super) fn read_force(
         actuator,
         raw: ctx.raw(f),
         line: ctx.line(f),
+        file: ctx.file.to_string(),
     })
 }
 

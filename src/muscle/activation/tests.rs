@@ -376,6 +376,7 @@ fn muscle(kind: &str, properties: &[(&str, &str)]) -> ForceElement {
             ..Default::default()
         },
         line: 7,
+        file: "test.osim".into(),
     }
 }
 

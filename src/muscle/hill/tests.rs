@@ -33,6 +33,7 @@ fn element(kind: &str, props: &[(&str, &str)], objects: Vec<RawElement>) -> Forc
             children,
         },
         line: 7,
+        file: "test.osim".into(),
     }
 }
 

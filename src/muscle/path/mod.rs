@@ -124,7 +124,7 @@ impl PathSet {
             for w in &gp.wraps {
                 let obj = &model.wrap_objects[w.wrap_object];
                 let bad = |m: String| Error::Model {
-                    file: model.source.clone(),
+                    file: f.file_or(&model.source).to_string(),
                     line: f.line,
                     element: format!("{} \"{}\" > PathWrap \"{}\"", f.kind, f.name, obj.name),
                     message: m,
