@@ -219,9 +219,16 @@ fn so_reports_infeasible_frames_and_goes_on() {
         "{err}"
     );
     // Summarised: the count and the worst frame, not one line per frame.
-    assert!(err.contains("11 of 11 frame(s) not solved exactly"), "{err}");
+    assert!(
+        err.contains("11 of 11 frame(s) not solved exactly"),
+        "{err}"
+    );
     assert!(err.contains("worst at time"), "{err}");
-    assert_eq!(err.lines().filter(|l| l.starts_with("warning:")).count(), 2, "{err}");
+    assert_eq!(
+        err.lines().filter(|l| l.starts_with("warning:")).count(),
+        2,
+        "{err}"
+    );
     assert!(tmp.0.join("out_activation.sto").exists());
 
     // An actuator file naming an unknown body: a clear error, no output.

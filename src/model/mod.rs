@@ -17,14 +17,14 @@ mod frames;
 pub mod function;
 pub mod mjcf;
 pub mod natural_spline;
-pub mod reserves;
 mod osim;
 pub(crate) mod reduction;
+pub mod reserves;
 
 pub use frames::resolve_path;
 pub use function::{Arity, Function};
-pub use osim::{ForceSetFiles, LoadOptions};
 pub(crate) use osim::FunctionReader;
+pub use osim::{ForceSetFiles, LoadOptions};
 pub use reduction::Reduction;
 
 use crate::spatial::{Mat3, Transform, Vec3};
