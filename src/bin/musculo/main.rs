@@ -10,7 +10,6 @@ mod model;
 mod muscles;
 mod scale;
 mod so;
-mod summary;
 mod tool;
 mod warnings;
 

@@ -2,8 +2,8 @@
 //! analysis) — muscle activations and actuator forces per frame, written as OpenSim's
 //! `_activation.sto` and `_force.sto`.
 
-use crate::summary::{FrameWarning, frame_warnings};
 use crate::tool::{FrameProgress, missing, read_coordinates};
+use crate::warnings::{FrameWarning, frame_warnings};
 use musculo::io::output::{OutputSet, name_in_folder, with_suffix};
 use musculo::io::setup::AnalyzeSetup;
 use musculo::model::Model;

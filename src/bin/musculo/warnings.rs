@@ -1,5 +1,6 @@
 //! What every command does with what the library's readers accepted but reported: print it on
-//! stderr, one line per warning, and past a few, one line counting the rest. Also the
+//! stderr, one line per warning, and past a few, one line counting the rest; warnings about
+//! many frames summarised (the count, the worst frame in full, the first few times). Also the
 //! `--strict` flag shared by every command that loads a model.
 
 use musculo::Model;
@@ -7,7 +8,8 @@ use musculo::model::{LoadOptions, WarningKind};
 use std::fmt::Display;
 use std::path::Path;
 
-/// Warnings printed from one list before the rest are only counted.
+/// Warnings printed from one list before the rest are only counted (and frame times listed
+/// by a frame summary).
 const SHOWN: usize = 5;
 
 /// `--strict`, flattened into the arguments of every command that loads a model.
@@ -67,4 +69,84 @@ pub fn print_model(model: &Model) {
         .map(|w| format!("{}:{}: {}: {}", model.source, w.line, w.element, w.message))
         .collect();
     print(&lines);
+}
+
+/// One frame's warning: its time, a size to rank it by, and the full text.
+pub struct FrameWarning {
+    pub time: f64,
+    pub size: f64,
+    pub text: String,
+}
+
+/// The lines to print for `warnings` about `what` (e.g. "frame(s) not solved exactly") out
+/// of `total` frames: all of them when there are at most two, else the count, the worst in
+/// full and the first few times.
+pub fn frame_warnings(what: &str, total: usize, warnings: &[FrameWarning]) -> Vec<String> {
+    if warnings.len() <= 2 {
+        return warnings
+            .iter()
+            .map(|w| format!("time {:.6} s: {}", w.time, w.text))
+            .collect();
+    }
+    let worst = warnings
+        .iter()
+        .min_by(|a, b| b.size.total_cmp(&a.size)) // the first of the largest
+        .expect("at least three warnings");
+    let first: Vec<String> = (warnings.iter().take(SHOWN))
+        .map(|w| format!("{:.6}", w.time))
+        .collect();
+    let more = if warnings.len() > SHOWN { ", …" } else { "" };
+    vec![
+        format!(
+            "{} of {total} {what}, at times {} s{more} (from {:.6} to {:.6} s)",
+            warnings.len(),
+            first.join(", "),
+            warnings[0].time,
+            warnings[warnings.len() - 1].time
+        ),
+        format!("worst at time {:.6} s: {}", worst.time, worst.text),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn w(time: f64, size: f64) -> FrameWarning {
+        FrameWarning {
+            time,
+            size,
+            text: format!("off by {size}"),
+        }
+    }
+
+    #[test]
+    fn two_warnings_are_printed_whole() {
+        let lines = frame_warnings("frames bad", 10, &[w(0.1, 1.0), w(0.2, 2.0)]);
+        assert_eq!(
+            lines,
+            ["time 0.100000 s: off by 1", "time 0.200000 s: off by 2"]
+        );
+    }
+
+    #[test]
+    fn many_warnings_give_count_worst_and_first_times() {
+        let many: Vec<FrameWarning> = (0..200)
+            .map(|k| w(k as f64 * 0.01, (k % 37) as f64))
+            .collect();
+        let lines = frame_warnings("frames bad", 211, &many);
+        assert_eq!(lines.len(), 2);
+        assert!(
+            lines[0].starts_with("200 of 211 frames bad, at times 0.000000, 0.010000, 0.020000, 0.030000, 0.040000 s, …"),
+            "{}",
+            lines[0]
+        );
+        assert!(
+            lines[0].ends_with("(from 0.000000 to 1.990000 s)"),
+            "{}",
+            lines[0]
+        );
+        // the first frame of size 36 is k = 36
+        assert_eq!(lines[1], "worst at time 0.360000 s: off by 36");
+    }
 }
