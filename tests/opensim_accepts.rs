@@ -317,6 +317,59 @@ fn a_repeated_trc_frame_is_dropped_with_a_warning_exact_or_near() {
     assert!(e.contains("walk.trc:10"), "{e}");
 }
 
+#[test]
+fn a_repeated_trc_frame_reaches_the_caller_of_motion_read_and_the_ik_command() {
+    // The demo model's four markers, the last frame repeating the third's time.
+    let dir = ScratchDir::new("accepts-trc-cli");
+    let model = demo_osim(&dir, "demo.osim", musculo::DEMO_MODEL_OSIM);
+    let mut text = String::from(
+        "PathFileType\t4\t(X/Y/Z)\tt.trc\n\
+         DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t\
+         OrigDataStartFrame\tOrigNumFrames\n\
+         100\t100\t4\t4\tm\t100\t1\t4\n\
+         Frame#\tTime\thip\t\t\tknee\t\t\tankle\t\t\ttoe\t\t\n\
+         \t\tX1\tY1\tZ1\tX2\tY2\tZ2\tX3\tY3\tZ3\tX4\tY4\tZ4\n\
+         \n",
+    );
+    for (frame, time) in ["0", "0.01", "0.02", "0.020000000000000066"]
+        .iter()
+        .enumerate()
+    {
+        text += &format!(
+            "{}\t{time}\t0\t0.93\t0\t0.02\t0.5\t0\t0.0\t0.08\t0\t0.15\t0.02\t0\n",
+            frame + 1
+        );
+    }
+    let trc = dir.join("walk.trc");
+    std::fs::write(&trc, text).unwrap();
+    let (motion, warnings) =
+        musculo::motion::read_with_warnings(&trc, None, &musculo::motion::ReadOptions::default())
+            .unwrap();
+    assert_eq!(motion.n_frames(), 3);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].to_string().contains("walk.trc:10:"),
+        "{warnings:?}"
+    );
+    let out = dir.join("walk_ik.mot");
+    let (ok, _, err) = run_musculo(&[
+        "ik",
+        "--model",
+        model.to_str().unwrap(),
+        "--input",
+        trc.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        err.lines()
+            .any(|l| l.starts_with("warning: ") && l.contains("walk.trc:10:")),
+        "no warning on stderr:\n{err}"
+    );
+    assert_eq!(Table::read(&out).unwrap().n_rows(), 3);
+}
+
 // ---------------------------------------------------------------------------------------
 // 5. Inertia violating the triangle inequality.
 

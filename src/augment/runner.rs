@@ -429,7 +429,8 @@ fn process(
 ) -> crate::Result<ClipOutput> {
     match &clip.source {
         ClipSource::File { path, format } => {
-            let motion = motion::read(path, Some(*format), &options.read)?;
+            let (motion, read_warnings) =
+                motion::read_with_warnings(path, Some(*format), &options.read)?;
             let builtin;
             let map = match (&options.map, format.default_map()) {
                 (Some(m), _) => Some(m),
@@ -446,7 +447,10 @@ fn process(
                 }
                 _ => None,
             };
-            chain.run_with_loads(&motion, map, variant, loads.as_ref())
+            let mut output = chain.run_with_loads(&motion, map, variant, loads.as_ref())?;
+            let read = read_warnings.iter().map(|w| w.to_string());
+            output.warnings.splice(0..0, read);
+            Ok(output)
         }
         ClipSource::Motion(motion) => {
             let loads = options

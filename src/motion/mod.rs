@@ -114,12 +114,25 @@ pub struct ReadOptions {
 /// Reads any supported motion file as a [`Motion`] (format given or detected). C3D markers
 /// come rotated from the z-up lab frame into OpenSim's y-up frame ([`c3d::lab_to_opensim`]),
 /// as OpenSim users rotate them; TRC files are in their model's frame already.
+///
+/// What the reader accepted but reported (a `.trc` frame repeating a time, left out) is
+/// dropped here; [`read_with_warnings`] returns it.
 pub fn read(path: &Path, format: Option<Format>, options: &ReadOptions) -> crate::Result<Motion> {
+    read_with_warnings(path, format, options).map(|(motion, _)| motion)
+}
+
+/// [`read`], with what the reader accepted but reported (today only `.trc` files report:
+/// frames repeating the previous time, left out).
+pub fn read_with_warnings(
+    path: &Path,
+    format: Option<Format>,
+    options: &ReadOptions,
+) -> crate::Result<(Motion, Vec<crate::io::FileWarning>)> {
     let format = match format {
         Some(f) => f,
         None => Format::detect(path)?,
     };
-    match format {
+    let motion = match format {
         Format::HumanMl3d => {
             let mut o = humanml3d::Options::default();
             if let Some(u) = options.length_unit {
@@ -155,9 +168,11 @@ pub fn read(path: &Path, format: Option<Format>, options: &ReadOptions) -> crate
         }
         Format::Trc => {
             let trc = Trc::read(path)?;
-            Motion::from_trc(&trc, &path.display().to_string())
+            let motion = Motion::from_trc(&trc, &path.display().to_string())?;
+            return Ok((motion, trc.warnings));
         }
-    }
+    };
+    Ok((motion?, Vec::new()))
 }
 
 /// Named 3-D targets over time.

@@ -211,7 +211,9 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
     let mut outputs = OutputSet::new(inputs);
     outputs.check(&output)?;
     let model = args.strict.load(&model_path)?;
-    let markers = motion::read(&marker_path, args.format, &ReadOptions::default())?;
+    let (markers, read_warnings) =
+        motion::read_with_warnings(&marker_path, args.format, &ReadOptions::default())?;
+    crate::warnings::print(&read_warnings);
     let range = match &args.time_range {
         Some(r) => Some([r[0], r[1]]),
         None => setup.time_range,
@@ -320,7 +322,8 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
             Some(f) => f,
             None => Format::detect(path)?,
         };
-        let mut clip = motion::read(path, Some(format), &options)?;
+        let (mut clip, read_warnings) = motion::read_with_warnings(path, Some(format), &options)?;
+        crate::warnings::print(&read_warnings);
         if let Some(r) = &args.time_range {
             clip = clip.time_window(r[0], r[1])?;
         }

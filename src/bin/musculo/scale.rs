@@ -103,7 +103,9 @@ fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
         Some(f) => f,
         None => Format::detect(clip_path)?,
     };
-    let clip = motion::read(clip_path, Some(format), &ReadOptions { length_unit })?;
+    let (clip, read_warnings) =
+        motion::read_with_warnings(clip_path, Some(format), &ReadOptions { length_unit })?;
+    crate::warnings::print(&read_warnings);
     let map = crate::tool::skeleton_map(args.map.as_deref(), format)?.ok_or_else(|| {
         invalid(
             "--map",

@@ -66,8 +66,7 @@ pub fn place_markers(
             .place
             .error("no marker_file: the static trial is not named"));
     };
-    let trial = read_trial(file)?;
-    let mut warnings = Vec::new();
+    let (trial, mut warnings) = read_trial(file)?;
     let (first_t, last_t) = (trial.time[0], trial.time[trial.n_frames() - 1]);
     let t0 = placer.time_range[0].max(first_t);
     let t1 = placer.time_range[1].min(last_t);

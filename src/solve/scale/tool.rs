@@ -83,10 +83,12 @@ fn read(path: &Path) -> crate::Result<String> {
     crate::io::text::read_text(path)
 }
 
-/// Reads a `.trc` static trial as a [`Motion`] (metres).
-pub fn read_trial(path: &Path) -> crate::Result<Motion> {
+/// Reads a `.trc` static trial as a [`Motion`] (metres), with the reader's warnings (frames
+/// repeating a time, left out).
+pub fn read_trial(path: &Path) -> crate::Result<(Motion, Vec<SetupWarning>)> {
     let trc = Trc::read(path)?;
-    Motion::from_trc(&trc, &path.display().to_string())
+    let motion = Motion::from_trc(&trc, &path.display().to_string())?;
+    Ok((motion, trc.warnings))
 }
 
 /// Runs the Scale tool a setup describes.
@@ -133,7 +135,11 @@ pub fn run(setup: &ScaleSetup, options: &ToolOptions) -> crate::Result<ScaleTool
             let needs_trial = scaler.scaling_order.contains(&ScalingStep::Measurements)
                 && scaler.measurements.iter().any(|m| m.apply);
             let trial = match (&scaler.marker_file, needs_trial) {
-                (Some(f), true) => Some(read_trial(f)?),
+                (Some(f), true) => {
+                    let (trial, read) = read_trial(f)?;
+                    warnings.extend(read);
+                    Some(trial)
+                }
                 _ => None,
             };
             let (set, measured, w) = scale_set(&model, scaler, trial.as_ref())?;
