@@ -17,11 +17,14 @@ use roxmltree::{Document, ParsingOptions};
 pub(crate) fn parse<'i>(text: &'i str, source: &str) -> crate::Result<Document<'i>> {
     if let Some(at) = entity_declaration(text) {
         let (line, column) = line_column(text, at);
+        // The entity's name only (its value may be megabytes), itself cut at 40 characters.
         let name: String = text[at + "<!ENTITY".len()..]
             .split_whitespace()
-            .take(2)
-            .collect::<Vec<_>>()
-            .join(" ");
+            .next()
+            .unwrap_or("")
+            .chars()
+            .take(40)
+            .collect();
         return Err(Error::Xml {
             file: source.to_string(),
             line,
