@@ -318,3 +318,33 @@ fn augment_counts_from_the_command_line_are_bounded() {
         assert!(!out.exists(), "{flag} {value} started a run");
     }
 }
+
+#[test]
+fn a_megabyte_long_bad_value_is_not_echoed_whole() {
+    // A number followed by a megabyte of letters: the error names file, line and column, and
+    // the command prints it cut in the middle, not the whole token.
+    let dir = ScratchDir::new("bounds-long-token");
+    let model = dir.join("demo.osim");
+    std::fs::write(&model, DEMO).unwrap();
+    let mot = dir.join("long.mot");
+    let token = format!("99999{}", "x".repeat(1_000_000));
+    std::fs::write(
+        &mot,
+        format!(
+            "long\nversion=1\nnRows=2\nnColumns=2\nendheader\ntime\tknee_angle\n0\t{token}\n0.01\t1\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.join("tau.sto");
+    let (ok, _, stderr) = musculo_cli(
+        "id --model {} --coordinates {} -o {}",
+        &[&model, &mot, &out],
+    );
+    assert!(!ok);
+    assert!(
+        stderr.contains("long.mot:7: column \"knee_angle\""),
+        "{stderr}"
+    );
+    assert!(stderr.contains("bytes left out"), "{stderr}");
+    assert!(stderr.len() < 2000, "{} bytes on stderr", stderr.len());
+}

@@ -388,7 +388,8 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
                 solved.push((model, solution, tasks, out, seconds));
             }
             Err(e) => {
-                eprintln!("error: {}: {e}", path.display());
+                let message = format!("{}: {e}", path.display());
+                eprintln!("error: {}", crate::warnings::shorten(&message));
                 failed += 1;
             }
         }

@@ -45,10 +45,30 @@ impl Strict {
     }
 }
 
+/// Longest message printed whole (bytes); a longer one is cut in the middle.
+const LONGEST: usize = 1000;
+
+/// `text`, or, when it is longer than [`LONGEST`] (a message quoting a megabyte-long token
+/// of a broken file), its start and end around a note of how much was left out.
+pub fn shorten(text: &str) -> std::borrow::Cow<'_, str> {
+    if text.len() <= LONGEST {
+        return text.into();
+    }
+    let head = text.floor_char_boundary(LONGEST * 3 / 5);
+    let tail = text.ceil_char_boundary(text.len() - LONGEST / 5);
+    format!(
+        "{} … [{} bytes left out] … {}",
+        &text[..head],
+        tail - head,
+        &text[tail..]
+    )
+    .into()
+}
+
 /// Prints `warnings`, one line each; past [`SHOWN`], the count of the others.
 pub fn print<W: Display>(warnings: &[W]) {
     for w in warnings.iter().take(SHOWN) {
-        eprintln!("warning: {w}");
+        eprintln!("warning: {}", shorten(&w.to_string()));
     }
     if warnings.len() > SHOWN {
         eprintln!(
@@ -111,6 +131,23 @@ pub fn frame_warnings(what: &str, total: usize, warnings: &[FrameWarning]) -> Ve
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_long_message_is_cut_in_the_middle_and_says_how_much() {
+        assert_eq!(shorten("short"), "short");
+        let long = format!("f.mot:7: `{}` is not a number", "é".repeat(500_000));
+        let cut = shorten(&long);
+        assert!(cut.len() < LONGEST + 100, "{}", cut.len());
+        assert!(cut.starts_with("f.mot:7: `é") && cut.ends_with("é` is not a number"));
+        let (head, rest) = cut.split_once(" … [").unwrap();
+        let (note, tail) = rest.split_once("] … ").unwrap();
+        let left_out: usize = note
+            .strip_suffix(" bytes left out")
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert_eq!(head.len() + left_out + tail.len(), long.len());
+    }
 
     fn w(time: f64, size: f64) -> FrameWarning {
         FrameWarning {
