@@ -338,6 +338,65 @@ fn check(model: &Model, data: &Data, set: &PathSet, out: &PathData) -> crate::Re
     Ok(())
 }
 
+/// One point of a path as it is wrapped at the current state (OpenSim's `getCurrentPath`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PathPoint {
+    /// The path point with this 0-based index in the path's definition.
+    Point(usize),
+    /// The first (`second == false`) or second tangent point of the path's wrap with this
+    /// 0-based index in its wrap set.
+    Tangent { wrap: usize, second: bool },
+}
+
+/// The points of path `k` at the state of `data` (position stage at least), in order, with
+/// their locations in ground; the tangent points of each engaged wrap follow OpenSim's
+/// algorithm as in [`compute_paths`]. For inspection and plotting: it allocates.
+pub fn current_path(
+    model: &Model,
+    data: &Data,
+    set: &PathSet,
+    k: usize,
+) -> crate::Result<Vec<(PathPoint, Vec3)>> {
+    data.require(model, Stage::Position, "current_path")?;
+    let path = set
+        .paths
+        .get(k)
+        .ok_or_else(|| Error::invalid("k", format!("no path {k} (the set has {})", set.len())))?;
+    let mut nodes = Vec::with_capacity(set.max_nodes.max(2));
+    active_points(model, data, path, &mut nodes);
+    if !path.wraps.is_empty() {
+        apply_wrap_objects(model, data, path, &mut nodes);
+    }
+    Ok(nodes
+        .iter()
+        .map(|n| {
+            let p = match n.kind {
+                NodeKind::Point(i) => PathPoint::Point(i),
+                NodeKind::Tangent(wrap, second) => PathPoint::Tangent { wrap, second },
+            };
+            (p, n.ground)
+        })
+        .collect())
+}
+
+/// The path's active points, in order, as nodes in ground.
+fn active_points(model: &Model, data: &Data, path: &PathGeometry, nodes: &mut Vec<Node>) {
+    nodes.clear();
+    for (i, p) in path.points.iter().enumerate() {
+        let (local, active) = point_location(model, data, p);
+        if active {
+            nodes.push(Node {
+                kind: NodeKind::Point(i),
+                body: p.body,
+                ground: data.point_position(p.body, &local),
+                surface: 0.0,
+                grad: Vec3::zeros(),
+                pull: Vec3::zeros(),
+            });
+        }
+    }
+}
+
 /// Location of point `p` in its body at the current coordinates, and whether it is active.
 fn point_location(model: &Model, data: &Data, p: &PointDef) -> (Vec3, bool) {
     let c = data.coordinate_values(model);
@@ -367,20 +426,7 @@ fn compute_path(
     r: &mut [f64],
 ) -> (f64, f64) {
     let nodes = &mut scratch.nodes;
-    nodes.clear();
-    for (i, p) in path.points.iter().enumerate() {
-        let (local, active) = point_location(model, data, p);
-        if active {
-            nodes.push(Node {
-                kind: NodeKind::Point(i),
-                body: p.body,
-                ground: data.point_position(p.body, &local),
-                surface: 0.0,
-                grad: Vec3::zeros(),
-                pull: Vec3::zeros(),
-            });
-        }
-    }
+    active_points(model, data, path, nodes);
     if !path.wraps.is_empty() {
         apply_wrap_objects(model, data, path, nodes);
     }

@@ -28,7 +28,11 @@ use crate::spatial::{Mat3, Vec3};
 ///   the axis follows OpenSim's table on which of the four tangent candidates (at P's and
 ///   S's heights) lie on the active side; the arc is the angle from T1 to T2 in that
 ///   direction, in [0, 2π).
-/// - Finite length: no wrap if both contact points lie beyond the cylinder's ends.
+/// - Finite length: no wrap if both of OpenSim's trial contact heights lie beyond the
+///   cylinder's ends (see `trial_heights`: the heights OpenSim tests, before it makes the
+///   contacts tangent; deciding on the exact contact heights instead changed whether a path
+///   wraps near the ends of short cylinders — by up to 5.6 mm in the default model's long
+///   triceps over its small glenoid cylinder).
 /// - The surface curve is the helix that, unrolled, makes P–T1–T2–S one straight line
 ///   (the geodesic): with H = h1 + R·θ + h2 and Δz = S.z − P.z,
 ///   length = √(H² + Δz²), T1.z = P.z + Δz·h1/H, T2.z = S.z − Δz·h2/H.
@@ -39,8 +43,7 @@ use crate::spatial::{Mat3, Vec3};
 /// heights then make paths longer than the geodesic, by up to ~0.7 mm for R = 5 cm in
 /// ordinary wraps and by millimetres to centimetres for long quadrant-forced wraps. This
 /// returns the exact limit, which OpenSim 4.6 matches to ~1e-6 m when it iterates.
-/// (2) OpenSim's finite-length test uses its preliminary contact heights; the exact ones
-/// are used here. (3) The arc angle is the geometric angle in the chosen direction;
+/// (2) The arc angle is the geometric angle in the chosen direction;
 /// OpenSim's signed `atan2` plus "long wrap" test gives 2π + |θ| instead of 2π − |θ| for a
 /// clockwise wrap longer than half a turn (OpenSim 4.6 returned 7.75 m where the path is
 /// 0.32 m).
@@ -188,13 +191,14 @@ pub(crate) fn cylinder_core<T: Real>(
     };
 
     let mut mandatory = false;
-    let sense = match quadrant.constraint() {
+    // `far`: OpenSim's far_side_wrap, which only picks the apex of its trial contact heights.
+    let (sense, far) = match quadrant.constraint() {
         None => {
             if !crosses {
                 return None;
             }
             mandatory = true;
-            near_sense
+            (near_sense, false)
         }
         Some((axis, sign)) => {
             let active = |v: f64| dsign(v) == sign;
@@ -215,27 +219,32 @@ pub(crate) fn cylinder_core<T: Real>(
             let r2b = at(contact2(CCW), sv.z);
             let (a, b) = (active(r1a[axis]), active(r1b[axis]));
             let (c, d) = (active(r2a[axis]), active(r2b[axis]));
+            // Planar angles of the counter-clockwise pair (r1a, r2b) and the clockwise pair
+            // (r1b, r2a); NaN (degenerate) compares false, as in OpenSim.
+            let angle =
+                |u: Vec3, v: Vec3| (u.xy().dot(&v.xy()) / (u.xy().norm() * v.xy().norm())).acos();
+            let ccw_wider = angle(r1a, r2b) > angle(r1b, r2a);
+            let ccw = (CCW, ccw_wider);
+            let cw = (CW, !ccw_wider);
             match (a, b) {
                 (true, true) => {
                     if c {
-                        CW
+                        cw
                     } else {
-                        CCW
+                        ccw
                     }
                 }
-                (true, false) => CCW,
-                (false, true) => CW,
+                (true, false) => ccw,
+                (false, true) => cw,
                 (false, false) => {
                     if c {
-                        CW
+                        cw
                     } else if d {
-                        CCW
+                        ccw
                     } else {
-                        // Neither side active: the pair with the larger planar angle
-                        // (OpenSim: acos(r1a·r2b) > acos(r1b·r2a)).
-                        let ccw_cos = r1a.xy().dot(&r2b.xy());
-                        let cw_cos = r1b.xy().dot(&r2a.xy());
-                        if ccw_cos < cw_cos { CCW } else { CW }
+                        // Neither side active: the pair with the larger planar angle, taken
+                        // as a far-side wrap.
+                        (if ccw_wider { CCW } else { CW }, true)
                     }
                 }
             }
@@ -284,7 +293,8 @@ pub(crate) fn cylinder_core<T: Real>(
     let t1 = Vec3::new(c1.x, c1.y, pv.z + dz * h1 / h_total);
     let t2 = Vec3::new(c2.x, c2.y, sv.z - dz * h2 / h_total);
     let outside = |z: f64| z < -half_length || z > half_length;
-    if outside(t1.z) && outside(t2.z) {
+    let (z1, z2) = trial_heights(r, &pv, &sv, &c1, &c2, far);
+    if outside(z1) && outside(z2) {
         return None;
     }
     let (t1_t, t2_t) = if T::HAS_GRAD {
@@ -320,6 +330,62 @@ pub(crate) fn cylinder_core<T: Real>(
         },
         mandatory,
     })
+}
+
+/// OpenSim's trial contact heights, on which its finite-length test decides (the wrap is
+/// dropped when both lie beyond the cylinder's ends). The contact points start at the
+/// heights of P and S (`c1`, `c2` in the projection) and are slid along the axis onto the
+/// plane through P, S and an apex point A:
+///   M = P + d1/(d1 + d2)·(S − P),  O = (0, 0, M.z),
+///   n = unit((P − O)/|P − O| × (S − O)/|S − O|),  A = O ± R·unit(ẑ × n)
+/// with the sign putting A nearer M, or farther for a far-side wrap; then
+///   m = unit(unit(P − A) × unit(S − A)),  the plane m·X = m·P,
+/// and the contact above r1 = (c1, P.z) moves to that plane's height when the line along the
+/// axis through it meets the plane within ±10 m and the new height is nearer S.z than P.z is
+/// (T2 likewise, nearer P.z than S.z is). OpenSim measures "nearer" on the line through
+/// (0, 0, P.z) with direction (0, 0, S.z): when S.z = 0 that direction vanishes and every
+/// point counts as at P.z (the first contact then never moves, the second always may).
+/// A decision only: no derivatives.
+fn trial_heights(r: f64, p: &Vec3, s: &Vec3, c1: &Vec3, c2: &Vec3, far: bool) -> (f64, f64) {
+    let unit = |v: Vec3| {
+        let n = v.norm();
+        if n > 0.0 { v / n } else { v }
+    };
+    let (d1, d2) = (p.xy().norm(), s.xy().norm());
+    let m = p + (s - p) * (d1 / (d1 + d2));
+    let o = Vec3::new(0.0, 0.0, m.z);
+    let n = unit(unit(p - o).cross(&unit(s - o)));
+    let vert = unit(Vec3::z().cross(&n));
+    let (apex1, apex2) = (o + vert * r, o - vert * r);
+    let first_nearer = (m - apex1).norm_squared() < (m - apex2).norm_squared();
+    let apex = if first_nearer != far { apex1 } else { apex2 };
+    let plane = unit(unit(p - apex).cross(&unit(s - apex)));
+    // Height where the axis-parallel segment from z0 − 10 to z0 + 10 at (x, y) meets the plane.
+    let meet = |x: &Vec3| -> Option<f64> {
+        let dot = 20.0 * plane.z;
+        if !(dot.abs() >= 1e-5) {
+            return None;
+        }
+        let start = Vec3::new(x.x, x.y, x.z - 10.0);
+        let t = plane.dot(&(p - start)) / dot;
+        (-1e-5..=1.0 + 1e-5)
+            .contains(&t)
+            .then(|| start.z + 20.0 * t)
+    };
+    // Closest point to height z on OpenSim's line through (0, 0, P.z) along (0, 0, S.z).
+    let on_line = |z: f64| if s.z == 0.0 { p.z } else { z };
+    let (mut z1, mut z2) = (p.z, s.z);
+    if let Some(z) = meet(&Vec3::new(c1.x, c1.y, p.z)) {
+        if (on_line(z) - s.z).powi(2) < (p.z - s.z).powi(2) {
+            z1 = z;
+        }
+    }
+    if let Some(z) = meet(&Vec3::new(c2.x, c2.y, s.z)) {
+        if (on_line(z) - p.z).powi(2) < (s.z - p.z).powi(2) {
+            z2 = z;
+        }
+    }
+    (z1, z2)
 }
 
 /// ∂T1/∂(P, S) and ∂T2/∂(P, S) in closed form. In the projection T1 = α·P_xy + β·(ẑ × P_xy),

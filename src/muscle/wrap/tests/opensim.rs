@@ -40,6 +40,7 @@ fn wrap(c: &Case) -> Option<Wrapped> {
     match c.kind.as_str() {
         "sphere" => wrap_sphere(0.05, c.quadrant, &c.p, &c.s).wrapped(),
         "cylinder" => wrap_cylinder(0.05, 0.3, c.quadrant, &c.p, &c.s).wrapped(),
+        "short_cylinder" => wrap_cylinder(0.005, 0.03, c.quadrant, &c.p, &c.s).wrapped(),
         "ellipsoid" => wrap_ellipsoid(
             &Vec3::new(0.06, 0.025, 0.04),
             c.quadrant,
@@ -55,7 +56,7 @@ fn wrap(c: &Case) -> Option<Wrapped> {
 #[test]
 fn path_lengths_match_opensim() {
     let all = cases();
-    assert_eq!(all.len(), 359);
+    assert_eq!(all.len(), 599);
     let mut wraps = 0;
     for c in &all {
         let w = wrap(c);
@@ -71,7 +72,7 @@ fn path_lengths_match_opensim() {
         let tolerance = match c.kind.as_str() {
             "sphere" => 1e-13,
             // OpenSim iterates the helix only to 0.1° tangency.
-            "cylinder" => 1e-5,
+            "cylinder" | "short_cylinder" => 1e-5,
             // OpenSim's tangent solve stops at a residual of ~1e-4; its arc is a polyline.
             "ellipsoid" => 5e-5,
             // The line point from a least-squares solve with tolerance 1e-4.

@@ -20,9 +20,13 @@ SURFACES = [
     ("cylinder", [0.05, 0.3], [""]),
     ("ellipsoid", [0.06, 0.025, 0.04], ["hybrid", "midpoint", "axial"]),
     ("torus", [0.02, 0.06], [""]),
+    # A short cylinder with segments passing near its ends, where OpenSim's finite-length
+    # test (on its trial contact heights) decides whether the path wraps.
+    ("short_cylinder", [0.005, 0.03], [""]),
 ]
 QUADRANTS = ["all", "+x", "-y", "z", "-x", "y"]
 PER_CASE = 10
+PER_SHORT_CASE = 40
 
 
 def opensim_length(kind, dims, quadrant, method, p, s):
@@ -31,7 +35,7 @@ def opensim_length(kind, dims, quadrant, method, p, s):
     if kind == "sphere":
         wrap = osim.WrapSphere()
         wrap.set_radius(dims[0])
-    elif kind == "cylinder":
+    elif kind in ("cylinder", "short_cylinder"):
         wrap = osim.WrapCylinder()
         wrap.set_radius(dims[0])
         wrap.set_length(dims[1])
@@ -70,8 +74,17 @@ def main():
     for kind, dims, methods in SURFACES:
         for method in methods:
             for quadrant in QUADRANTS:
-                for _ in range(PER_CASE):
-                    if kind == "torus":
+                for _ in range(PER_SHORT_CASE if kind == "short_cylinder" else PER_CASE):
+                    if kind == "short_cylinder":
+                        end = random.choice([-0.015, 0.015])
+                        c = [random.uniform(-0.004, 0.004), random.uniform(-0.004, 0.004),
+                             end + random.uniform(-0.006, 0.006)]
+                        u = [random.gauss(0, 1), random.gauss(0, 1), random.gauss(0, 0.5)]
+                        n = math.sqrt(sum(x * x for x in u))
+                        a, b = random.uniform(0.02, 0.1), random.uniform(0.02, 0.1)
+                        p = [c[k] - a * u[k] / n for k in range(3)]
+                        s = [c[k] + b * u[k] / n for k in range(3)]
+                    elif kind == "torus":
                         p = [random.uniform(-0.08, 0.08), random.uniform(-0.08, 0.08), random.uniform(0.02, 0.12)]
                         s = [random.uniform(-0.08, 0.08), random.uniform(-0.08, 0.08), -random.uniform(0.02, 0.12)]
                     else:
