@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs the OpenSim 4.6 side-by-side checks (validation/opensim/README.md): builds musculo
-# (cargo build --release), then the IK and Scale comparisons, each running OpenSim itself on the
+# (cargo build --release), then the path-length, IK and Scale comparisons, each running OpenSim itself on the
 # reference setups and musculo on the same setup copies under target/opensim-validation/.
 #
 # Usage:   eval "$(scripts/setup-opensim.sh)" && validation/opensim/run.sh [--opensim-only | --self-test]
@@ -26,7 +26,7 @@ if [ ${#mode[@]} -eq 0 ]; then
 fi
 
 status=0
-for check in ik_compare scale_compare augment_speed; do
+for check in paths_compare ik_compare scale_compare augment_speed; do
     echo "== OpenSim side by side: $check ${mode[*]:-}"
     "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
 done

@@ -89,9 +89,9 @@ const SWEEP_TOLERANCE: f64 = 1e-14;
 /// changes by less than 0.5 mm; musculo sweeps until the wrapped path is converged (length
 /// change below 1e-14 relative, at most 100 sweeps). The two agree to within OpenSim's
 /// tolerance, and the converged path makes ℓ(q) smooth, so that moment arms are its exact
-/// derivatives. Where the sweeps cycle between configurations instead (OpenSim then stops
-/// wherever its eighth sweep leaves it), the last configuration is kept and its engaged
-/// objects are re-wrapped between their neighbours until consistent.
+/// derivatives. The final configuration (the converged one, or the last one where the sweeps
+/// cycle between configurations; OpenSim then stops wherever its eighth sweep leaves it) has
+/// its engaged objects re-wrapped between their final neighbours until consistent.
 pub(super) fn apply_wrap_objects(
     model: &Model,
     data: &Data,
@@ -196,16 +196,18 @@ pub(super) fn apply_wrap_objects(
             break;
         }
         let length = path_length(nodes);
-        if (length - last_length).abs() <= SWEEP_TOLERANCE * (1.0 + length) {
-            break;
-        }
-        if iteration + 1 == iterations {
-            // The sweeps cycle between wrap configurations (one object's contact makes
-            // another let go, and so on) and never settle: keep the last configuration and
-            // make it consistent, each engaged object wrapped between its final neighbours,
-            // so that ℓ is stationary in the tangent points and the moment arms are its
-            // derivatives.
+        if (length - last_length).abs() <= SWEEP_TOLERANCE * (1.0 + length)
+            || iteration + 1 == iterations
+        {
+            // Make the final configuration consistent: each engaged object wrapped between
+            // its final neighbours (so that the moment arms are ℓ's derivatives). After
+            // sweeps that cycle between configurations (one object's contact makes another
+            // let go, and so on) this settles the last one; after converged sweeps it is
+            // usually a single pass with nothing to move, but an equal length does not
+            // prove it: an object wrapped early in the last sweep against a neighbour that
+            // a later object then moved is re-wrapped (or released) here.
             settle_engaged_wraps(model, data, path, nodes);
+            break;
         }
         last_length = length;
         if iteration == 0 && first_results[0] == 0 && first_results[1] == 1 {
