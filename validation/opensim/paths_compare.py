@@ -55,6 +55,17 @@ ov.quiet_opensim()
 TOL = 1e-3
 STEEP = 1.0  # m per rad: 'singular'
 H = 1e-4
+# Moment arms: r = −∂ℓ/∂q against OpenSim's own central differences.
+ARM_TOL = 1e-4
+ARM_H = 1e-5
+# Where OpenSim's path is smooth: its forward and backward differences agree to this.
+ARM_SMOOTH = 1e-5
+ARM_STATES = 30
+# A cylinder contact of OpenSim's path kinked by more than this (degrees, unrolled): OpenSim
+# slides its contact points tangent only from the second point of its 2 mm polyline on, so an
+# arc shorter than 4 mm keeps the untangent trial contacts (and tangency is judged on the 2 mm
+# chord, not the helix); ∂ℓ/∂q then differs from the tangent path's by up to a few per cent.
+NON_TANGENT = 0.5
 
 
 def v3(x):
@@ -277,6 +288,147 @@ def steepest(sampler, muscle, q):
     return best, arg
 
 
+def stale_muscles(sampler, muscles, wrapped):
+    """The wrapped muscles whose OpenSim path is stale at the sampler's current state."""
+    out = set()
+    for m in wrapped:
+        pts = current_path(muscles.get(m).getGeometryPath(), sampler.state)
+        if any(np.linalg.norm(c - f) > 1e-9 for _, c, f in pts):
+            out.add(m)
+    return out
+
+
+def iterating_copy(path):
+    """The model with a tiny sphere far away added to every path that has exactly one wrap
+    object. OpenSim 4.6 skips its cylinder tangency iteration on a path with a single wrap
+    object when no visualizer is attached (WrapCylinder: singleWrap), leaving contact points
+    that are not tangent; with a second object on the path, or with the visualizer on, it
+    iterates them tangent. The far sphere never wraps, so this copy's paths are the model's own
+    with the tangent contact points musculo computes."""
+    model = osim.Model(path)
+    far = osim.WrapSphere()
+    far.setName("musculo_far_away_sphere")
+    far.set_radius(0.001)
+    far.set_translation(osim.Vec3(100, 100, 100))
+    model.getGround().addWrapObject(far)
+    muscles = model.getMuscles()
+    single = set()
+    for m in range(muscles.getSize()):
+        gp = muscles.get(m).getGeometryPath()
+        if gp.getWrapSet().getSize() == 1:
+            gp.addPathWrap(far)
+            single.add(m)
+    model.finalizeConnections()
+    return model, single
+
+
+def cylinder_tangency_error(pts, state):
+    """The largest kink (degrees) of OpenSim's path at a cylinder contact, seen unrolled: on
+    the tangent (shortest) path the straight segments and the helix rise along the axis at
+    one angle, atan(Δz / horizontal length); 0 for exact tangency."""
+    worst = 0.0
+    for j in range(1, len(pts) - 2):
+        (a, _, ga), (t1, _, _), (t2, _, _), (b, _, gb) = pts[j - 1:j + 3]
+        wo = t1.getWrapObject()
+        if not same_object(t1, t2) or wo.getConcreteClassName() != "WrapCylinder":
+            continue
+        rot = rotation_xyz(v3(wo.get_xyz_body_rotation()))
+        frame, ground = wo.getFrame(), t1.getModel().getGround()
+
+        def local(x_body):
+            return rot.T @ (x_body - v3(wo.get_translation()))
+
+        def from_ground(g):
+            return local(v3(ground.findStationLocationInAnotherFrame(state, osim.Vec3(*g), frame)))
+
+        p, s_ = from_ground(ga), from_ground(gb)
+        c1, c2 = local(v3(t1.getLocation(state))), local(v3(t2.getLocation(state)))
+        arc = osim.PathWrapPoint.safeDownCast(t2).getWrapLength(state)
+        rise = c2[2] - c1[2]
+        helix = np.degrees(np.arctan2(rise, np.sqrt(max(arc * arc - rise * rise, 0.0))))
+        seg1 = np.degrees(np.arctan2(c1[2] - p[2], np.linalg.norm((c1 - p)[:2])))
+        seg2 = np.degrees(np.arctan2(s_[2] - c2[2], np.linalg.norm((s_ - c2)[:2])))
+        worst = max(worst, abs(seg1 - helix), abs(seg2 - helix))
+    return worst
+
+
+def compare_moment_arms(sampler, alt, single, muscles, names, wrapped, q, states, prefix,
+                        self_test):
+    """musculo's moment arms (its MomentArm_<coordinate>.sto files) against OpenSim's central
+    differences of its own length, −(ℓ(q + h e_j) − ℓ(q − h e_j))/(2h), h = ARM_H, with the
+    coupled coordinates following their couplers; only where OpenSim's path is smooth (its
+    one-sided differences agree to ARM_SMOOTH) and not stale at q, q + h e_j or q − h e_j.
+    Muscles with a single wrap object (`single`) are differentiated on `alt`, the model's
+    iterating copy (see `iterating_copy`); the table also shows how far OpenSim's own
+    non-tangent single wraps are."""
+    free = sampler.free
+    arms = {}
+    for i in free:
+        f = f"{prefix}_MomentArm_{sampler.names[i]}.sto"
+        if os.path.exists(f):
+            _, cols = ov.read_sto_columns(f)
+            arms[i] = np.column_stack([cols[n] for n in names])
+    out = dict(compared=0, rough=0, stale=0, worst=0.0, worst_at=None, failures=[],
+               single_worst=0.0, non_tangent=[])
+    nm = len(names)
+    alt_muscles = alt.model.getMuscles() if alt is not None else None
+    single_list = sorted(single)
+
+    def lengths(qq):
+        qq = sampler.complete(qq)
+        sampler.set(qq)
+        main = np.array([muscles.get(m).getLength(sampler.state) for m in range(nm)])
+        both = main.copy()
+        if single_list:
+            alt.set(qq)
+            for m in single_list:
+                both[m] = alt_muscles.get(m).getLength(alt.state)
+        return main, both
+
+    for k in range(min(states, len(q))):
+        l0_main, l0 = lengths(q[k])
+        skip = stale_muscles(sampler, muscles, wrapped)
+        for i in free:
+            qp, qm = q[k].copy(), q[k].copy()
+            qp[i] += ARM_H
+            qm[i] -= ARM_H
+            lp_main, lp = lengths(qp)
+            skip_i = skip | stale_muscles(sampler, muscles, wrapped)
+            lm_main, lm = lengths(qm)
+            skip_i |= stale_muscles(sampler, muscles, wrapped)
+            fd = -(lp - lm) / (2 * ARM_H)
+            fd_main = -(lp_main - lm_main) / (2 * ARM_H)
+            fwd, bwd = -(lp - l0) / ARM_H, -(l0 - lm) / ARM_H
+            mine = fd if self_test else arms.get(i, np.zeros((len(q), nm)))[k]
+            for m in range(nm):
+                if m in skip_i:
+                    out["stale"] += 1
+                    continue
+                if abs(fwd[m] - bwd[m]) > ARM_SMOOTH:
+                    out["rough"] += 1
+                    continue
+                out["compared"] += 1
+                e = abs(mine[m] - fd[m])
+                if m in single:
+                    out["single_worst"] = max(out["single_worst"], abs(mine[m] - fd_main[m]))
+                if e > out["worst"]:
+                    out["worst"] = e
+                    out["worst_at"] = f"{names[m]} about {sampler.names[i]}, state {k}"
+                if e > ARM_TOL:
+                    sampler.set(sampler.complete(q[k]))
+                    angle = cylinder_tangency_error(
+                        current_path(muscles.get(m).getGeometryPath(), sampler.state),
+                        sampler.state)
+                    if angle > NON_TANGENT:
+                        out["non_tangent"].append((names[m], sampler.names[i], k, e, angle))
+                        continue
+                    out["failures"].append(
+                        f"{names[m]} about {sampler.names[i]} at state {k}: musculo {mine[m]:.6f} "
+                        f"m, OpenSim's central difference {fd[m]:.6f} m")
+    sampler.set(q[0])
+    return out
+
+
 def compare_model(label, path, n, work, self_test):
     model = osim.Model(path)
     sampler = Sampler(model)
@@ -368,7 +520,16 @@ def compare_model(label, path, n, work, self_test):
             if worst > TOL:
                 stats["failures"].append((s[0] + " (singular; 2 mrad away still differs)", worst,
                                           None, None, None, False))
+    alt_model, single = iterating_copy(path)
+    alt = Sampler(alt_model) if single else None
+    stats["single"] = len(single)
+    stats["arms"] = compare_moment_arms(sampler, alt, single, muscles, names, wrapped, q,
+                                        ARM_STATES, os.path.join(folder, "musculo"), self_test)
     return stats, None
+
+
+def single_count(stats):
+    return stats.get("single", 0)
 
 
 def models(extra):
@@ -400,7 +561,7 @@ def main():
     work = os.path.join(ov.WORK, "paths")
     os.makedirs(work, exist_ok=True)
     todo = [(os.path.basename(p), p) for p in args.model] if args.only else models(args.model)
-    rows, failed, skipped = [], [], []
+    rows, failed, skipped, arm_rows, arm_failed = [], [], [], [], []
     for label, path in todo:
         tag = label.replace("/", "_").replace(" ", "_").replace(",", "")
         try:
@@ -424,6 +585,15 @@ def main():
                   f"on {obj} lies {dist * 1e3:.1f} mm off its surface")
         for f in stats["failures"]:
             failed.append((label,) + f)
+        a = stats["arms"]
+        arm_rows.append([label, a["compared"], a["rough"], a["stale"],
+                         f"{a['worst']:.2e} ({a['worst_at']})",
+                         f"{a['single_worst']:.2e}" if single_count(stats) else "-",
+                         len(a["non_tangent"]), len(a["failures"])])
+        arm_failed += [(label, f) for f in a["failures"]]
+        for name, coord, k, e, angle in a["non_tangent"]:
+            print(f"  {label}: non-tangent {name} about {coord}, state {k}: |Δr| {e:.2e} m; "
+                  f"OpenSim's cylinder contact {angle:.2f}° from tangent")
     print(f"\nMusculotendon lengths, musculo vs OpenSim 4.6: {args.states} random states per model "
           f"over the full coordinate ranges (seed 0); tolerance {TOL * 1e3:g} mm")
     ov.print_table(["model", "muscles", "with wraps", "max |Δℓ| mm, paths OpenSim computes consistently (where)",
@@ -437,8 +607,24 @@ def main():
         extra = "" if f[3] is None else (f": musculo {f[3]:.6f}, OpenSim {f[4]:.6f}, "
                                          f"OpenSim consistent {f[5]:.6f}, stale {f[6]}")
         print(f"FAIL {label}: {where}: |Δℓ| {d * 1e3:.3f} mm{extra}")
+    print(f"\nMoment arms r = −∂ℓ/∂q, musculo vs OpenSim 4.6's central differences of its own "
+          f"length (h = {ARM_H:g}), first {ARM_STATES} states per model, every muscle and free "
+          f"coordinate; tolerance {ARM_TOL:g} m where OpenSim's path is smooth (one-sided "
+          f"differences within {ARM_SMOOTH:g} m) and not stale")
+    ov.print_table(["model", "compared", "not smooth (OpenSim)", "stale (OpenSim)",
+                    "max |Δr| m (where)",
+                    "single wraps: max |Δr| m vs OpenSim without its tangency iteration",
+                    "non-tangent (OpenSim)", "failures"], arm_rows)
+    for label, f in arm_failed[:40]:
+        print(f"FAIL {label}: moment arm {f}")
+    status = 0
     if failed:
         print(f"paths: {len(failed)} lengths outside {TOL * 1e3:g} mm and not a documented case")
+        status = 1
+    if arm_failed:
+        print(f"paths: {len(arm_failed)} moment arms outside {ARM_TOL:g} m where OpenSim is smooth")
+        status = 1
+    if status:
         return 1
     print("paths: pass")
     return 0
