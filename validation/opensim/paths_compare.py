@@ -48,6 +48,7 @@ import sys
 import numpy as np
 
 import osimval as ov
+from osimval import Sampler
 
 osim = ov.osim
 ov.quiet_opensim()
@@ -70,61 +71,6 @@ NON_TANGENT = 0.5
 
 def v3(x):
     return np.array([x[0], x[1], x[2]])
-
-
-class Sampler:
-    """Random states of one OpenSim model and the .mot that carries them to musculo."""
-
-    def __init__(self, model):
-        self.model = model
-        self.state = model.initSystem()
-        self.coords = model.getCoordinateSet()
-        self.names = [self.coords.get(i).getName() for i in range(self.coords.getSize())]
-        cs = model.getConstraintSet()
-        self.couplers = []
-        for i in range(cs.getSize()):
-            c = osim.CoordinateCouplerConstraint.safeDownCast(cs.get(i))
-            if c is not None and c.get_isEnforced():
-                self.couplers.append(c)
-        dependent = {c.getDependentCoordinateName() for c in self.couplers}
-        self.free = [i for i in range(self.coords.getSize())
-                     if self.names[i] not in dependent and not self.coords.get(i).getLocked(self.state)]
-
-    def set(self, q):
-        for i in range(self.coords.getSize()):
-            self.coords.get(i).setValue(self.state, q[i], False)
-        self.model.realizePosition(self.state)
-
-    def complete(self, q):
-        """q with the coupled coordinates set from the independent ones."""
-        q = np.array(q, dtype=float)
-        for c in self.couplers:
-            ind = c.getIndependentCoordinateNames()
-            x = osim.Vector(ind.getSize(), 0.0)
-            for k in range(ind.getSize()):
-                x.set(k, q[self.names.index(ind.get(k))])
-            q[self.names.index(c.getDependentCoordinateName())] = c.getFunction().calcValue(x)
-        return q
-
-    def sample(self, n, seed):
-        rng = np.random.default_rng(seed)
-        q0 = np.array([self.coords.get(i).getDefaultValue() for i in range(self.coords.getSize())])
-        rows = []
-        for _ in range(n):
-            q = q0.copy()
-            for i in self.free:
-                c = self.coords.get(i)
-                q[i] = rng.uniform(c.getRangeMin(), c.getRangeMax())
-            rows.append(self.complete(q))
-        return np.array(rows)
-
-    def write_mot(self, path, q):
-        with open(path, "w") as f:
-            f.write(f"states\nversion=1\nnRows={len(q)}\nnColumns={len(self.names) + 1}\n"
-                    "inDegrees=no\nendheader\n")
-            f.write("time\t" + "\t".join(self.names) + "\n")
-            for k, row in enumerate(q):
-                f.write(f"{0.01 * k:.4f}\t" + "\t".join(f"{v:.17g}" for v in row) + "\n")
 
 
 def same_object(a, b):

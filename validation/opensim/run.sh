@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the OpenSim 4.6 side-by-side checks (validation/opensim/README.md): builds musculo
-# (cargo build --release), then the path-length, IK and Scale comparisons, each running OpenSim itself on the
+# (cargo build --release and examples/opensim_dynamics.rs), then the path-length, dynamics, IK and
+# Scale comparisons, each running OpenSim itself on the
 # reference setups and musculo on the same setup copies under target/opensim-validation/.
 #
 # Usage:   eval "$(scripts/setup-opensim.sh)" && validation/opensim/run.sh [--opensim-only | --self-test]
@@ -23,10 +24,11 @@ esac
 
 if [ ${#mode[@]} -eq 0 ]; then
     cargo build --release
+    cargo build --release --example opensim_dynamics
 fi
 
 status=0
-for check in paths_compare ik_compare scale_compare augment_speed; do
+for check in paths_compare dynamics_compare ik_compare scale_compare augment_speed; do
     echo "== OpenSim side by side: $check ${mode[*]:-}"
     "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
 done
