@@ -30,7 +30,6 @@ within 1e-9 m; Jacobians within 1e-9 of the state's largest |J| entry (m/rad).
 """
 
 import argparse
-import glob
 import json
 import os
 import subprocess
@@ -258,19 +257,6 @@ def describe(key, at, q_names, marker_names, k):
     return f"state {k}, {marker_names[at[0]]} / {q_names[at[2]]}"
 
 
-def models():
-    found = sorted(glob.glob(os.path.join(ov.MODELS, "**", "*.osim"), recursive=True))
-    out = [(os.path.relpath(p, ov.MODELS), p) for p in found]
-    default = os.path.join(ov.REPO, "models", "musculo_fullbody.osim")
-    out.append(("models/musculo_fullbody.osim", default))
-    scaled = os.path.join(ov.WORK, "dynamics", "musculo_fullbody_60kg_1.60m.osim")
-    os.makedirs(os.path.dirname(scaled), exist_ok=True)
-    subprocess.run([ov.MUSCULO, "model", "scale", default, "--mass", "60", "--height", "1.60",
-                    "-o", scaled], check=True, capture_output=True)
-    out.append(("default scaled to 60 kg, 1.60 m", scaled))
-    return out
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--states", type=int, default=50)
@@ -283,7 +269,7 @@ def main():
         return 0
     work = os.path.join(ov.WORK, "dynamics")
     os.makedirs(work, exist_ok=True)
-    todo = [(os.path.basename(p), p) for p in args.model] if args.model else models()
+    todo = [(os.path.basename(p), p) for p in args.model] if args.model else ov.all_models(work)
     rows, fails, skipped = [], [], []
     for label, path in todo:
         tag = label.replace("/", "_").replace(" ", "_").replace(",", "")

@@ -212,6 +212,22 @@ class Sampler:
 
 
 
+def all_models(work):
+    """(label, path) of every .osim under opensim-models, the default model, and the default
+    model scaled by `musculo model scale` to 60 kg and 1.60 m (written under `work`)."""
+    import glob
+    found = sorted(glob.glob(os.path.join(MODELS, "**", "*.osim"), recursive=True))
+    out = [(os.path.relpath(p, MODELS), p) for p in found]
+    default = os.path.join(REPO, "models", "musculo_fullbody.osim")
+    out.append(("models/musculo_fullbody.osim", default))
+    scaled = os.path.join(work, "musculo_fullbody_60kg_1.60m.osim")
+    os.makedirs(work, exist_ok=True)
+    subprocess.run([MUSCULO, "model", "scale", default, "--mass", "60", "--height", "1.60",
+                    "-o", scaled], check=True, capture_output=True)
+    out.append(("default scaled to 60 kg, 1.60 m", scaled))
+    return out
+
+
 # ---------------------------------------------------------------------------------------------
 # Tables
 

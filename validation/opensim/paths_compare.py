@@ -40,7 +40,6 @@ Exit status 1 when a difference is not one of the cases above.
 """
 
 import argparse
-import glob
 import os
 import subprocess
 import sys
@@ -478,21 +477,6 @@ def single_count(stats):
     return stats.get("single", 0)
 
 
-def models(extra):
-    found = sorted(glob.glob(os.path.join(ov.MODELS, "**", "*.osim"), recursive=True))
-    out = [(os.path.relpath(p, ov.MODELS), p) for p in found]
-    default = os.path.join(ov.REPO, "models", "musculo_fullbody.osim")
-    out.append(("models/musculo_fullbody.osim", default))
-    scaled = os.path.join(ov.WORK, "paths", "musculo_fullbody_60kg_1.60m.osim")
-    os.makedirs(os.path.dirname(scaled), exist_ok=True)
-    if os.path.exists(ov.MUSCULO):
-        subprocess.run([ov.MUSCULO, "model", "scale", default, "--mass", "60", "--height", "1.60",
-                        "-o", scaled], check=True, capture_output=True)
-        out.append(("default scaled to 60 kg, 1.60 m", scaled))
-    out += [(os.path.basename(p), p) for p in extra]
-    return out
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--states", type=int, default=500)
@@ -506,7 +490,9 @@ def main():
         return 0
     work = os.path.join(ov.WORK, "paths")
     os.makedirs(work, exist_ok=True)
-    todo = [(os.path.basename(p), p) for p in args.model] if args.only else models(args.model)
+    todo = [(os.path.basename(p), p) for p in args.model]
+    if not args.only:
+        todo = ov.all_models(work) + todo
     rows, failed, skipped, arm_rows, arm_failed = [], [], [], [], []
     for label, path in todo:
         tag = label.replace("/", "_").replace(" ", "_").replace(",", "")
