@@ -30,9 +30,10 @@ pub enum VelocitySplit {
     /// `computeFiberEquilibrium(s, true)`); a slack tendon takes all of ℓ̇_MT, as in OpenSim.
     /// OpenSim lags this split by one Newton step; here the velocity and the length are
     /// solved together. Deviations that give the rule a fixed point: the ratio is clamped to
-    /// [0, 1] (a negative fiber stiffness on the descending limb can otherwise send the fiber
-    /// velocity to infinity); a tendon balanced at exactly zero force counts as taut; and when
-    /// both stiffnesses vanish, the fiber takes all of ℓ̇_MT.
+    /// [−1, 1] (a negative fiber stiffness on the descending limb gives OpenSim's small
+    /// negative ratios, kept, but as K_M → −K_T it would send the fiber velocity to infinity);
+    /// a tendon balanced at exactly zero force counts as taut; and when both stiffnesses
+    /// vanish, the fiber takes all of ℓ̇_MT.
     Stiffness,
 }
 
@@ -224,19 +225,28 @@ impl HillMuscle {
         let fv = self.curves.force_velocity(a, v).value;
         let fiber = a * fal.value * fv + fpe.value + p.fiber_damping * v;
         let dfiber = (a * fal.slope * fv + fpe.slope) / p.optimal_fiber_length;
-        // K_M = ∂F_AT/∂l_AT, K_T = ∂F_T/∂l_T (both per F_max; only their ratio matters).
-        let k_m = (dfiber * pen.cos + fiber * dcos) / (pen.cos + lce * dcos);
+        // K_T = ∂F_T/∂l_T and the fiber stiffness K_M (both per F_max; only their ratio
+        // matters). Millard (estimateMuscleFiberState): K_M = ∂F_AT/∂l_AT, the stiffness along
+        // the tendon. Thelen (initMuscleState): K_M = ∂F_AT/∂l · cos α, OpenSim's own
+        // approximation of it (it multiplies by cos α where the chain rule divides by
+        // ∂l_AT/∂l = cos α + l ∂cos α/∂l); kept, so the split is the one OpenSim initialises
+        // Thelen muscles with.
+        let df_at = dfiber * pen.cos + fiber * dcos;
+        let k_m = match self.kind {
+            MuscleKind::Thelen2003 => df_at * pen.cos,
+            _ => df_at / (pen.cos + lce * dcos),
+        };
         let l_tn = (l_mt - lce * pen.cos) / p.tendon_slack_length;
         let k_t = self.curves.tendon_force_length(l_tn).slope / p.tendon_slack_length;
         // OpenSim: a slack tendon takes all of ℓ̇_MT, a taut one the share K_M / (K_M + K_T).
-        // Deviations, so that the rule has a fixed point: the share is clamped to [0, 1]; a
+        // Deviations, so that the rule has a fixed point: the share is clamped to [−1, 1]; a
         // tendon balanced at exactly zero force counts as taut (l̃ᵀ > 1 − 1e-9, rounding); and
         // when both stiffnesses vanish (a fiber that cannot pull at this speed against a
         // tendon at its slack length) the fiber, which offers no resistance, takes it all.
         let v_tendon = if l_tn <= 1.0 - 1e-9 {
             v_mt
         } else if (k_m + k_t).abs() > super::millard::SIGNIFICANT_REAL {
-            (k_m / (k_m + k_t)).clamp(0.0, 1.0) * v_mt
+            (k_m / (k_m + k_t)).clamp(-1.0, 1.0) * v_mt
         } else {
             0.0
         };
@@ -330,7 +340,7 @@ impl HillMuscle {
     /// minimum is returned, as OpenSim does); `NoEquilibrium`; `MaxIterations`.
     ///
     /// With [`VelocitySplit::Stiffness`] the normalised fiber velocity ṽ solves
-    /// g(ṽ) = split(l(ṽ), ṽ) − ṽ = 0 on [0, ℓ̇_MT / v_max] (split() never exceeds that range), by
+    /// g(ṽ) = split(l(ṽ), ṽ) − ṽ = 0 on [0, 2ℓ̇_MT / v_max] (split() never leaves that range), by
     /// fixed-point and secant steps kept inside a shrinking bracket, each step a fiber-length
     /// solve. Where the split rule jumps (a Thelen tendon going slack) the bracket closes on
     /// the jump; the force balance holds for the returned velocity in every case.
@@ -359,8 +369,9 @@ impl HillMuscle {
             return self.finish(a, l_mt, v_mt, inner, velocity, inner.iterations, true);
         }
 
-        // Stiffness split: bracketed fixed point of ṽ.
-        let v_end = v_mt / self.max_fiber_velocity();
+        // Stiffness split: bracketed fixed point of ṽ. The split gives the fiber between none
+        // and twice ℓ̇_MT (share in [−1, 1], cos α ≤ 1), so g ≥ 0 at 0 and g ≤ 0 at 2ℓ̇_MT/v_max.
+        let v_end = 2.0 * v_mt / self.max_fiber_velocity();
         let (mut lo, mut hi) = if v_end > 0.0 {
             (0.0, v_end)
         } else {

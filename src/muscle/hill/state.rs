@@ -411,6 +411,8 @@ impl HillMuscle {
         } else {
             0.5 * (lo + hi)
         };
+        let mut step_before_last = hi - lo;
+        let mut last_step = step_before_last;
         for it in 1..=100u32 {
             let (r, dr, fv) = g(v);
             if r.abs() <= tol || hi - lo <= 4.0 * f64::EPSILON * (1.0 + v.abs()) {
@@ -421,12 +423,23 @@ impl HillMuscle {
             } else {
                 hi = v;
             }
+            // Newton inside the bracket and shrinking fast enough, else bisection: across
+            // the kink of f_V at ṽ = 0 (slopes 5 and 0.7 for OpenSim's default Millard
+            // curve) plain Newton can jump from side to side without converging.
             let newton = v - r / dr;
-            v = if newton > lo && newton < hi {
-                newton
+            let step = if dr.is_finite()
+                && dr != 0.0
+                && newton > lo
+                && newton < hi
+                && (newton - v).abs() < 0.5 * step_before_last.abs()
+            {
+                newton - v
             } else {
-                0.5 * (lo + hi)
+                0.5 * (lo + hi) - v
             };
+            step_before_last = last_step;
+            last_step = step;
+            v += step;
         }
         let (r, _, fv) = g(v);
         (v, fv, 100, r.abs() <= 1e-9)

@@ -629,10 +629,16 @@ fn compliant_equilibrium_balances_fiber_and_tendon_force() {
                                         "{name}: {again} vs {}",
                                         s.normalized_fiber_velocity
                                     );
-                                    // Tendon and fiber share the speed, neither reverses it.
+                                    // The tendon takes a share in [−1, 1] of the speed (negative
+                                    // on the descending limb, where K_M < 0), so the fiber
+                                    // moves with ℓ̇_MT, at most twice as fast.
                                     let slack = 1e-6 * v_mt * v_mt;
-                                    assert!(s.tendon_velocity * v_mt >= -slack);
+                                    assert!(s.tendon_velocity.abs() <= v_mt.abs() + slack.sqrt());
                                     assert!(s.fiber_velocity_along_tendon * v_mt >= -slack);
+                                    assert!(
+                                        s.fiber_velocity_along_tendon.abs()
+                                            <= 2.0 * v_mt.abs() + slack.sqrt()
+                                    );
                                 }
                             }
                         }
@@ -716,6 +722,94 @@ fn state_at_fiber_length_recovers_the_equilibrium_velocity() {
                 eq.normalized_fiber_velocity
             );
             assert!(s.equilibrium_residual().abs() < 1e-9 * m.params().max_isometric_force);
+        }
+    }
+}
+
+/// OpenSim's Thelen initialisation shares ℓ̇_MT as ℓ̇_T = K_M / (K_M + K_T) ℓ̇_MT with
+/// K_M = ∂F_AT/∂l · cos α at fixed fiber velocity and K_T = ∂F_T/∂l_T — on the descending
+/// limb K_M < 0 and the tendon moves against the musculotendon (OpenSim 4.6 returns such
+/// states; musculo clamped the share at 0 and differed by up to 3.5e-4 F_max in
+/// muscles_compare.py). Stiffnesses here by central differences of the curves themselves.
+#[test]
+fn thelen_stiffness_split_keeps_a_negative_share_on_the_descending_limb() {
+    let m = thelen(&[]);
+    let p = *m.params();
+    let h = p.optimal_fiber_length * p.pennation_angle_at_optimal.sin();
+    let mut negative = 0;
+    for (a, ln, v) in [
+        (1.0, 1.3, 0.05),
+        (1.0, 1.3, -0.05),
+        (0.7, 1.25, 0.1),
+        (0.5, 1.2, -0.1),
+    ] {
+        let l_mt = l_mt_at(&m, ln) + 0.03 * p.tendon_slack_length;
+        let v_mt = v * m.max_fiber_velocity();
+        let s = m.state_equilibrium(a, l_mt, v_mt, &Default::default());
+        assert_eq!(s.status, MuscleStatus::Ok);
+        let fiber_along = |l: f64| {
+            let x = l / p.optimal_fiber_length;
+            let c = m.curves();
+            let f = s.activation
+                * c.active_force_length(x).value
+                * c.force_velocity(s.activation, s.normalized_fiber_velocity)
+                    .value
+                + c.passive_force_length(x).value;
+            f * (1.0 - (h / l).powi(2)).sqrt()
+        };
+        let d = 1e-7 * p.optimal_fiber_length;
+        let l = s.fiber_length;
+        let k_m = (fiber_along(l + d) - fiber_along(l - d)) / (2.0 * d) * s.cos_pennation_angle;
+        let tendon = |lt: f64| {
+            m.curves()
+                .tendon_force_length(lt / p.tendon_slack_length)
+                .value
+        };
+        let dt = 1e-7 * p.tendon_slack_length;
+        let k_t = (tendon(s.tendon_length + dt) - tendon(s.tendon_length - dt)) / (2.0 * dt);
+        let share = k_m / (k_m + k_t);
+        if share < 0.0 {
+            negative += 1;
+        }
+        assert!(
+            (s.tendon_velocity - share * v_mt).abs() < 1e-6 * v_mt.abs(),
+            "a {a} l̃ {ln} v {v}: tendon velocity {} vs share {share} × {v_mt}",
+            s.tendon_velocity
+        );
+    }
+    assert!(negative >= 2, "the cases must reach the descending limb");
+}
+
+/// At the fiber length of a static equilibrium (fiber at rest, OpenSim Millard's
+/// `computeInitialFiberEquilibrium`) the force balance holds at ṽ = 0, and a f_L f_V(ṽ) + β ṽ
+/// increases strictly in ṽ: the velocity recovered from that fiber length must be 0, whatever
+/// ℓ̇_MT. (Across the kink of Millard's f_V at 0 an unguarded Newton iteration oscillated and
+/// returned ṽ ≈ 0.15 after 100 iterations; OpenSim 4.6 returns 0 there — muscles_compare.py.)
+#[test]
+fn state_at_a_static_equilibrium_fiber_length_has_the_fiber_at_rest() {
+    let settings = EquilibriumSettings {
+        velocity_split: Some(VelocitySplit::Static),
+        ..Default::default()
+    };
+    for (name, m) in zoo() {
+        for a in [0.05, 0.24, 0.6, 1.0] {
+            for ln in [0.6, 0.76, 1.0, 1.3] {
+                let l_mt = l_mt_at(&m, ln) + 0.02 * m.params().tendon_slack_length;
+                for v in [-0.3, -0.02, 0.02, 0.3] {
+                    let v_mt = v * m.max_fiber_velocity();
+                    let eq = m.state_equilibrium(a, l_mt, v_mt, &settings);
+                    if eq.status != MuscleStatus::Ok {
+                        continue;
+                    }
+                    let s = m.state_at_fiber_length(a, l_mt, v_mt, eq.fiber_length);
+                    assert_eq!(s.status, MuscleStatus::Ok, "{name} a {a} l̃ {ln} v {v}");
+                    assert!(
+                        s.normalized_fiber_velocity.abs() < 1e-9,
+                        "{name} a {a} l̃ {ln} v {v}: ṽ = {}",
+                        s.normalized_fiber_velocity
+                    );
+                }
+            }
         }
     }
 }
