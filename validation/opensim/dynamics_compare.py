@@ -63,24 +63,6 @@ def mobility_index(sampler):
     return out
 
 
-def coupler_derivatives(sampler, q):
-    """For each coupler: (dependent index, [(independent index, df/dq_i)],
-    {(i, j): d²f/dq_i dq_j})."""
-    out = []
-    for c in sampler.couplers:
-        ind = c.getIndependentCoordinateNames()
-        idx = [sampler.names.index(ind.get(k)) for k in range(ind.getSize())]
-        x = osim.Vector(len(idx), 0.0)
-        for k, i in enumerate(idx):
-            x.set(k, q[i])
-        f = c.getFunction()
-        first = [(i, f.calcDerivative(osim.StdVectorInt([k]), x)) for k, i in enumerate(idx)]
-        second = {(i, j): f.calcDerivative(osim.StdVectorInt([a, b]), x)
-                  for a, i in enumerate(idx) for b, j in enumerate(idx)}
-        out.append((sampler.names.index(c.getDependentCoordinateName()), first, second))
-    return out
-
-
 def opensim_side(sampler, q_names, q, qd, qdd):
     """M, τ, markers, J of OpenSim at one state, in musculo's coordinates `q_names`."""
     model, state = sampler.model, sampler.state
@@ -89,7 +71,7 @@ def opensim_side(sampler, q_names, q, qd, qdd):
     cols = [sampler.names.index(n) for n in q_names]
     full_q[cols] = q
     full_q = sampler.complete(full_q)
-    ders = coupler_derivatives(sampler, full_q)
+    ders = ov.coupler_derivatives(sampler, full_q)
     full_qd = np.zeros(len(full_q))
     full_qdd = np.zeros(len(full_q))
     full_qd[cols] = qd

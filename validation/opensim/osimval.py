@@ -212,6 +212,32 @@ class Sampler:
 
 
 
+def coupler_derivatives(sampler, q):
+    """For each coupler: (dependent index, [(independent index, df/dq_i)],
+    {(i, j): d²f/dq_i dq_j})."""
+    out = []
+    for c in sampler.couplers:
+        ind = c.getIndependentCoordinateNames()
+        idx = [sampler.names.index(ind.get(k)) for k in range(ind.getSize())]
+        x = osim.Vector(len(idx), 0.0)
+        for k, i in enumerate(idx):
+            x.set(k, q[i])
+        f = c.getFunction()
+        first = [(i, f.calcDerivative(osim.StdVectorInt([k]), x)) for k, i in enumerate(idx)]
+        second = {(i, j): f.calcDerivative(osim.StdVectorInt([a, b]), x)
+                  for a, i in enumerate(idx) for b, j in enumerate(idx)}
+        out.append((sampler.names.index(c.getDependentCoordinateName()), first, second))
+    return out
+
+
+def full_speeds(sampler, full_q, full_qd):
+    """full_qd with the coupled coordinates' speeds set from the independent ones (θ̇ = f′q̇)."""
+    full_qd = np.array(full_qd, dtype=float)
+    for dep, first, _ in coupler_derivatives(sampler, full_q):
+        full_qd[dep] = sum(d * full_qd[i] for i, d in first)
+    return full_qd
+
+
 def all_models(work):
     """(label, path) of every .osim under opensim-models, the default model, and the default
     model scaled by `musculo model scale` to 60 kg and 1.60 m (written under `work`)."""

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the OpenSim 4.6 side-by-side checks (validation/opensim/README.md): builds musculo
-# (cargo build --release and examples/opensim_dynamics.rs), then the path-length, dynamics, IK and
+# (cargo build --release, examples/opensim_dynamics.rs and opensim_muscles.rs), then the
+# path-length, dynamics, muscle (lengthening speeds, forces at equilibrium), IK and
 # Scale comparisons, each running OpenSim itself on the
 # reference setups and musculo on the same setup copies under target/opensim-validation/.
 #
@@ -24,11 +25,11 @@ esac
 
 if [ ${#mode[@]} -eq 0 ]; then
     cargo build --release
-    cargo build --release --example opensim_dynamics
+    cargo build --release --example opensim_dynamics --example opensim_muscles
 fi
 
 status=0
-for check in paths_compare dynamics_compare ik_compare scale_compare augment_speed; do
+for check in paths_compare dynamics_compare muscles_compare ik_compare scale_compare tools_compare augment_speed; do
     echo "== OpenSim side by side: $check ${mode[*]:-}"
     "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
 done
