@@ -30,7 +30,6 @@ within 1e-9 m; Jacobians within 1e-9 of the state's largest |J| entry (m/rad).
 """
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -150,7 +149,7 @@ def compare_model(label, path, n, work, self_test):
     q_all = sampler.sample(n, 1)
     probe = os.path.join(folder, "states.npy")
     out = os.path.join(folder, "musculo.npz")
-    names, err = musculo_names(path, folder)
+    names, err = ov.example_names(EXAMPLE, path, folder, "coordinates", "markers")
     if names is None:
         return None, "musculo refused it: " + err
     q_names, marker_names = names
@@ -210,17 +209,6 @@ def compare_model(label, path, n, work, self_test):
                 fails.append(f"{key} at {worst[key][1] if e == worst[key][0] else k}: {e:.2e}")
     return dict(worst=worst, fails=fails, coordinates=nq, markers=len(marker_names),
                 couplers=len(sampler.couplers), inconsistent=inconsistent), None
-
-
-def musculo_names(path, folder):
-    """musculo's coordinate and marker names, or None with its error."""
-    out = os.path.join(folder, "names.json")
-    proc = subprocess.run([EXAMPLE, path, "--names", out], capture_output=True, text=True)
-    if proc.returncode != 0:
-        return None, (proc.stderr.strip().splitlines() or ["?"])[-1]
-    with open(out) as f:
-        names = json.load(f)
-    return (names["coordinates"], names["markers"]), None
 
 
 def markers_in_opensim(sampler, marker_names):

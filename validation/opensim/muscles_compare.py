@@ -88,16 +88,6 @@ def degroote_copies(work):
     return out
 
 
-def musculo_names(path, folder):
-    out = os.path.join(folder, "names.json")
-    proc = subprocess.run([EXAMPLE, path, "--names", out], capture_output=True, text=True)
-    if proc.returncode != 0:
-        return None, (proc.stderr.strip().splitlines() or ["?"])[-1]
-    with open(out) as f:
-        names = json.load(f)
-    return (names["coordinates"], names["muscles"]), None
-
-
 def stale(path_points, state):
     """Whether OpenSim's cached ground location of a wrap tangent point is stale."""
     for j in range(path_points.getSize()):
@@ -251,7 +241,7 @@ def compare_model(label, path, n, work, self_test):
         return None, "no muscles"
     sampler = Sampler(model)
     folder = ov.fresh_dir(os.path.join(work, label))
-    names, err = musculo_names(path, folder)
+    names, err = ov.example_names(EXAMPLE, path, folder, "coordinates", "muscles")
     if names is None:
         return None, "musculo refused it: " + err
     q_names, muscle_names = names

@@ -92,6 +92,18 @@ def run_musculo(args, log_path):
     return proc.returncode == 0, dt, out
 
 
+def example_names(example, model_path, folder, *keys):
+    """The names a musculo example writes with `--names` (e.g. "coordinates", "markers"), as a
+    tuple in the order of `keys`, or None with musculo's error."""
+    import json
+    out = os.path.join(folder, "names.json")
+    proc = subprocess.run([example, model_path, "--names", out], capture_output=True, text=True)
+    if proc.returncode != 0:
+        return None, (proc.stderr.strip().splitlines() or ["?"])[-1]
+    with open(out) as f:
+        names = json.load(f)
+    return tuple(names[k] for k in keys), None
+
 def musculo_has(command):
     """Whether target/release/musculo exists and lists `command` among its subcommands."""
     if not os.path.exists(MUSCULO):
