@@ -261,3 +261,36 @@ fn moment_arms_equal_differences_where_the_sweeps_left_a_stale_wrap() {
         );
     }
 }
+
+/// A muscle from a point on ground over a ground-fixed pulley to a rotating arm: while the
+/// path wraps, r = R (the pulley's radius) exactly; off the pulley, and with the wrap removed
+/// (a straight segment from ground), r = −∂ℓ/∂q by central differences. Until the fix, points
+/// and wrap surfaces on ground were left out of the common-ancestor rule and every such
+/// moment arm came out 0.
+#[test]
+fn moment_arms_of_a_path_attached_to_ground() {
+    let mut model = Model::from_osim_str(PULLEY_OSIM, "pulley.osim").unwrap();
+    for wrapped in [true, false] {
+        if !wrapped {
+            model.forces[0].path.as_mut().unwrap().wraps.clear();
+        }
+        let set = PathSet::new(&model).unwrap();
+        let mut data = Data::new(&model);
+        let mut pd = PathData::new(&model, &set);
+        for theta in [-0.4, -0.2, 0.0, 0.3, 0.5] {
+            let l = |t: f64, d: &mut Data, pd: &mut PathData| lengths(&model, &set, d, pd, &[t])[0];
+            let fd =
+                -(l(theta + H, &mut data, &mut pd) - l(theta - H, &mut data, &mut pd)) / (2.0 * H);
+            dynamics::forward_kinematics(&model, &mut data, &[theta]).unwrap();
+            compute_paths(&model, &data, &set, &mut pd).unwrap();
+            let r = pd.moment_arms[(0, 0)];
+            assert!(
+                (r - fd).abs() < 1e-7,
+                "wrapped {wrapped}, theta {theta}: r {r}, fd {fd}"
+            );
+            if wrapped && theta <= 0.0 {
+                assert!((r - PULLEY_RADIUS).abs() < 1e-12, "theta {theta}: r {r}");
+            }
+        }
+    }
+}

@@ -275,3 +275,49 @@ pub fn expect_invalid_argument(e: musculo::Error) -> (&'static str, String) {
         other => panic!("expected Error::InvalidArgument, got {other:?}"),
     }
 }
+
+/// A rope over a pulley: a muscle from ground over a cylinder (radius R, axis z through the
+/// pin joint's axis) to the rotating arm. While the path wraps, rotating the arm about the
+/// cylinder's axis changes the wrapped arc by R per radian: |r| = R exactly. Over theta's
+/// range (−0.4…0 rad) the path wraps; beyond about +0.1 rad it leaves the cylinder and |r| is
+/// the distance from the axis to the straight line (> R). The origin sits on ground.
+pub const PULLEY_RADIUS: f64 = 0.15;
+pub const PULLEY_OSIM: &str = r#"<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000">
+  <Model name="pulley">
+    <Ground name="ground">
+      <WrapObjectSet name="wrapobjectset"><objects>
+        <WrapCylinder name="wheel"><xyz_body_rotation>0 0 0</xyz_body_rotation><translation>0 0 0</translation><quadrant>+y</quadrant><radius>0.15</radius><length>0.2</length></WrapCylinder>
+      </objects></WrapObjectSet>
+    </Ground>
+    <gravity>0 -9.80665 0</gravity>
+    <BodySet name="bodyset"><objects>
+      <Body name="arm"><mass>1</mass><mass_center>0.3 0 0</mass_center><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>
+    </objects></BodySet>
+    <JointSet name="jointset"><objects>
+      <PinJoint name="pin">
+        <socket_parent_frame>ground_offset</socket_parent_frame><socket_child_frame>arm_offset</socket_child_frame>
+        <coordinates><Coordinate name="theta"><default_value>-0.2</default_value><range>-0.4 0</range></Coordinate></coordinates>
+        <frames>
+          <PhysicalOffsetFrame name="ground_offset"><socket_parent>/ground</socket_parent><translation>0 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+          <PhysicalOffsetFrame name="arm_offset"><socket_parent>/bodyset/arm</socket_parent><translation>0 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+        </frames>
+      </PinJoint>
+    </objects></JointSet>
+    <ForceSet name="forceset"><objects>
+      <Thelen2003Muscle name="rope">
+        <GeometryPath name="geometrypath">
+          <PathPointSet><objects>
+            <PathPoint name="rope-P1"><socket_parent_frame>/ground</socket_parent_frame><location>-0.6 0.1 0</location></PathPoint>
+            <PathPoint name="rope-P2"><socket_parent_frame>/bodyset/arm</socket_parent_frame><location>0.6 0.1 0</location></PathPoint>
+          </objects></PathPointSet>
+          <PathWrapSet><objects><PathWrap name="w"><wrap_object>wheel</wrap_object><method>hybrid</method></PathWrap></objects></PathWrapSet>
+        </GeometryPath>
+        <max_isometric_force>500</max_isometric_force>
+        <optimal_fiber_length>0.5</optimal_fiber_length>
+        <tendon_slack_length>0.6</tendon_slack_length>
+      </Thelen2003Muscle>
+    </objects></ForceSet>
+  </Model>
+</OpenSimDocument>
+"#;

@@ -501,8 +501,12 @@ fn moment_arms(
 ) {
     r.fill(0.0);
     let o = data.reference_point();
+    // Whether ground takes some of the forces: then ground is the common ancestor.
+    let mut grounded = false;
     let mut push = |body: usize, at: &Vec3, f: &Vec3| {
-        if body != 0 {
+        if body == 0 {
+            grounded |= *f != Vec3::zeros();
+        } else {
             if body_force[body] == Force::ZERO {
                 touched.push(body);
             }
@@ -579,9 +583,14 @@ fn moment_arms(
     let cols = &model.reduction.columns;
     // Project each body's force on the reduced columns from the body towards ground. The
     // path's forces are pairs of equal and opposite forces on common lines, so their sum and
-    // moment vanish: the columns of the lowest common ancestor of the touched bodies and of
-    // its ancestors receive nothing, and the walk stops there.
-    let stop = lowest_common_ancestor(model, touched);
+    // moment vanish: the columns of the lowest common ancestor of the bodies they act on
+    // (ground among them, when a point or wrap surface sits on ground) and of its ancestors
+    // receive nothing, and the walk stops there.
+    let stop = if grounded {
+        None
+    } else {
+        lowest_common_ancestor(model, touched)
+    };
     for &b in touched.iter() {
         let f = body_force[b];
         let mut c = cols.body_last[b];
