@@ -25,6 +25,7 @@ pub mod motion;
 #[cfg(feature = "mujoco")]
 pub mod mujoco;
 pub mod muscle;
+pub mod random;
 pub mod reference;
 pub mod solve;
 pub mod spatial;

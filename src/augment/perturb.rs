@@ -12,12 +12,13 @@
 //! - a speed factor c ~ U[1 − w, 1 + w]: time warping t' = t / c (the same frames played
 //!   c times faster: velocities × c, accelerations × c²).
 //!
-//! The generator is SplitMix64 (Steele, Lea & Flood 2014), written out here so that the draws
-//! are fixed by this file alone and never change with a dependency's version.
+//! The generator is SplitMix64 ([`crate::random`]), so that the draws are fixed by musculo
+//! alone and never change with a dependency's version.
 
 use crate::error::Error;
 use crate::model::Model;
 use crate::motion::Motion;
+use crate::random::{SplitMix64, mix};
 use crate::spatial::{Mat3, Vec3};
 
 /// Ranges of the perturbations (half-widths as fractions; the load's maximum in kg).
@@ -209,25 +210,6 @@ fn add_point_mass(model: &mut Model, body: usize, at: Vec3, m: f64) {
     b.inertia_about_com += shift(b.com_in_body - c_new, b.mass) + shift(at - c_new, m);
     b.com_in_body = c_new;
     b.mass = total;
-}
-
-/// SplitMix64's finaliser.
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    /// A uniform number in [0, 1) from the top 53 bits.
-    fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let z = mix(self.0.wrapping_sub(0x9e37_79b9_7f4a_7c15));
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 #[cfg(test)]
