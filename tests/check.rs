@@ -544,3 +544,71 @@ fn cli_exits_zero_on_the_demo_and_non_zero_on_a_failing_model() {
     assert_eq!(code, Some(1));
     assert!(out.contains("no/such/model.osim"), "{out}");
 }
+
+#[test]
+fn moment_arm_bound_holds_a_wrapped_muscle_to_its_pulley_radius() {
+    let model = Model::from_osim_str(PULLEY_OSIM, "pulley.osim").unwrap();
+    let header = "muscles,coordinates,max_m,source\n";
+    let check_with = |bound: f64, random_poses: usize| {
+        let mut options = CheckOptions {
+            random_poses,
+            ..CheckOptions::default()
+        };
+        options.tables.moment_arm_bounds = format!("{header}rope,theta,{bound},test\n");
+        let report = check::run(&model, &options).unwrap();
+        let found: Vec<_> = report
+            .find(Family::MomentArmBounds, "rope")
+            .cloned()
+            .collect();
+        assert_eq!(found.len(), 1, "{found:?}");
+        (found[0].clone(), report)
+    };
+    for random_poses in [0, 50] {
+        // A bound below the radius fails, with the radius as the measured value ...
+        let (c, report) = check_with(0.9 * PULLEY_RADIUS, random_poses);
+        assert_eq!(c.status, Status::Fail, "{c:?}");
+        assert!((c.value.unwrap() - PULLEY_RADIUS).abs() < 1e-9, "{c:?}");
+        assert!(c.limit.contains("about theta"), "{c:?}");
+        if random_poses > 0 {
+            assert_eq!(
+                status(
+                    &report,
+                    Family::MomentArmBounds,
+                    "random poses computable",
+                    "pulley"
+                ),
+                Status::Pass
+            );
+        }
+        // ... and one above it passes.
+        let (c, _) = check_with(1.1 * PULLEY_RADIUS, random_poses);
+        assert_eq!(c.status, Status::Pass, "{c:?}");
+    }
+    // Without a row for the coordinate the muscle crosses, the check is skipped, not passed.
+    let mut options = CheckOptions::default();
+    options.tables.moment_arm_bounds = format!("{header}rope,phi,0.1,test\n");
+    let report = check::run(&model, &options).unwrap();
+    assert_eq!(
+        status(
+            &report,
+            Family::MomentArmBounds,
+            "moment-arm magnitude",
+            "rope"
+        ),
+        Status::Skip
+    );
+    // A bad bound is a table error naming the table and line.
+    options.tables.moment_arm_bounds = format!("{header}rope,theta,-0.1,test\n");
+    let e = check::run(&model, &options).unwrap_err().to_string();
+    assert!(e.contains("moment_arm_bounds.csv:2"), "{e}");
+}
+
+#[test]
+fn default_model_holds_every_moment_arm_within_its_bound() {
+    let report = run(&Model::default_fullbody());
+    let s = report.summary(Family::MomentArmBounds);
+    assert_eq!(s.fail, 0, "{:?}", failures(&report));
+    // every muscle but the two LTpT_T1 fascicles (across the welded T12/L1 joint only) is held
+    // to a bound
+    assert_eq!((s.pass, s.skip), (322, 2));
+}

@@ -12,6 +12,10 @@
 //! - **paths**: over a grid of each independent coordinate's range (the others at their
 //!   default values), musculotendon lengths finite and > 0, moment arms finite and with no
 //!   jump above 1 cm between neighbouring grid points;
+//! - **moment-arm bounds**: |r| of every muscle about every rotational coordinate it crosses,
+//!   over the physiological range of motion (single-coordinate sweeps, and optionally random
+//!   poses of all coordinates at once), below the per-joint bound of
+//!   `data/check/moment_arm_bounds.csv`;
 //! - **agonist signs**: the moment arms of muscles whose action is not in doubt
 //!   (`data/check/agonist_signs.csv`) have the sign of that action
 //!   (`data/check/coordinate_directions.csv`);
@@ -30,8 +34,8 @@ mod structure;
 mod tables;
 
 pub use tables::{
-    AgonistRow, DirectionRow, DirectionSign, MomentRow, ParameterRange, ParsedTables, RomRow,
-    Tables, glob_match,
+    AgonistRow, DirectionRow, DirectionSign, MomentArmBoundRow, MomentRow, ParameterRange,
+    ParsedTables, RomRow, Tables, glob_match,
 };
 
 use crate::error::Error;
@@ -45,17 +49,19 @@ pub enum Family {
     Coordinates,
     MuscleParameters,
     Paths,
+    MomentArmBounds,
     AgonistSigns,
     MaxIsometricMoments,
 }
 
 impl Family {
-    pub const ALL: [Family; 7] = [
+    pub const ALL: [Family; 8] = [
         Family::Connectivity,
         Family::MassInertia,
         Family::Coordinates,
         Family::MuscleParameters,
         Family::Paths,
+        Family::MomentArmBounds,
         Family::AgonistSigns,
         Family::MaxIsometricMoments,
     ];
@@ -67,6 +73,7 @@ impl Family {
             Family::Coordinates => "coordinates",
             Family::MuscleParameters => "muscle-parameters",
             Family::Paths => "paths",
+            Family::MomentArmBounds => "moment-arm-bounds",
             Family::AgonistSigns => "agonist-signs",
             Family::MaxIsometricMoments => "max-isometric-moments",
         }
@@ -203,6 +210,12 @@ pub struct CheckOptions {
     pub max_rotation: f64,
     /// Plausible range limit of translational coordinates (default 10 m).
     pub max_translation: f64,
+    /// Random poses for the moment-arm bounds (default 0): every crossed rotational
+    /// coordinate drawn uniformly from its physiological range at once, where the
+    /// single-coordinate sweeps leave the others at their defaults.
+    pub random_poses: usize,
+    /// Seed of those poses (default 1).
+    pub random_pose_seed: u64,
     /// The reference tables (default: the built-in `data/check/*.csv`).
     pub tables: Tables,
 }
@@ -216,6 +229,8 @@ impl Default for CheckOptions {
             sign_threshold: 0.001,
             max_rotation: 2.0 * std::f64::consts::PI,
             max_translation: 10.0,
+            random_poses: 0,
+            random_pose_seed: 1,
             tables: Tables::builtin(),
         }
     }

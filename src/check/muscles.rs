@@ -7,6 +7,7 @@ use crate::dynamics::{Data, forward_kinematics};
 use crate::model::{CoordinateRole, Model, MotionType};
 use crate::muscle::hill::{HillMuscle, MuscleKind};
 use crate::muscle::path::{PathData, PathSet, compute_paths};
+use crate::random::SplitMix64;
 
 /// Lengths and moment arms of every muscle path while one independent coordinate sweeps a
 /// grid of its range, the others at their default values.
@@ -195,6 +196,16 @@ pub(super) fn all(
             },
         });
     }
+
+    moment_arm_bounds(
+        &mut ctx,
+        tables,
+        options,
+        &rom_sweeps,
+        &default_arms,
+        &names,
+        out,
+    );
 
     // Agonist signs.
     for row in &tables.agonists {
@@ -391,6 +402,172 @@ pub(super) fn all(
                 message,
             });
         }
+    }
+}
+
+/// |r| of every muscle about every rotational coordinate it crosses against the bound of
+/// `moment_arm_bounds.csv`: at the default pose, over each coordinate's physiological-range
+/// sweep, and at `options.random_poses` random poses with every rotational coordinate drawn
+/// uniformly from its physiological range at once. One check per muscle: the pose and
+/// coordinate of its largest |r| / bound.
+fn moment_arm_bounds(
+    ctx: &mut SweepContext,
+    tables: &ParsedTables,
+    options: &CheckOptions,
+    rom_sweeps: &[Option<Sweep>],
+    default_arms: &nalgebra::DMatrix<f64>,
+    names: &[&str],
+    out: &mut Vec<Check>,
+) {
+    let model = ctx.model;
+    let (n, m) = (model.nq(), names.len());
+    let coordinate = |j: usize| &model.coordinates[model.reduction.independent[j]];
+    let rotational = |j: usize| coordinate(j).motion_type != MotionType::Translational;
+    // bound[j * m + k]: the table's bound on muscle k about coordinate j.
+    let bound: Vec<Option<f64>> = (0..n)
+        .flat_map(|j| (0..m).map(move |k| (j, k)))
+        .map(|(j, k)| {
+            if !rotational(j) {
+                return None;
+            }
+            tables
+                .moment_arm_bound(names[k], &coordinate(j).name)
+                .map(|(b, _)| b)
+        })
+        .collect();
+    // worst[k]: (|r| / bound, |r|, coordinate, where in words)
+    let mut worst: Vec<Option<(f64, f64, usize, String)>> = vec![None; m];
+    let mut crossed = vec![false; m];
+    let mut consider = |k: usize, j: usize, r: f64, at: &dyn Fn() -> String| {
+        // Non-finite moment arms fail the paths family (sweeps) or the random-pose check.
+        if !(r.abs() > 1e-12 && r.is_finite()) {
+            return;
+        }
+        crossed[k] = true;
+        let Some(b) = bound[j * m + k] else { return };
+        let ratio = r.abs() / b;
+        if worst[k].as_ref().is_none_or(|w| ratio > w.0) {
+            worst[k] = Some((ratio, r.abs(), j, at()));
+        }
+    };
+    for j in (0..n).filter(|&j| rotational(j)) {
+        for k in 0..m {
+            consider(k, j, default_arms[(j, k)], &|| "the default pose".into());
+        }
+        if let Some(s) = &rom_sweeps[j] {
+            for i in 0..s.q.len() {
+                for k in 0..m {
+                    let at = || {
+                        format!(
+                            "{} = {:.1}° (others at default)",
+                            coordinate(j).name,
+                            s.q[i].to_degrees()
+                        )
+                    };
+                    consider(k, j, s.arm[i * m + k], &at);
+                }
+            }
+        }
+    }
+    if options.random_poses > 0 {
+        // The physiological box of every crossed rotational coordinate; the rest at default.
+        let boxes: Vec<Option<[f64; 2]>> = (0..n)
+            .map(|j| {
+                let c = coordinate(j);
+                let crossed = (0..m).any(|k| default_arms[(j, k)].abs() > 1e-12);
+                if !rotational(j) || !crossed {
+                    return None;
+                }
+                let lim = options.max_rotation;
+                let (lo, hi) = (c.range[0].max(-lim), c.range[1].min(lim));
+                let [rlo, rhi] = tables.range_of_motion(&c.name, [lo, hi]);
+                (rlo <= rhi).then_some([rlo, rhi])
+            })
+            .collect();
+        let mut rng = SplitMix64(options.random_pose_seed);
+        let (mut failures, mut failed) = (0usize, None::<(usize, String)>);
+        let mut q = ctx.q0.to_vec();
+        for pose in 0..options.random_poses {
+            for j in 0..n {
+                q[j] = match boxes[j] {
+                    Some([lo, hi]) => rng.uniform(lo, hi),
+                    None => ctx.q0[j],
+                };
+            }
+            if let Err(e) = forward_kinematics(model, ctx.data, &q)
+                .and_then(|_| compute_paths(model, ctx.data, ctx.set, ctx.paths))
+            {
+                failed.get_or_insert((pose, e.to_string()));
+                failures += 1;
+                continue;
+            }
+            for j in (0..n).filter(|&j| boxes[j].is_some()) {
+                for k in 0..m {
+                    let r = ctx.paths.moment_arms[(j, k)];
+                    let at = || {
+                        // the coordinates this muscle crosses
+                        let pose_text: Vec<String> = (0..n)
+                            .filter(|&i| boxes[i].is_some() && default_arms[(i, k)].abs() > 1e-12)
+                            .map(|i| format!("{} {:.1}°", coordinate(i).name, q[i].to_degrees()))
+                            .collect();
+                        format!("random pose {pose} ({})", pose_text.join(", "))
+                    };
+                    consider(k, j, r, &at);
+                }
+            }
+        }
+        let message = match &failed {
+            None => format!("{} random poses", options.random_poses),
+            Some((pose, e)) => format!(
+                "{failures} of {} random poses failed; first, pose {pose}: {e}",
+                options.random_poses
+            ),
+        };
+        out.push(model_check(
+            Family::MomentArmBounds,
+            "random poses computable",
+            model,
+            failures == 0,
+            message,
+        ));
+    }
+    for k in 0..m {
+        let subject = names[k].to_string();
+        out.push(match &worst[k] {
+            Some((ratio, r, j, at)) => {
+                let b = bound[j * m + k].unwrap_or(f64::NAN);
+                Check {
+                    family: Family::MomentArmBounds,
+                    name: "moment-arm magnitude".into(),
+                    subject_kind: SubjectKind::Muscle,
+                    subject,
+                    status: if *ratio <= 1.0 {
+                        Status::Pass
+                    } else {
+                        Status::Fail
+                    },
+                    value: Some(*r),
+                    unit: "m",
+                    limit: format!("≤ {b} about {}", coordinate(*j).name),
+                    message: format!("largest |r| / bound at {at}"),
+                }
+            }
+            None => Check {
+                family: Family::MomentArmBounds,
+                name: "moment-arm magnitude".into(),
+                subject_kind: SubjectKind::Muscle,
+                subject,
+                status: Status::Skip,
+                value: None,
+                unit: "m",
+                limit: String::new(),
+                message: if crossed[k] {
+                    "moment_arm_bounds.csv bounds none of the coordinates it crosses".into()
+                } else {
+                    "crosses no rotational coordinate".into()
+                },
+            },
+        });
     }
 }
 

@@ -3,7 +3,7 @@
 
 use crate::error::Error;
 
-/// The texts of the four tables; [`Tables::builtin`] holds the project's own.
+/// The texts of the tables; [`Tables::builtin`] holds the project's own.
 #[derive(Clone, Debug)]
 pub struct Tables {
     /// `parameter,min,max,unit,source`.
@@ -16,6 +16,8 @@ pub struct Tables {
     pub max_isometric_moments: String,
     /// `coordinate,direction,max_deg,source`.
     pub range_of_motion: String,
+    /// `muscles,coordinates,max_m,source`.
+    pub moment_arm_bounds: String,
 }
 
 impl Tables {
@@ -28,10 +30,11 @@ impl Tables {
             max_isometric_moments: include_str!("../../data/check/max_isometric_moments.csv")
                 .into(),
             range_of_motion: include_str!("../../data/check/range_of_motion.csv").into(),
+            moment_arm_bounds: include_str!("../../data/check/moment_arm_bounds.csv").into(),
         }
     }
 
-    /// Parses the four tables; an error names the table and line.
+    /// Parses the tables; an error names the table and line.
     pub fn parse(&self) -> crate::Result<ParsedTables> {
         let ranges = rows(
             "muscle_parameter_ranges.csv",
@@ -176,12 +179,45 @@ impl Tables {
         })
         .collect::<crate::Result<Vec<_>>>()?;
 
+        let moment_arm_bounds = rows(
+            "moment_arm_bounds.csv",
+            &self.moment_arm_bounds,
+            &["muscles", "coordinates", "max_m", "source"],
+        )?
+        .into_iter()
+        .map(|(line, f)| {
+            let t = "moment_arm_bounds.csv";
+            let max_m = number(t, line, &f[2])?;
+            if !(max_m > 0.0) {
+                return Err(table_err(
+                    t,
+                    line,
+                    format!("max_m must be positive, found {max_m}"),
+                ));
+            }
+            let patterns = |text: &str| -> Vec<String> {
+                text.split('|').map(|p| p.trim().to_string()).collect()
+            };
+            let (muscles, coordinates) = (patterns(&f[0]), patterns(&f[1]));
+            if muscles.iter().chain(&coordinates).any(|p| p.is_empty()) {
+                return Err(table_err(t, line, "empty pattern".into()));
+            }
+            Ok(MomentArmBoundRow {
+                muscles,
+                coordinates,
+                max_m,
+                source: f[3].clone(),
+            })
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+
         Ok(ParsedTables {
             ranges,
             directions,
             agonists,
             moments,
             range_of_motion,
+            moment_arm_bounds,
         })
     }
 }
@@ -267,6 +303,46 @@ pub struct RomRow {
     pub source: String,
 }
 
+/// The largest plausible |r| of the muscles matching `muscles` about the coordinates matching
+/// `coordinates` (glob patterns, possibly with `{side}`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MomentArmBoundRow {
+    pub muscles: Vec<String>,
+    pub coordinates: Vec<String>,
+    /// m.
+    pub max_m: f64,
+    pub source: String,
+}
+
+impl MomentArmBoundRow {
+    /// The bound on muscle `muscle` about coordinate `coordinate`, when this row covers the
+    /// pair: `{side}` stands for the same side in both patterns.
+    pub fn bound(&self, muscle: &str, coordinate: &str) -> Option<f64> {
+        let covers = |side: Option<&str>| {
+            let fill = |p: &String| match side {
+                Some(s) => p.replace("{side}", s),
+                None => p.clone(),
+            };
+            self.muscles.iter().any(|p| glob_match(&fill(p), muscle))
+                && self
+                    .coordinates
+                    .iter()
+                    .any(|p| glob_match(&fill(p), coordinate))
+        };
+        let sided = self
+            .muscles
+            .iter()
+            .chain(&self.coordinates)
+            .any(|p| p.contains("{side}"));
+        let hit = if sided {
+            ["r", "l"].into_iter().any(|s| covers(Some(s)))
+        } else {
+            covers(None)
+        };
+        hit.then_some(self.max_m)
+    }
+}
+
 /// The parsed tables.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParsedTables {
@@ -275,9 +351,20 @@ pub struct ParsedTables {
     pub agonists: Vec<AgonistRow>,
     pub moments: Vec<MomentRow>,
     pub range_of_motion: Vec<RomRow>,
+    pub moment_arm_bounds: Vec<MomentArmBoundRow>,
 }
 
 impl ParsedTables {
+    /// The smallest bound of the rows covering muscle `muscle` about coordinate
+    /// `coordinate`, with the row's index; `None` when no row does.
+    pub fn moment_arm_bound(&self, muscle: &str, coordinate: &str) -> Option<(f64, usize)> {
+        self.moment_arm_bounds
+            .iter()
+            .enumerate()
+            .filter_map(|(i, row)| row.bound(muscle, coordinate).map(|b| (b, i)))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+    }
+
     /// The sign (+1/−1) of `direction` of the model coordinate `name` (with range `range`),
     /// looked up through the table's `{side}` patterns.
     pub fn direction_sign(
@@ -456,6 +543,34 @@ mod tests {
         assert_eq!(t.ranges.len(), PARAMETERS.len());
         assert!(t.agonists.len() >= 15 && t.moments.len() >= 15);
         assert!(t.ranges.iter().all(|r| !r.source.is_empty()));
+    }
+
+    #[test]
+    fn moment_arm_bounds_pair_muscle_and_coordinate_sides() {
+        let t = Tables::builtin().parse().unwrap();
+        assert!(t.moment_arm_bounds.len() >= 7);
+        assert_eq!(
+            t.moment_arm_bound("DELT3_l", "arm_flex_l").map(|b| b.0),
+            Some(0.07)
+        );
+        assert_eq!(
+            t.moment_arm_bound("soleus_r", "ankle_angle_r").map(|b| b.0),
+            Some(0.08)
+        );
+        assert_eq!(
+            t.moment_arm_bound("x", "lumbar_bending").map(|b| b.0),
+            Some(0.16)
+        );
+        assert!(t.moment_arm_bound("x", "pelvis_tx").is_none());
+        // a {side} row pairs sides: a right muscle about a left coordinate is not covered
+        let row = MomentArmBoundRow {
+            muscles: vec!["delt_{side}".into()],
+            coordinates: vec!["arm_{side}".into()],
+            max_m: 0.05,
+            source: "test".into(),
+        };
+        assert_eq!(row.bound("delt_r", "arm_r"), Some(0.05));
+        assert_eq!(row.bound("delt_r", "arm_l"), None);
     }
 
     #[test]

@@ -28,6 +28,10 @@ pub struct Args {
     /// (2 to 10000).
     #[arg(long, default_value_t = CheckOptions::default().grid_points, value_parser = grid_points)]
     grid_points: usize,
+    /// Also hold the moment arms to their bounds at this many random poses, every rotational
+    /// coordinate drawn from its physiological range at once (seeded; 0: sweeps only).
+    #[arg(long, default_value_t = 0)]
+    random_poses: usize,
 }
 
 /// `--grid-points`: a count from 2 to [`check::MAX_GRID_POINTS`].
@@ -49,6 +53,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     };
     let options = CheckOptions {
         grid_points: args.grid_points,
+        random_poses: args.random_poses,
         ..CheckOptions::default()
     };
     // a bar over the coordinates swept (drawn on a terminal only; hidden when piped)
