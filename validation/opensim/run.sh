@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Runs the OpenSim 4.6 side-by-side checks (validation/opensim/README.md): builds musculo
-# (cargo build --release, examples/opensim_dynamics.rs and opensim_muscles.rs), then the
-# path-length, dynamics, muscle (lengthening speeds, forces at equilibrium), IK and
-# Scale comparisons, each running OpenSim itself on the
-# reference setups and musculo on the same setup copies under target/opensim-validation/.
+# (cargo build --release, examples/opensim_dynamics.rs, opensim_muscles.rs, dynamics_timing.rs),
+# then the path-length, dynamics, muscle (lengthening speeds, forces at equilibrium), IK,
+# Scale and ID/SO tool comparisons and the speed tables (augment_speed, dynamics_speed), each
+# running OpenSim itself on the reference setups and musculo on the same setup copies under
+# target/opensim-validation/.
 #
 # Usage:   eval "$(scripts/setup-opensim.sh)" && validation/opensim/run.sh [--opensim-only | --self-test]
 #   --opensim-only   run and evaluate OpenSim's side only (no musculo)
@@ -25,11 +26,11 @@ esac
 
 if [ ${#mode[@]} -eq 0 ]; then
     cargo build --release
-    cargo build --release --example opensim_dynamics --example opensim_muscles
+    cargo build --release --example opensim_dynamics --example opensim_muscles --example dynamics_timing
 fi
 
 status=0
-for check in paths_compare dynamics_compare muscles_compare ik_compare scale_compare tools_compare augment_speed; do
+for check in paths_compare dynamics_compare muscles_compare ik_compare scale_compare tools_compare augment_speed dynamics_speed; do
     echo "== OpenSim side by side: $check ${mode[*]:-}"
     "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
 done
