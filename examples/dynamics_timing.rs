@@ -12,7 +12,8 @@
 //!
 //! and the same in the full coordinates θ (one per movable transform axis, the coordinates of the
 //! MJCF that `musculo export-mjcf` writes): `M_full` (`forward_kinematics_full` + `crba_full`),
-//! `bias_full` and `ID_full` (`rnea_full` with θ̈ = 0 and with θ̈ = Φ q̈ + Φ̇ q̇).
+//! `bias_full` and `ID_full` (`rnea_full` with θ̈ = 0 and with θ̈ = Φ q̈ + Φ̇ q̇), and
+//! `ID_derivatives_full` (`rnea_derivatives_full`: ∂τ/∂θ and ∂τ/∂θ̇).
 //!
 //! States: the rows of STATES.npy (B × 3n float64, each row q, q̇, q̈), or else N random states
 //! (default 100; seed fixed): q uniform over each independent coordinate's range, q̇ uniform in
@@ -23,8 +24,8 @@
 //!
 //! With `--full OUT.npz` it also writes the states in full coordinates, for running a peer on
 //! the same configurations: `theta`, `theta_dot`, `theta_ddot` (B × n_full), and at the first
-//! state the full mass matrix `M_full` (n_full × n_full) and inverse dynamics `tau_full`
-//! (n_full, gravity included).
+//! state the full mass matrix `M_full` (n_full × n_full), inverse dynamics `tau_full`
+//! (n_full, gravity included) and its derivatives `dtau_dtheta`, `dtau_dtheta_dot`.
 
 use musculo::{Data, Model, dynamics};
 use nalgebra::DVector;
@@ -255,6 +256,21 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Ok(())
     })?;
 
+    let mut der = dynamics::RneaDerivatives::new(&model);
+    let id_derivatives_full = time_calls(b, k, |i| {
+        let st = &s[i];
+        dynamics::rnea_derivatives_full(
+            &model,
+            &mut data,
+            &st.theta,
+            &st.theta_dot,
+            &st.theta_ddot,
+            &mut der,
+        )?;
+        black_box(&der.dtau_dtheta);
+        Ok(())
+    })?;
+
     if let Some(path) = &o.full {
         let rows =
             |f: fn(&State) -> &Vec<f64>| Array2::from_shape_fn((b, nf), |(i, j)| f(&s[i])[j]);
@@ -277,6 +293,17 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             &Array2::from_shape_fn((nf, nf), |(i, j)| mf[(i, j)]),
         )?;
         npz.add_array("tau_full", &tau)?;
+        dynamics::rnea_derivatives_full(
+            &model,
+            &mut data,
+            &s[0].theta,
+            &s[0].theta_dot,
+            &s[0].theta_ddot,
+            &mut der,
+        )?;
+        let mat = |m: &nalgebra::DMatrix<f64>| Array2::from_shape_fn((nf, nf), |(i, j)| m[(i, j)]);
+        npz.add_array("dtau_dtheta", &mat(&der.dtau_dtheta))?;
+        npz.add_array("dtau_dtheta_dot", &mat(&der.dtau_dtheta_dot))?;
         npz.finish()?;
     }
 
@@ -290,7 +317,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         "full_names": model.dofs.iter().map(|d| d.name.as_str()).collect::<Vec<_>>(),
         "per_call_us": {
             "M": m, "bias": bias, "ID": id,
-            "M_full": m_full, "bias_full": bias_full, "ID_full": id_full,
+            "M_full": m_full, "bias_full": bias_full, "ID_full": id_full, "ID_derivatives_full": id_derivatives_full,
         },
     });
     println!("{}", serde_json::to_string_pretty(&report)?);

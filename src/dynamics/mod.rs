@@ -29,6 +29,7 @@ mod gravity;
 mod jacobian;
 mod reduction;
 mod rnea;
+mod rnea_derivatives;
 
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian};
 pub use crba::{crba, crba_full};
@@ -44,6 +45,7 @@ pub use jacobian::{
     contact_jacobian_dot_qd, point_jacobian, point_jacobian_dot_qd,
 };
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};
+pub use rnea_derivatives::{RneaDerivatives, rnea_derivatives_full};
 
 use crate::model::Model;
 use crate::spatial::{Force, Mat3, Motion, SpatialInertia, Vec3};

@@ -7,7 +7,8 @@ For each model (gait2392, Rajagopal2016, models/musculo_fullbody.osim):
    times musculo on them and writes them in full coordinates (θ, θ̇, θ̈) with musculo's full
    mass matrix and inverse dynamics at the first one;
 3. Pinocchio reads the MJCF (pinocchio.buildModelFromMJCF), with gravity set to the file's
-   <option gravity> (its reader keeps −9.81 z); its M and τ at the first state and its total mass
+   <option gravity> (its reader keeps −9.81 z); its M, τ, ∂τ/∂θ and ∂τ/∂θ̇ (against central differences of its
+   rnea: its computeRNEADerivatives is wrong on composite joints) at the first state and its total mass
    are checked against musculo's;
 4. Pinocchio is timed on the same θ states: from C++ (validation/pinocchio/speed.cpp, built by
    run.sh against the `pin` wheel's headers and libraries), and from Python, where the binding
@@ -60,7 +61,7 @@ ROWS = [
     ("bias, full θ", "bias_full", "nonLinearEffects", False),
     ("ID = rnea", "ID", "rnea", True),
     ("ID, full θ", "ID_full", "rnea", False),
-    ("ID derivatives", None, "computeRNEADerivatives", False),
+    ("ID derivatives", "ID_derivatives_full", "computeRNEADerivatives", False),
 ]
 
 
@@ -128,10 +129,36 @@ def one_model(name, osim, count, batches, cpp):
     m_err = np.abs(symmetric(pin.crba(model, data, q[0])) - m_ref).max() / np.abs(m_ref).max()
     tau = pin.rnea(model, data, q[0], v[0], a[0])
     tau_err = np.abs(tau - tau_ref).max() / np.abs(tau_ref).max()
+    # ∂τ/∂θ, ∂τ/∂θ̇: against Pinocchio's computeRNEADerivatives and against central differences
+    # of Pinocchio's rnea (h = 1e-6). On this MJCF Pinocchio builds JointModelComposite joints
+    # (several axes per body), and its derivatives there disagree with its own rnea; the
+    # differences of its rnea are the reference.
+    dq, dv, _ = pin.computeRNEADerivatives(model, data, q[0], v[0], a[0])
+    dq, dv = np.array(dq), np.array(dv)
+    h = 1e-6
+    fq, fv = np.zeros_like(dq), np.zeros_like(dv)
+    for j in range(model.nv):
+        e = np.zeros(model.nv)
+        e[j] = h
+        fq[:, j] = (pin.rnea(model, data, q[0] + e, v[0], a[0])
+                    - pin.rnea(model, data, q[0] - e, v[0], a[0])) / (2 * h)
+        fv[:, j] = (pin.rnea(model, data, q[0], v[0] + e, a[0])
+                    - pin.rnea(model, data, q[0], v[0] - e, a[0])) / (2 * h)
+    d_err, pin_err = {}, {}
+    for key, theirs, fd in (("dtau_dtheta", dq, fq), ("dtau_dtheta_dot", dv, fv)):
+        ref = states[key][np.ix_(perm, perm)]
+        scale = np.abs(ref).max()
+        d_err[key] = float(np.abs(fd - ref).max() / scale)
+        pin_err[key] = (float(np.abs(theirs - ref).max() / scale),
+                        float(np.abs(theirs - fd).max() / np.abs(fd).max()))
     mass = sum(inertia.mass for inertia in model.inertias)
     check = {"M_rel_err": m_err, "tau_rel_err": tau_err, "mass_pinocchio": mass,
-             "mass_musculo": ours["total_mass"]}
+             "mass_musculo": ours["total_mass"], "dtau_dq_rel_err": d_err["dtau_dtheta"],
+             "dtau_dv_rel_err": d_err["dtau_dtheta_dot"],
+             "pinocchio_derivatives_vs_musculo_and_own_differences": pin_err}
+    # finite differences hold to about 1e-8 of the largest entry
     check["ok"] = bool(m_err < TOLERANCE and tau_err < TOLERANCE
+                       and max(d_err.values()) < 1e-6
                        and abs(mass - ours["total_mass"]) < TOLERANCE * mass)
 
     # Python, the same states; the loop and the call through the binding as a trivial call.
@@ -218,7 +245,13 @@ def main():
     for r in results:
         c = r["check"]
         print(f"check {r['name']}: M at state 0 max rel. diff {c['M_rel_err']:.1e}, τ (gravity "
-              f"included) {c['tau_rel_err']:.1e}; total mass musculo {c['mass_musculo']:.4f} kg, "
+              f"included) {c['tau_rel_err']:.1e}, ∂τ/∂θ {c['dtau_dq_rel_err']:.1e}, ∂τ/∂θ̇ "
+              f"{c['dtau_dv_rel_err']:.1e} (vs differences of Pinocchio's rnea; Pinocchio's "
+              "computeRNEADerivatives on its composite joints is off musculo by "
+              + ", ".join(f"{x[0]:.1e}" for x in c["pinocchio_derivatives_vs_musculo_and_own_differences"].values())
+              + " and off its own differences by "
+              + ", ".join(f"{x[1]:.1e}" for x in c["pinocchio_derivatives_vs_musculo_and_own_differences"].values())
+              + f"); total mass musculo {c['mass_musculo']:.4f} kg, "
               f"Pinocchio {c['mass_pinocchio']:.4f} kg; Pinocchio joints {r['pinocchio_joints']} "
               f"(composite per body) — {'ok' if c['ok'] else 'DIFFERENT'}")
         status |= not c["ok"]

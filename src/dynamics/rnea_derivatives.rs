@@ -1,0 +1,266 @@
+//! Partial derivatives of inverse dynamics in full coordinates, ∂τ/∂θ and ∂τ/∂θ̇ (∂τ/∂θ̈ is
+//! the mass matrix, [`super::crba_full`]), by differentiating the recursive Newton–Euler
+//! passes in ground axes, one coordinate direction at a time (the world-frame recursions of
+//! Carpentier & Mansard 2018, "Analytical derivatives of rigid body dynamics algorithms",
+//! RSS, written as tangent passes).
+//!
+//! Every spatial quantity is taken in ground axes about the point O of the current state. A
+//! change ε of θ_j moves everything beyond coordinate j by the screw ε s_j: a motion vector m
+//! attached there changes by s_j ×ₘ m, a spatial inertia by δI v = s_j ×* (I v) − I (s_j ×ₘ v);
+//! nothing else moves (ground, gravity, the axes up to and including s_j). With
+//!
+//! ```text
+//! v_b = v_λ + Σ_d s_d θ̇_d                        (d over the joint's coordinates)
+//! a_b = a_λ + Σ_d (s_d θ̈_d + v_d ×ₘ s_d θ̇_d)     (v_d: the velocity after coordinate d)
+//! f_b = I_b a_b + v_b ×* I_b v_b,   F_b = f_b + Σ_children F_c,   τ_d = s_dᵀ F_body(d)
+//! ```
+//!
+//! the tangent of each line, for the direction θ_j (δs_d = s_j ×ₘ s_d beyond j, else 0):
+//!
+//! ```text
+//! δv_b = δv_λ + Σ_d δs_d θ̇_d
+//! δa_b = δa_λ + Σ_d (δs_d θ̈_d + (δv_d ×ₘ s_d + v_d ×ₘ δs_d) θ̇_d)
+//! δf_b = δI_b a_b + I_b δa_b + δv_b ×* I_b v_b + v_b ×* (δI_b v_b + I_b δv_b)
+//! δF_b = δf_b + Σ_children δF_c,   δτ_d = δs_dᵀ F_d + s_dᵀ δF_d
+//! ```
+//!
+//! and for the direction θ̇_j the same with δs = 0, δI = 0 and δθ̇_d = [d = j], i.e.
+//! δv_d = s_j beyond j and δa_b gains v_j ×ₘ s_j. Each direction is one O(n) pass over the
+//! tree: O(n²) for both Jacobians, allocation-free after [`RneaDerivatives::new`].
+
+use super::Data;
+use crate::model::Model;
+use crate::spatial::{Force, Motion, SpatialInertia};
+use nalgebra::DMatrix;
+
+/// The outputs and workspace of [`rnea_derivatives_full`] for one model.
+#[derive(Clone, Debug)]
+pub struct RneaDerivatives {
+    /// ∂τ_full/∂θ (n_full × n_full).
+    pub dtau_dtheta: DMatrix<f64>,
+    /// ∂τ_full/∂θ̇ (n_full × n_full).
+    pub dtau_dtheta_dot: DMatrix<f64>,
+    /// [j * n_bodies + b]: body b moves with θ_j (b is the child of j's joint or below it).
+    moves_body: Vec<bool>,
+    /// [j * n_full + d]: axis s_d moves with θ_j (d comes after j in j's joint, or belongs to
+    /// a joint whose parent body moves with θ_j).
+    moves_dof: Vec<bool>,
+    /// Each body's own force f_b and the velocity after each coordinate, v_d.
+    own_force: Vec<Force>,
+    dof_vel: Vec<Motion>,
+    // tangents of one direction
+    d_vel: Vec<Motion>,
+    d_acc: Vec<Motion>,
+    d_force: Vec<Force>,
+    d_axis: Vec<Motion>,
+}
+
+impl RneaDerivatives {
+    /// Allocates the outputs and workspace for `model`.
+    pub fn new(model: &Model) -> RneaDerivatives {
+        let (nf, nb) = (model.dofs.len(), model.bodies.len());
+        let mut moves_body = vec![false; nf * nb];
+        let mut moves_dof = vec![false; nf * nf];
+        // Joints are in topological order: a body moves with θ_j when it is j's body or its
+        // joint's parent body moves with θ_j.
+        for (j, dj) in model.dofs.iter().enumerate() {
+            let row = &mut moves_body[j * nb..(j + 1) * nb];
+            row[dj.body] = true;
+            for joint in &model.joints {
+                if row[joint.parent_body] {
+                    row[joint.child_body] = true;
+                }
+            }
+            for (d, dd) in model.dofs.iter().enumerate() {
+                let joint = &model.joints[dd.joint];
+                moves_dof[j * nf + d] = (dd.joint == dj.joint && d > j) || row[joint.parent_body];
+            }
+        }
+        RneaDerivatives {
+            dtau_dtheta: DMatrix::zeros(nf, nf),
+            dtau_dtheta_dot: DMatrix::zeros(nf, nf),
+            moves_body,
+            moves_dof,
+            own_force: vec![Force::ZERO; nb],
+            dof_vel: vec![Motion::ZERO; nf],
+            d_vel: vec![Motion::ZERO; nb],
+            d_acc: vec![Motion::ZERO; nb],
+            d_force: vec![Force::ZERO; nb],
+            d_axis: vec![Motion::ZERO; nf],
+        }
+    }
+
+    fn fits(&self, model: &Model) -> crate::Result<()> {
+        let (nf, nb) = (model.dofs.len(), model.bodies.len());
+        if self.dtau_dtheta.shape() != (nf, nf) || self.own_force.len() != nb {
+            return Err(crate::error::Error::invalid(
+                "derivatives",
+                "RneaDerivatives was built for another model",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// ∂τ_full/∂θ and ∂τ_full/∂θ̇ of [`super::rnea_full`] at (θ, θ̇, θ̈), gravity included, into
+/// `out`; `data` is left as `rnea_full` leaves it.
+pub fn rnea_derivatives_full(
+    model: &Model,
+    data: &mut Data,
+    theta: &[f64],
+    theta_dot: &[f64],
+    theta_ddot: &[f64],
+    out: &mut RneaDerivatives,
+) -> crate::Result<()> {
+    out.fits(model)?;
+    super::rnea_full(model, data, theta, theta_dot, theta_ddot)?;
+    let (nf, nb) = (model.dofs.len(), model.bodies.len());
+    let Data {
+        dof_motion: s,
+        body_vel: v,
+        body_acc: a,
+        body_inertia: inertia,
+        body_force: total,
+        ..
+    } = data;
+    // The velocity after each coordinate and each body's own force f_b.
+    for joint in &model.joints {
+        let mut vd = v[joint.parent_body];
+        for d in joint.dof_range.clone() {
+            vd.add_scaled(&s[d], theta_dot[d]);
+            out.dof_vel[d] = vd;
+        }
+    }
+    out.own_force[0] = Force::ZERO;
+    for b in 1..nb {
+        let iv = inertia[b].mul_motion(&v[b]);
+        out.own_force[b] = inertia[b].mul_motion(&a[b]).add(&v[b].cross_force(&iv));
+    }
+    let RneaDerivatives {
+        dtau_dtheta,
+        dtau_dtheta_dot,
+        moves_body,
+        moves_dof,
+        dof_vel,
+        d_vel,
+        d_acc,
+        d_force,
+        d_axis,
+        ..
+    } = out;
+    for j in 0..nf {
+        let sj = s[j];
+        let body_moves = &moves_body[j * nb..(j + 1) * nb];
+        let dof_moves = &moves_dof[j * nf..(j + 1) * nf];
+
+        // --- direction θ_j ---
+        for d in 0..nf {
+            d_axis[d] = if dof_moves[d] {
+                sj.cross_motion(&s[d])
+            } else {
+                Motion::ZERO
+            };
+        }
+        d_vel[0] = Motion::ZERO;
+        d_acc[0] = Motion::ZERO;
+        for joint in &model.joints {
+            let mut dv = d_vel[joint.parent_body];
+            let mut da = d_acc[joint.parent_body];
+            for d in joint.dof_range.clone() {
+                dv.add_scaled(&d_axis[d], theta_dot[d]);
+                // δ(v_d ×ₘ s_d) = δv_d ×ₘ s_d + v_d ×ₘ δs_d
+                let dvs = dv
+                    .cross_motion(&s[d])
+                    .add(&dof_vel[d].cross_motion(&d_axis[d]));
+                da.add_scaled(&d_axis[d], theta_ddot[d]);
+                da.add_scaled(&dvs, theta_dot[d]);
+            }
+            d_vel[joint.child_body] = dv;
+            d_acc[joint.child_body] = da;
+        }
+        body_force_tangents(
+            model,
+            inertia,
+            v,
+            a,
+            d_vel,
+            d_acc,
+            Some((&sj, body_moves)),
+            d_force,
+        );
+        for d in 0..nf {
+            let b = model.dofs[d].body;
+            dtau_dtheta[(d, j)] = d_axis[d].dot(&total[b]) + s[d].dot(&d_force[b]);
+        }
+
+        // --- direction θ̇_j ---
+        d_vel[0] = Motion::ZERO;
+        d_acc[0] = Motion::ZERO;
+        for joint in &model.joints {
+            let mut dv = d_vel[joint.parent_body];
+            let mut da = d_acc[joint.parent_body];
+            for d in joint.dof_range.clone() {
+                if d == j {
+                    dv = dv.add(&sj);
+                    // ∂/∂θ̇_j of v_j ×ₘ s_j θ̇_j: v_j ×ₘ s_j (plus s_j ×ₘ s_j θ̇_j = 0)
+                    da = da.add(&dof_vel[d].cross_motion(&s[d]));
+                }
+                da.add_scaled(&dv.cross_motion(&s[d]), theta_dot[d]);
+            }
+            d_vel[joint.child_body] = dv;
+            d_acc[joint.child_body] = da;
+        }
+        body_force_tangents(model, inertia, v, a, d_vel, d_acc, None, d_force);
+        for d in 0..nf {
+            dtau_dtheta_dot[(d, j)] = s[d].dot(&d_force[model.dofs[d].body]);
+        }
+    }
+    Ok(())
+}
+
+/// δF_b of every body from δv, δa, and for a position direction the screw s_j with the bodies
+/// it moves (their inertias turn with it): δf_b = δI_b a_b + I_b δa_b + δv_b ×* I_b v_b +
+/// v_b ×* (δI_b v_b + I_b δv_b), accumulated from the leaves to the root.
+#[allow(clippy::too_many_arguments)]
+fn body_force_tangents(
+    model: &Model,
+    inertia: &[SpatialInertia],
+    v: &[Motion],
+    a: &[Motion],
+    d_vel: &[Motion],
+    d_acc: &[Motion],
+    screw: Option<(&Motion, &[bool])>,
+    d_force: &mut [Force],
+) {
+    d_force[0] = Force::ZERO;
+    for b in 1..model.bodies.len() {
+        let i = &inertia[b];
+        let iv = i.mul_motion(&v[b]);
+        let mut f = i
+            .mul_motion(&d_acc[b])
+            .add(&d_vel[b].cross_force(&iv))
+            .add(&v[b].cross_force(&i.mul_motion(&d_vel[b])));
+        if let Some((sj, moves)) = screw {
+            if moves[b] {
+                // δI x = s_j ×* (I x) − I (s_j ×ₘ x)
+                let d_i = |x: &Motion| {
+                    let ix = i.mul_motion(x);
+                    let turned = i.mul_motion(&sj.cross_motion(x));
+                    let g = sj.cross_force(&ix);
+                    Force {
+                        ang: g.ang - turned.ang,
+                        lin: g.lin - turned.lin,
+                    }
+                };
+                f = f.add(&d_i(&a[b])).add(&v[b].cross_force(&d_i(&v[b])));
+            }
+        }
+        d_force[b] = f;
+    }
+    for joint in model.joints.iter().rev() {
+        if joint.parent_body != 0 {
+            let f = d_force[joint.child_body];
+            d_force[joint.parent_body].add_assign(&f);
+        }
+    }
+}
