@@ -45,7 +45,7 @@ pub use jacobian::{
     contact_jacobian_dot_qd, point_jacobian, point_jacobian_dot_qd,
 };
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};
-pub use rnea_derivatives::{RneaDerivatives, rnea_derivatives_full};
+pub use rnea_derivatives::{RneaDerivatives, rnea_derivatives, rnea_derivatives_full};
 
 use crate::model::Model;
 use crate::spatial::{Force, Mat3, Motion, SpatialInertia, Vec3};

@@ -4,6 +4,7 @@
 use super::Data;
 use crate::model::Model;
 use crate::model::reduction::NodeKind;
+use nalgebra::DMatrix;
 
 /// Nodes in evaluation order: coordinates (arguments first), then full coordinates.
 #[inline]
@@ -139,5 +140,223 @@ pub(crate) fn theta_acceleration(model: &Model, data: &mut Data, qdd: Option<&[f
             }
         }
         data.theta_acc[d] = a;
+    }
+}
+
+/// Derivatives of θ̇ = Φq̇, θ̈ = Φq̈ + Φ̇q̇ and Φ with respect to q and q̇, by one forward
+/// (tangent) pass through the node graph per independent coordinate k. With a node
+/// n = g(c) of its arguments c, and t(·) = ∂(·)/∂q_k:
+///
+/// ```text
+/// t(n)    = Σ_a g_a t(c_a)
+/// t(ṅ)    = Σ_a g_a t(ċ_a) + Σ_ab g_ab t(c_b) ċ_a
+/// t(n̈)    = Σ_a g_a t(c̈_a) + Σ_ab g_ab (t(c_b) c̈_a + t(ċ_a) ċ_b + ċ_a t(ċ_b))
+///           + Σ_abc g_abc t(c_c) ċ_a ċ_b
+/// t(∂n/∂q) = Σ_a (g_a t(∂c_a/∂q) + Σ_b g_ab t(c_b) ∂c_a/∂q)
+/// ```
+///
+/// and with respect to q̇_k (u(·) = ∂(·)/∂q̇_k): u(ṅ) = ∂n/∂q_k and
+/// u(n̈) = Σ_a g_a u(c̈_a) + 2 Σ_ab g_ab u(ċ_a) ċ_b. Functions of several arguments are
+/// linear or constant (only `LinearFunction`, `Constant` and multiples of them take several
+/// arguments), so g_abc is non-zero only for one-argument functions: g‴ = s f‴.
+#[derive(Clone, Debug)]
+pub(crate) struct ReductionTangents {
+    /// Φ (n_full × n), ∂θ̇/∂q, ∂θ̈/∂q and ∂θ̈/∂q̇.
+    pub phi: DMatrix<f64>,
+    pub theta_dot_q: DMatrix<f64>,
+    pub theta_ddot_q: DMatrix<f64>,
+    pub theta_ddot_qd: DMatrix<f64>,
+    /// ∂²θ/∂q∂q_k in the layout of the node-gradient array, for every k (k-major): the
+    /// entries of the full-coordinate nodes are the ∂Φ/∂q_k.
+    pub grad_q: Vec<f64>,
+    node_acc: Vec<f64>,
+    t_val: Vec<f64>,
+    t_vel: Vec<f64>,
+    t_acc: Vec<f64>,
+}
+
+impl ReductionTangents {
+    pub fn new(model: &Model) -> ReductionTangents {
+        let r = &model.reduction;
+        let (nf, n, nodes) = (model.n_full(), model.nq(), r.nodes.len());
+        ReductionTangents {
+            phi: DMatrix::zeros(nf, n),
+            theta_dot_q: DMatrix::zeros(nf, n),
+            theta_ddot_q: DMatrix::zeros(nf, n),
+            theta_ddot_qd: DMatrix::zeros(nf, n),
+            grad_q: vec![0.0; n * r.dep_index.len()],
+            node_acc: vec![0.0; nodes],
+            t_val: vec![0.0; nodes],
+            t_vel: vec![0.0; nodes],
+            t_acc: vec![0.0; nodes],
+        }
+    }
+
+    /// Σ_d w_d ∂²θ_d/∂q_j∂q_k into `out[(j, k)]` (added), from the last [`Self::compute`].
+    pub fn add_weighted_hessian(&self, model: &Model, w: &[f64], out: &mut DMatrix<f64>) {
+        let r = &model.reduction;
+        let ne = r.dep_index.len();
+        for k in 0..model.nq() {
+            let g = &self.grad_q[k * ne..(k + 1) * ne];
+            for (d, &wd) in w.iter().enumerate() {
+                if wd == 0.0 {
+                    continue;
+                }
+                for e in r.phi_row(d) {
+                    out[(r.dep_index[e], k)] += wd * g[e];
+                }
+            }
+        }
+    }
+
+    /// The tangents at the state of the last [`evaluate_position`] and [`evaluate_velocity`]
+    /// in `data`, with accelerations q̈.
+    pub fn compute(&mut self, model: &Model, data: &Data, qdd: &[f64]) {
+        let r = &model.reduction;
+        let nc = r.n_coordinates;
+        let ne = r.dep_index.len();
+        let Data {
+            node_value,
+            node_vel,
+            node_acc_bias,
+            node_grad,
+            node_g1,
+            node_g2,
+            ..
+        } = data;
+        // n̈ of every node: (∂n/∂q) q̈ + (Φ̇q̇)_n
+        for i in 0..r.nodes.len() {
+            let mut a = node_acc_bias[i];
+            for e in r.dep_start[i]..r.dep_start[i + 1] {
+                a += node_grad[e] * qdd[r.dep_index[e]];
+            }
+            self.node_acc[i] = a;
+        }
+        self.phi.fill(0.0);
+        for d in 0..model.n_full() {
+            for e in r.phi_row(d) {
+                self.phi[(d, r.dep_index[e])] = node_grad[e];
+            }
+        }
+        let ReductionTangents {
+            theta_dot_q,
+            theta_ddot_q,
+            theta_ddot_qd,
+            grad_q,
+            node_acc,
+            t_val,
+            t_vel,
+            t_acc,
+            ..
+        } = self;
+        for k in 0..model.nq() {
+            let t_grad = &mut grad_q[k * ne..(k + 1) * ne];
+            // --- direction q_k ---
+            for i in eval_order(model) {
+                let g = r.dep_start[i]..r.dep_start[i + 1];
+                match &r.nodes[i] {
+                    NodeKind::Independent(j) => {
+                        t_val[i] = if *j == k { 1.0 } else { 0.0 };
+                        t_vel[i] = 0.0;
+                        t_acc[i] = 0.0;
+                        t_grad[g].fill(0.0);
+                    }
+                    NodeKind::Constant(_) => {
+                        t_val[i] = 0.0;
+                        t_vel[i] = 0.0;
+                        t_acc[i] = 0.0;
+                    }
+                    NodeKind::Affine { arg, slope, .. } => {
+                        t_val[i] = slope * t_val[*arg];
+                        t_vel[i] = slope * t_vel[*arg];
+                        t_acc[i] = slope * t_acc[*arg];
+                        let src = r.dep_start[*arg];
+                        for (t, e) in g.enumerate() {
+                            t_grad[e] = slope * t_grad[src + t];
+                        }
+                    }
+                    NodeKind::Function {
+                        function,
+                        args,
+                        scale,
+                    } => {
+                        let nargs = args.len();
+                        let g1 = &node_g1[r.arg_start[i]..r.arg_start[i] + nargs];
+                        let g2 = &node_g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
+                        let (mut tv, mut tvel, mut tacc) = (0.0, 0.0, 0.0);
+                        for (ai, &a) in args.iter().enumerate() {
+                            tv += g1[ai] * t_val[a];
+                            tvel += g1[ai] * t_vel[a];
+                            tacc += g1[ai] * t_acc[a];
+                            for (bi, &b) in args.iter().enumerate() {
+                                let gab = g2[ai * nargs + bi];
+                                tvel += gab * t_val[b] * node_vel[a];
+                                tacc += gab
+                                    * (t_val[b] * node_acc[a]
+                                        + t_vel[a] * node_vel[b]
+                                        + node_vel[a] * t_vel[b]);
+                            }
+                        }
+                        if nargs == 1 {
+                            let c = args[0];
+                            let g3 = scale * function.third_derivative1(node_value[c]);
+                            tacc += g3 * t_val[c] * node_vel[c] * node_vel[c];
+                        }
+                        t_val[i] = tv;
+                        t_vel[i] = tvel;
+                        t_acc[i] = tacc;
+                        for e in g {
+                            t_grad[e] = 0.0;
+                        }
+                        for s in &r.scatter[r.scatter_start[i]..r.scatter_start[i + 1]] {
+                            let mut w = 0.0;
+                            for (bi, &b) in args.iter().enumerate() {
+                                w += g2[s.arg * nargs + bi] * t_val[b];
+                            }
+                            t_grad[s.dst] += g1[s.arg] * t_grad[s.src] + w * node_grad[s.src];
+                        }
+                    }
+                }
+            }
+            for d in 0..model.n_full() {
+                theta_dot_q[(d, k)] = t_vel[nc + d];
+                theta_ddot_q[(d, k)] = t_acc[nc + d];
+            }
+            // --- direction q̇_k ---
+            for i in eval_order(model) {
+                match &r.nodes[i] {
+                    NodeKind::Independent(j) => {
+                        t_vel[i] = if *j == k { 1.0 } else { 0.0 };
+                        t_acc[i] = 0.0;
+                    }
+                    NodeKind::Constant(_) => {
+                        t_vel[i] = 0.0;
+                        t_acc[i] = 0.0;
+                    }
+                    NodeKind::Affine { arg, slope, .. } => {
+                        t_vel[i] = slope * t_vel[*arg];
+                        t_acc[i] = slope * t_acc[*arg];
+                    }
+                    NodeKind::Function { args, .. } => {
+                        let nargs = args.len();
+                        let g1 = &node_g1[r.arg_start[i]..r.arg_start[i] + nargs];
+                        let g2 = &node_g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
+                        let (mut tvel, mut tacc) = (0.0, 0.0);
+                        for (ai, &a) in args.iter().enumerate() {
+                            tvel += g1[ai] * t_vel[a];
+                            tacc += g1[ai] * t_acc[a];
+                            for (bi, &b) in args.iter().enumerate() {
+                                tacc += 2.0 * g2[ai * nargs + bi] * t_vel[a] * node_vel[b];
+                            }
+                        }
+                        t_vel[i] = tvel;
+                        t_acc[i] = tacc;
+                    }
+                }
+            }
+            for d in 0..model.n_full() {
+                theta_ddot_qd[(d, k)] = t_acc[nc + d];
+            }
+        }
     }
 }

@@ -27,15 +27,33 @@
 //! and for the direction θ̇_j the same with δs = 0, δI = 0 and δθ̇_d = [d = j], i.e.
 //! δv_d = s_j beyond j and δa_b gains v_j ×ₘ s_j. Each direction is one O(n) pass over the
 //! tree: O(n²) for both Jacobians, allocation-free after [`RneaDerivatives::new`].
+//!
+//! In the independent coordinates q (θ = φ(q), θ̇ = Φq̇, θ̈ = Φq̈ + Φ̇q̇, τ = Φᵀ τ_full) the
+//! chain rule gives, with D_θ, D_θ̇ the full-coordinate Jacobians above and M_full = ∂τ_full/∂θ̈:
+//!
+//! ```text
+//! ∂τ/∂q  = Σ_d τ_full,d ∂²θ_d/∂q∂q + Φᵀ (D_θ Φ + D_θ̇ ∂θ̇/∂q + M_full ∂θ̈/∂q)
+//! ∂τ/∂q̇ = Φᵀ (D_θ̇ Φ + M_full ∂(Φ̇q̇)/∂q̇)
+//! ∂τ/∂q̈ = Φᵀ M_full Φ = M
+//! ```
+//!
+//! where ∂θ̇/∂q, ∂θ̈/∂q (third derivatives of the coupling and axis functions included) and
+//! ∂²θ/∂q∂q come from one tangent pass per coordinate through the reduction graph.
 
 use super::Data;
+use super::reduction::{ReductionTangents, evaluate_position, evaluate_velocity};
 use crate::model::Model;
 use crate::spatial::{Force, Motion, SpatialInertia};
 use nalgebra::DMatrix;
 
-/// The outputs and workspace of [`rnea_derivatives_full`] for one model.
+/// The outputs and workspace of [`rnea_derivatives`] and [`rnea_derivatives_full`] for one
+/// model.
 #[derive(Clone, Debug)]
 pub struct RneaDerivatives {
+    /// ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ = M (n × n, independent coordinates) from [`rnea_derivatives`].
+    pub dtau_dq: DMatrix<f64>,
+    pub dtau_dqd: DMatrix<f64>,
+    pub dtau_dqdd: DMatrix<f64>,
     /// ∂τ_full/∂θ (n_full × n_full).
     pub dtau_dtheta: DMatrix<f64>,
     /// ∂τ_full/∂θ̇ (n_full × n_full).
@@ -53,6 +71,13 @@ pub struct RneaDerivatives {
     d_acc: Vec<Motion>,
     d_force: Vec<Force>,
     d_axis: Vec<Motion>,
+    // reduction to q
+    tangents: ReductionTangents,
+    /// n_full × n scratch for the chain rule.
+    chain: DMatrix<f64>,
+    theta: Vec<f64>,
+    theta_dot: Vec<f64>,
+    theta_ddot: Vec<f64>,
 }
 
 impl RneaDerivatives {
@@ -76,7 +101,16 @@ impl RneaDerivatives {
                 moves_dof[j * nf + d] = (dd.joint == dj.joint && d > j) || row[joint.parent_body];
             }
         }
+        let n = model.nq();
         RneaDerivatives {
+            dtau_dq: DMatrix::zeros(n, n),
+            dtau_dqd: DMatrix::zeros(n, n),
+            dtau_dqdd: DMatrix::zeros(n, n),
+            tangents: ReductionTangents::new(model),
+            chain: DMatrix::zeros(nf, n),
+            theta: vec![0.0; nf],
+            theta_dot: vec![0.0; nf],
+            theta_ddot: vec![0.0; nf],
             dtau_dtheta: DMatrix::zeros(nf, nf),
             dtau_dtheta_dot: DMatrix::zeros(nf, nf),
             moves_body,
@@ -92,7 +126,10 @@ impl RneaDerivatives {
 
     fn fits(&self, model: &Model) -> crate::Result<()> {
         let (nf, nb) = (model.dofs.len(), model.bodies.len());
-        if self.dtau_dtheta.shape() != (nf, nf) || self.own_force.len() != nb {
+        if self.dtau_dtheta.shape() != (nf, nf)
+            || self.own_force.len() != nb
+            || self.dtau_dq.nrows() != model.nq()
+        {
             return Err(crate::error::Error::invalid(
                 "derivatives",
                 "RneaDerivatives was built for another model",
@@ -100,6 +137,72 @@ impl RneaDerivatives {
         }
         Ok(())
     }
+}
+
+/// ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ of [`super::rnea`] at (q, q̇, q̈) in the independent
+/// coordinates, into `out.dtau_dq`, `out.dtau_dqd`, `out.dtau_dqdd` (the full-coordinate
+/// Jacobians are left in `out` too); `data` is left as `rnea` leaves it, τ in `data.tau()`.
+pub fn rnea_derivatives(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    out: &mut RneaDerivatives,
+) -> crate::Result<()> {
+    out.fits(model)?;
+    data.fits(model)?;
+    super::check_len("q", q, model.nq())?;
+    super::check_len("qd", qd, model.nq())?;
+    super::check_len("qdd", qdd, model.nq())?;
+    evaluate_position(model, data, q);
+    evaluate_velocity(model, data, qd);
+    out.tangents.compute(model, data, qdd);
+    let nc = model.reduction.n_coordinates;
+    out.theta.copy_from_slice(&data.node_value[nc..]);
+    out.theta_dot.copy_from_slice(&data.node_vel[nc..]);
+    for (d, a) in out.theta_ddot.iter_mut().enumerate() {
+        *a = data.node_acc_bias[nc + d];
+        for (j, qj) in qdd.iter().enumerate() {
+            *a += out.tangents.phi[(d, j)] * qj;
+        }
+    }
+    let (theta, theta_dot, theta_ddot) = (
+        std::mem::take(&mut out.theta),
+        std::mem::take(&mut out.theta_dot),
+        std::mem::take(&mut out.theta_ddot),
+    );
+    let full = rnea_derivatives_full(model, data, &theta, &theta_dot, &theta_ddot, out);
+    (out.theta, out.theta_dot, out.theta_ddot) = (theta, theta_dot, theta_ddot);
+    full?;
+    super::crba_full(model, data)?;
+    let RneaDerivatives {
+        dtau_dq,
+        dtau_dqd,
+        dtau_dqdd,
+        dtau_dtheta,
+        dtau_dtheta_dot,
+        tangents: t,
+        chain,
+        ..
+    } = out;
+    let m_full = &data.mass_matrix_full;
+    // ∂τ/∂q = Σ_d τ_full,d ∂²θ_d/∂q∂q + Φᵀ (D_θ Φ + D_θ̇ ∂θ̇/∂q + M_full ∂θ̈/∂q)
+    chain.gemm(1.0, dtau_dtheta, &t.phi, 0.0);
+    chain.gemm(1.0, dtau_dtheta_dot, &t.theta_dot_q, 1.0);
+    chain.gemm(1.0, m_full, &t.theta_ddot_q, 1.0);
+    dtau_dq.fill(0.0);
+    t.add_weighted_hessian(model, &data.tau_full, dtau_dq);
+    dtau_dq.gemm_tr(1.0, &t.phi, chain, 1.0);
+    // ∂τ/∂q̇ = Φᵀ (D_θ̇ Φ + M_full ∂(Φ̇q̇)/∂q̇)
+    chain.gemm(1.0, dtau_dtheta_dot, &t.phi, 0.0);
+    chain.gemm(1.0, m_full, &t.theta_ddot_qd, 1.0);
+    dtau_dqd.gemm_tr(1.0, &t.phi, chain, 0.0);
+    // ∂τ/∂q̈ = Φᵀ M_full Φ
+    chain.gemm(1.0, m_full, &t.phi, 0.0);
+    dtau_dqdd.gemm_tr(1.0, &t.phi, chain, 0.0);
+    super::rnea(model, data, q, qd, qdd)?;
+    Ok(())
 }
 
 /// ∂τ_full/∂θ and ∂τ_full/∂θ̇ of [`super::rnea_full`] at (θ, θ̇, θ̈), gravity included, into

@@ -92,6 +92,20 @@ impl Function {
         }
     }
 
+    /// Third derivative of a function of one argument (what exact derivatives of Φ̇q̇ with
+    /// respect to q need). A `Constant`, a `LinearFunction` and a `PiecewiseLinearFunction`
+    /// give 0; the splines give the third derivative of the piece holding x (0 where they
+    /// extrapolate linearly).
+    pub fn third_derivative1(&self, x: f64) -> f64 {
+        match self {
+            Function::Constant(_) | Function::Linear(_) | Function::PiecewiseLinear(_) => 0.0,
+            Function::Polynomial(c) => polynomial_third_derivative(c, x),
+            Function::SimmSpline(s) => s.third_derivative(x),
+            Function::GcvSpline(s) => s.derivative(x, 3),
+            Function::Multiplier(f, s) => s * f.third_derivative1(x),
+        }
+    }
+
     /// Value of a function of `x.len()` arguments, with its gradient written to `grad`
     /// (length k) and its Hessian to `hess` (k×k, row-major). The caller guarantees that `x`
     /// matches `arity()` and the slices have the right lengths.
@@ -143,6 +157,20 @@ fn polynomial(c: &[f64], x: f64) -> (f64, f64, f64) {
         p = p * x + ci;
     }
     (p, d1, d2)
+}
+
+/// Third derivative of a polynomial (highest power first): p‴ = Σ c_i m(m−1)(m−2) x^(m−3)
+/// with m = n − i, by Horner's scheme on the differentiated coefficients.
+fn polynomial_third_derivative(c: &[f64], x: f64) -> f64 {
+    let n = c.len().saturating_sub(1);
+    let mut d3 = 0.0;
+    for (i, &ci) in c.iter().enumerate() {
+        if n - i >= 3 {
+            let m = (n - i) as f64;
+            d3 = d3 * x + ci * m * (m - 1.0) * (m - 2.0);
+        }
+    }
+    d3
 }
 
 /// Validates spline data: equal lengths, at least `min_points`, finite, x strictly increasing.
@@ -301,6 +329,17 @@ impl SimmSpline {
     }
 }
 
+impl SimmSpline {
+    /// Third derivative at t: 6 d_k on the interval holding t, 0 where the spline
+    /// extrapolates linearly.
+    pub fn third_derivative(&self, t: f64) -> f64 {
+        if t < self.x[0] || t > self.x[self.x.len() - 1] {
+            return 0.0;
+        }
+        6.0 * self.d[interval(&self.x, t)]
+    }
+}
+
 /// OpenSim's `PiecewiseLinearFunction`: linear interpolation between the points, linear
 /// extrapolation with the first (last) segment's slope outside the range.
 #[derive(Clone, Debug, PartialEq)]
@@ -425,6 +464,40 @@ mod tests {
             let r = s.eval(k + 1e-9);
             assert!((l.1 - r.1).abs() < 1e-7 && (l.2 - r.2).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn third_derivatives_match_differences_of_second_derivatives() {
+        let h = 1e-6;
+        let spline_x: Vec<f64> = (0..7).map(|i| -1.0 + 0.37 * i as f64).collect();
+        let spline_y: Vec<f64> = spline_x.iter().map(|x| (2.0 * x).sin() + 0.3 * x).collect();
+        let functions = [
+            Function::Polynomial(vec![0.4, -1.1, 0.3, 2.0, -0.7]),
+            Function::SimmSpline(SimmSpline::new(spline_x.clone(), spline_y.clone()).unwrap()),
+            Function::GcvSpline(
+                NaturalSpline::interpolating(3, spline_x.clone(), spline_y.clone()).unwrap(),
+            ),
+            Function::Multiplier(
+                Box::new(Function::Polynomial(vec![1.0, 0.0, 0.0, 0.0])),
+                2.5,
+            ),
+            Function::Linear(vec![0.8, 0.1]),
+        ];
+        for f in &functions {
+            // points inside intervals (not at knots), and outside the spline range
+            for x in [-1.3, -0.81, -0.2, 0.45, 1.02, 1.6] {
+                let fd = (f.eval1(x + h).2 - f.eval1(x - h).2) / (2.0 * h);
+                let d3 = f.third_derivative1(x);
+                assert!(
+                    (d3 - fd).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "{} at {x}: {d3} vs {fd}",
+                    f.kind_name()
+                );
+            }
+        }
+        // p‴ = 0.4·4·3·2 x − 1.1·3·2 at x = 0.5
+        let p = Function::Polynomial(vec![0.4, -1.1, 0.3, 2.0, -0.7]);
+        assert!((p.third_derivative1(0.5) - (9.6 * 0.5 - 6.6)).abs() < 1e-12);
     }
 
     #[test]
