@@ -21,6 +21,7 @@
 //! (`Data::reference_point`, the origin of the first moving body), see [`crate::spatial`].
 
 mod center_of_mass;
+mod contact_force_derivatives;
 mod crba;
 mod energy;
 mod external_forces;
@@ -32,6 +33,7 @@ mod rnea;
 mod rnea_derivatives;
 
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian};
+pub use contact_force_derivatives::{ContactForceDerivatives, contact_force_derivatives};
 pub use crba::{crba, crba_full};
 pub use energy::{Momentum, kinetic_energy, momentum, potential_energy};
 pub use external_forces::add_body_wrench;

@@ -58,11 +58,7 @@ pub struct RneaDerivatives {
     pub dtau_dtheta: DMatrix<f64>,
     /// ∂τ_full/∂θ̇ (n_full × n_full).
     pub dtau_dtheta_dot: DMatrix<f64>,
-    /// [j * n_bodies + b]: body b moves with θ_j (b is the child of j's joint or below it).
-    moves_body: Vec<bool>,
-    /// [j * n_full + d]: axis s_d moves with θ_j (d comes after j in j's joint, or belongs to
-    /// a joint whose parent body moves with θ_j).
-    moves_dof: Vec<bool>,
+    moves: MovedBy,
     /// Each body's own force f_b and the velocity after each coordinate, v_d.
     own_force: Vec<Force>,
     dof_vel: Vec<Motion>,
@@ -80,16 +76,27 @@ pub struct RneaDerivatives {
     theta_ddot: Vec<f64>,
 }
 
-impl RneaDerivatives {
-    /// Allocates the outputs and workspace for `model`.
-    pub fn new(model: &Model) -> RneaDerivatives {
+/// Which bodies and which axes a change of each full coordinate θ_j moves.
+#[derive(Clone, Debug)]
+pub(crate) struct MovedBy {
+    n_bodies: usize,
+    n_full: usize,
+    /// [j * n_bodies + b]: body b moves with θ_j (b is the child of j's joint or below it).
+    body: Vec<bool>,
+    /// [j * n_full + d]: axis s_d moves with θ_j (d comes after j in j's joint, or belongs to
+    /// a joint whose parent body moves with θ_j).
+    dof: Vec<bool>,
+}
+
+impl MovedBy {
+    pub fn new(model: &Model) -> MovedBy {
         let (nf, nb) = (model.dofs.len(), model.bodies.len());
-        let mut moves_body = vec![false; nf * nb];
-        let mut moves_dof = vec![false; nf * nf];
+        let mut body = vec![false; nf * nb];
+        let mut dof = vec![false; nf * nf];
         // Joints are in topological order: a body moves with θ_j when it is j's body or its
         // joint's parent body moves with θ_j.
         for (j, dj) in model.dofs.iter().enumerate() {
-            let row = &mut moves_body[j * nb..(j + 1) * nb];
+            let row = &mut body[j * nb..(j + 1) * nb];
             row[dj.body] = true;
             for joint in &model.joints {
                 if row[joint.parent_body] {
@@ -98,9 +105,32 @@ impl RneaDerivatives {
             }
             for (d, dd) in model.dofs.iter().enumerate() {
                 let joint = &model.joints[dd.joint];
-                moves_dof[j * nf + d] = (dd.joint == dj.joint && d > j) || row[joint.parent_body];
+                dof[j * nf + d] = (dd.joint == dj.joint && d > j) || row[joint.parent_body];
             }
         }
+        MovedBy {
+            n_bodies: nb,
+            n_full: nf,
+            body,
+            dof,
+        }
+    }
+
+    /// Per body: moves with θ_j.
+    pub fn bodies(&self, j: usize) -> &[bool] {
+        &self.body[j * self.n_bodies..(j + 1) * self.n_bodies]
+    }
+
+    /// Per full coordinate: its axis moves with θ_j.
+    pub fn dofs(&self, j: usize) -> &[bool] {
+        &self.dof[j * self.n_full..(j + 1) * self.n_full]
+    }
+}
+
+impl RneaDerivatives {
+    /// Allocates the outputs and workspace for `model`.
+    pub fn new(model: &Model) -> RneaDerivatives {
+        let (nf, nb) = (model.dofs.len(), model.bodies.len());
         let n = model.nq();
         RneaDerivatives {
             dtau_dq: DMatrix::zeros(n, n),
@@ -113,8 +143,7 @@ impl RneaDerivatives {
             theta_ddot: vec![0.0; nf],
             dtau_dtheta: DMatrix::zeros(nf, nf),
             dtau_dtheta_dot: DMatrix::zeros(nf, nf),
-            moves_body,
-            moves_dof,
+            moves: MovedBy::new(model),
             own_force: vec![Force::ZERO; nb],
             dof_vel: vec![Motion::ZERO; nf],
             d_vel: vec![Motion::ZERO; nb],
@@ -242,8 +271,7 @@ pub fn rnea_derivatives_full(
     let RneaDerivatives {
         dtau_dtheta,
         dtau_dtheta_dot,
-        moves_body,
-        moves_dof,
+        moves,
         dof_vel,
         d_vel,
         d_acc,
@@ -253,8 +281,7 @@ pub fn rnea_derivatives_full(
     } = out;
     for j in 0..nf {
         let sj = s[j];
-        let body_moves = &moves_body[j * nb..(j + 1) * nb];
-        let dof_moves = &moves_dof[j * nf..(j + 1) * nf];
+        let (body_moves, dof_moves) = (moves.bodies(j), moves.dofs(j));
 
         // --- direction θ_j ---
         for d in 0..nf {
