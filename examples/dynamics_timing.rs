@@ -13,7 +13,8 @@
 //! and the same in the full coordinates θ (one per movable transform axis, the coordinates of the
 //! MJCF that `musculo export-mjcf` writes): `M_full` (`forward_kinematics_full` + `crba_full`),
 //! `bias_full` and `ID_full` (`rnea_full` with θ̈ = 0 and with θ̈ = Φ q̈ + Φ̇ q̇), and
-//! `ID_derivatives_full` (`rnea_derivatives_full`: ∂τ/∂θ and ∂τ/∂θ̇).
+//! `ID_derivatives_full` (`rnea_derivatives_full`: ∂τ/∂θ and ∂τ/∂θ̇), and in q
+//! `ID_derivatives` (`rnea_derivatives`: ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ = M).
 //!
 //! States: the rows of STATES.npy (B × 3n float64, each row q, q̇, q̈), or else N random states
 //! (default 100; seed fixed): q uniform over each independent coordinate's range, q̇ uniform in
@@ -271,6 +272,13 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Ok(())
     })?;
 
+    let id_derivatives = time_calls(b, k, |i| {
+        let st = &s[i];
+        dynamics::rnea_derivatives(&model, &mut data, &st.q, &st.qd, &st.qdd, &mut der)?;
+        black_box(&der.dtau_dq);
+        Ok(())
+    })?;
+
     if let Some(path) = &o.full {
         let rows =
             |f: fn(&State) -> &Vec<f64>| Array2::from_shape_fn((b, nf), |(i, j)| f(&s[i])[j]);
@@ -318,6 +326,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         "per_call_us": {
             "M": m, "bias": bias, "ID": id,
             "M_full": m_full, "bias_full": bias_full, "ID_full": id_full, "ID_derivatives_full": id_derivatives_full,
+            "ID_derivatives": id_derivatives,
         },
     });
     println!("{}", serde_json::to_string_pretty(&report)?);

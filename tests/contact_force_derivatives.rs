@@ -1,6 +1,7 @@
 //! Q = J_cᵀ λ and ∂Q/∂q from `contact_force_derivatives` against `contact_jacobian` and
-//! central differences of J_c(q)ᵀ λ, on the default model (its contact spheres), gait2392 and
-//! Rajagopal2016 (points on the feet, the hands and the pelvis).
+//! central differences of J_c(q)ᵀ λ, on the default model, gait2392 and Rajagopal2016 (points
+//! on distal and proximal bodies), for body-fixed points and for points offset in ground from
+//! a body-fixed carrier (a contact sphere's lowest point).
 
 mod common;
 use common::*;
@@ -33,14 +34,23 @@ fn random_points(model: &Model, rng: &mut Rng) -> (Vec<(usize, Vec3)>, Vec<Vec3>
     (points, forces)
 }
 
+/// J_c(q)ᵀ λ with each force on the material point at c_i(q) + g_i: body-fixed location
+/// c_i + R_bᵀ g_i at this q.
 fn jt_lambda(
     model: &Model,
     data: &mut Data,
     q: &[f64],
-    points: &[(usize, Vec3)],
+    carriers: &[(usize, Vec3)],
+    offsets: &[Vec3],
     forces: &[Vec3],
 ) -> DVector<f64> {
     forward_kinematics(model, data, q).unwrap();
+    let points: Vec<(usize, Vec3)> = carriers
+        .iter()
+        .zip(offsets)
+        .map(|((b, c), g)| (*b, c + data.body_pose(*b).0.transpose() * g))
+        .collect();
+    let points = &points[..];
     let mut jc = DMatrix::zeros(3 * points.len(), model.nq());
     contact_jacobian(model, data, points, &mut jc).unwrap();
     let lambda = DVector::from_iterator(
@@ -51,7 +61,7 @@ fn jt_lambda(
 }
 
 /// (max relative error of Q, of ∂Q/∂q) over random states.
-fn worst_errors(model: &Model, states: usize, seed: u64) -> (f64, f64) {
+fn worst_errors(model: &Model, states: usize, seed: u64, offset: f64) -> (f64, f64) {
     let n = model.nq();
     let mut data = Data::new(model);
     let mut der = ContactForceDerivatives::new(model);
@@ -61,17 +71,22 @@ fn worst_errors(model: &Model, states: usize, seed: u64) -> (f64, f64) {
     for _ in 0..states {
         let q = random_vec(n, 0.8, &mut rng);
         let (points, forces) = random_points(model, &mut rng);
-        contact_force_derivatives(model, &mut data, &q, &points, &forces, &mut der).unwrap();
+        let offsets: Vec<Vec3> = points
+            .iter()
+            .map(|_| Vec3::new(offset / 3.0, -offset, offset / 2.0))
+            .collect();
+        let given: &[Vec3] = if offset == 0.0 { &[] } else { &offsets };
+        contact_force_derivatives(model, &mut data, &q, &points, given, &forces, &mut der).unwrap();
         let (gq, dq) = (der.generalized_force.clone(), der.dq.clone());
-        let expected = jt_lambda(model, &mut data, &q, &points, &forces);
+        let expected = jt_lambda(model, &mut data, &q, &points, &offsets, &forces);
         worst_q = worst_q.max((&gq - &expected).amax() / expected.amax());
         let scale = dq.amax();
         for j in 0..n {
             let (mut qp, mut qm) = (q.clone(), q.clone());
             qp[j] += h;
             qm[j] -= h;
-            let fd = (jt_lambda(model, &mut data, &qp, &points, &forces)
-                - jt_lambda(model, &mut data, &qm, &points, &forces))
+            let fd = (jt_lambda(model, &mut data, &qp, &points, &offsets, &forces)
+                - jt_lambda(model, &mut data, &qm, &points, &offsets, &forces))
                 / (2.0 * h);
             for i in 0..n {
                 worst_d = worst_d.max((dq[(i, j)] - fd[i]).abs() / scale);
@@ -83,12 +98,14 @@ fn worst_errors(model: &Model, states: usize, seed: u64) -> (f64, f64) {
 
 #[test]
 fn contact_force_derivatives_equal_finite_differences_on_every_model() {
-    let (eq, ed) = worst_errors(&Model::default_fullbody(), 5, 31);
-    eprintln!("default model: Q {eq:.2e}, dQ/dq {ed:.2e}");
-    assert!(
-        eq < 1e-12 && ed < 1e-6,
-        "default model: Q {eq:.2e}, dQ/dq {ed:.2e}"
-    );
+    for offset in [0.0, 0.03] {
+        let (eq, ed) = worst_errors(&Model::default_fullbody(), 5, 31, offset);
+        eprintln!("default model, offset {offset}: Q {eq:.2e}, dQ/dq {ed:.2e}");
+        assert!(
+            eq < 1e-12 && ed < 1e-6,
+            "default model: Q {eq:.2e}, dQ/dq {ed:.2e}"
+        );
+    }
     for rel in [
         "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
         "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
@@ -97,7 +114,7 @@ fn contact_force_derivatives_equal_finite_differences_on_every_model() {
             return;
         };
         let model = Model::from_osim_file(&path).unwrap();
-        let (eq, ed) = worst_errors(&model, 5, 32);
+        let (eq, ed) = worst_errors(&model, 5, 32, 0.03);
         eprintln!("{rel}: Q {eq:.2e}, dQ/dq {ed:.2e}");
         assert!(eq < 1e-12 && ed < 1e-6, "{rel}: Q {eq:.2e}, dQ/dq {ed:.2e}");
     }
@@ -109,14 +126,23 @@ fn mismatched_points_and_forces_are_an_error() {
     let mut data = Data::new(&model);
     let mut der = ContactForceDerivatives::new(&model);
     let q = vec![0.0; model.nq()];
-    let e = contact_force_derivatives(&model, &mut data, &q, &[(1, Vec3::zeros())], &[], &mut der)
-        .unwrap_err();
+    let e = contact_force_derivatives(
+        &model,
+        &mut data,
+        &q,
+        &[(1, Vec3::zeros())],
+        &[],
+        &[],
+        &mut der,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("0 forces for 1 points"), "{e}");
     let e = contact_force_derivatives(
         &model,
         &mut data,
         &q,
         &[(999, Vec3::zeros())],
+        &[],
         &[Vec3::zeros()],
         &mut der,
     )

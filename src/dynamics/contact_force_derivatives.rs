@@ -2,13 +2,17 @@
 //! the forces λ held fixed in ground (what the q-gradient of a residual M q̈ + C q̇ + G − τ −
 //! J_cᵀ λ needs).
 //!
-//! In full coordinates, with every spatial quantity in ground axes about the fixed point O, a
-//! force λ_i applied at point p_i of body b_i is the spatial force f_i = ((p_i − O) × λ_i, λ_i),
-//! and Q_full,d = s_dᵀ F_d with F_d the sum of the f_i on the subtree moved by axis d. A change
-//! ε of θ_j moves the axes and points beyond j by the screw ε s_j (see [`super::rnea_derivatives`]):
+//! Force i acts at p_i = c_i + g_i: c_i a point fixed in body b_i (the carrier) and g_i an
+//! offset fixed in ground. With g_i = 0 it is a force on a body-fixed point; with c_i a contact
+//! sphere's centre and g_i = −r n its lowest point (a sphere rolling on the floor n·x = h is
+//! loaded there whatever its orientation). In full coordinates, with every spatial quantity in
+//! ground axes about the fixed point O, force i is the spatial force
+//! f_i = ((p_i − O) × λ_i, λ_i), and Q_full,d = s_dᵀ F_d with F_d the sum of the f_i on the
+//! subtree moved by axis d. A change ε of θ_j moves the axes and carriers beyond j by the
+//! screw ε s_j (see [`super::rnea_derivatives`]):
 //!
 //! ```text
-//! δs_d = s_j ×ₘ s_d,   δp_i = (s_j at p_i) = s_j,lin + s_j,ang × (p_i − O),   δf_i = (δp_i × λ_i, 0)
+//! δs_d = s_j ×ₘ s_d,   δp_i = δc_i = s_j,lin + s_j,ang × (c_i − O),   δf_i = (δp_i × λ_i, 0)
 //! ∂Q_full,d/∂θ_j = δs_dᵀ F_d + s_dᵀ δF_d
 //! ```
 //!
@@ -60,14 +64,16 @@ impl ContactForceDerivatives {
     }
 }
 
-/// Q = J_c(q)ᵀ λ and ∂Q/∂q for forces `forces[i]` (ground axes, N) applied at the body-fixed
-/// points `points[i]` = (body, location in body), into `out`; `data` is left at the position
-/// stage of q.
+/// Q = J_c(q)ᵀ λ and ∂Q/∂q for forces `forces[i]` (ground axes, N) applied at c_i + g_i, with
+/// the carriers `points[i]` = (body, location in body) and the ground offsets
+/// `offsets_in_ground[i]` (m; an empty slice means none), into `out`; `data` is left at the
+/// position stage of q.
 pub fn contact_force_derivatives(
     model: &Model,
     data: &mut Data,
     q: &[f64],
     points: &[(usize, Vec3)],
+    offsets_in_ground: &[Vec3],
     forces: &[Vec3],
     out: &mut ContactForceDerivatives,
 ) -> crate::Result<()> {
@@ -84,6 +90,22 @@ pub fn contact_force_derivatives(
             format!("{} forces for {} points", forces.len(), points.len()),
         ));
     }
+    if !(offsets_in_ground.is_empty() || offsets_in_ground.len() == points.len()) {
+        return Err(crate::Error::invalid(
+            "offsets_in_ground",
+            format!(
+                "{} offsets for {} points (give one per point, or none)",
+                offsets_in_ground.len(),
+                points.len()
+            ),
+        ));
+    }
+    let offset = |i: usize| {
+        offsets_in_ground
+            .get(i)
+            .copied()
+            .unwrap_or_else(Vec3::zeros)
+    };
     for (i, ((body, p), f)) in points.iter().zip(forces).enumerate() {
         if *body >= nb {
             return Err(crate::Error::invalid(
@@ -91,10 +113,11 @@ pub fn contact_force_derivatives(
                 format!("point {i}: body index {body} out of range ({nb} bodies)"),
             ));
         }
-        if !(p.iter().all(|v| v.is_finite()) && f.iter().all(|v| v.is_finite())) {
+        let g = offset(i);
+        if !(p.iter().chain(f.iter()).chain(g.iter())).all(|v| v.is_finite()) {
             return Err(crate::Error::invalid(
                 "forces",
-                format!("point {i}: location or force is not finite"),
+                format!("point {i}: location, offset or force is not finite"),
             ));
         }
     }
@@ -117,8 +140,8 @@ pub fn contact_force_derivatives(
     let s = &data.dof_motion;
     // f_i = ((p_i − O) × λ_i, λ_i), summed per body and then over subtrees
     body_force.fill(Force::ZERO);
-    for ((body, p), f) in points.iter().zip(forces) {
-        let r = data.point_position(*body, p) - o;
+    for (i, ((body, p), f)) in points.iter().zip(forces).enumerate() {
+        let r = data.point_position(*body, p) + offset(i) - o;
         body_force[*body].add_assign(&Force {
             ang: r.cross(f),
             lin: *f,
