@@ -20,6 +20,7 @@ pub mod check;
 pub mod dynamics;
 pub mod error;
 pub mod io;
+pub mod loss;
 pub mod model;
 pub mod motion;
 #[cfg(feature = "mujoco")]

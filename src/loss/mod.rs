@@ -1,0 +1,15 @@
+//! Physics losses for trainers of motion models, with their gradients (METHOD.md §2,
+//! FlexMotion eqs. 6–7).
+//!
+//! - [`euler_lagrange`]: L_euler = Σ_t Σ_j w_j r_tj², r = M q̈ + C q̇ + G − τ − J_cᵀ λ, with
+//!   ∂L/∂q, ∂L/∂q̇, ∂L/∂q̈, ∂L/∂τ and ∂L/∂λ from the exact derivatives of inverse dynamics
+//!   ([`crate::dynamics::rnea_derivatives`]) and of the contact forces' generalized forces
+//!   ([`crate::dynamics::contact_force_derivatives`]).
+//!
+//! Batches are flat row-major arrays of frames (B × T frames, one row of n values per frame);
+//! frames run in parallel (rayon) with one workspace per worker, and every per-frame value is
+//! independent of the thread count (sums over frames are taken in frame order afterwards).
+
+pub mod euler_lagrange;
+
+pub use euler_lagrange::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
