@@ -76,6 +76,8 @@ pub struct EulerLagrangeOutput {
     pub per_frame: Vec<f64>,
     /// r_t (frames × n).
     pub residual: Vec<f64>,
+    /// ‖τ_ID,t‖ per frame (the scale of r_t).
+    pub tau_id_norm: Vec<f64>,
     /// ∂L/∂q, ∂L/∂q̇, ∂L/∂q̈, ∂L/∂τ (frames × n) and ∂L/∂λ (frames × contacts × 3); empty
     /// without gradients.
     pub grad_q: Vec<f64>,
@@ -166,8 +168,9 @@ impl EulerLagrange {
                 ));
             }
         }
-        // One row per frame: [L_t, r (n), then with gradients ∂q, ∂q̇, ∂q̈, ∂τ (n each), ∂λ (3p)]
-        let width = 1 + n + if gradients { 4 * n + 3 * p } else { 0 };
+        // One row per frame: [L_t, ‖τ_ID‖, r (n), then with gradients ∂q, ∂q̇, ∂q̈, ∂τ (n each),
+        // ∂λ (3p)]
+        let width = 2 + n + if gradients { 4 * n + 3 * p } else { 0 };
         let mut rows = vec![0.0; t * width];
         let carriers: Vec<(usize, Vec3)> = self
             .contacts
@@ -191,6 +194,7 @@ impl EulerLagrange {
         )?;
         out.per_frame.clear();
         out.residual.clear();
+        out.tau_id_norm.clear();
         for v in [
             &mut out.grad_q,
             &mut out.grad_qd,
@@ -202,9 +206,10 @@ impl EulerLagrange {
         }
         for row in rows.chunks(width) {
             out.per_frame.push(row[0]);
-            out.residual.extend_from_slice(&row[1..1 + n]);
+            out.tau_id_norm.push(row[1]);
+            out.residual.extend_from_slice(&row[2..2 + n]);
             if gradients {
-                let g = &row[1 + n..];
+                let g = &row[2 + n..];
                 out.grad_q.extend_from_slice(&g[..n]);
                 out.grad_qd.extend_from_slice(&g[n..2 * n]);
                 out.grad_qdd.extend_from_slice(&g[2 * n..3 * n]);
@@ -260,8 +265,9 @@ impl EulerLagrange {
         }
         // r = τ_ID − τ − Q,  u = W r,  L_t = rᵀ W r
         let tau_id = ws.data.tau();
-        let (head, rest) = row.split_at_mut(1 + n);
-        let r = &mut head[1..];
+        let (head, rest) = row.split_at_mut(2 + n);
+        head[1] = tau_id.norm();
+        let r = &mut head[2..];
         let mut loss = 0.0;
         for j in 0..n {
             r[j] = tau_id[j] - frame.tau[j] - ws.contact.generalized_force[j];

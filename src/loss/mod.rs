@@ -6,10 +6,13 @@
 //!   ([`crate::dynamics::rnea_derivatives`]) and of the contact forces' generalized forces
 //!   ([`crate::dynamics::contact_force_derivatives`]).
 //!
+//! - [`tensor_file`]: the residual of an `.npz` tensor file (`musculo loss`).
+//!
 //! Batches are flat row-major arrays of frames (B × T frames, one row of n values per frame);
 //! frames run in parallel (rayon) with one workspace per worker, and every per-frame value is
 //! independent of the thread count (sums over frames are taken in frame order afterwards).
 
 pub mod euler_lagrange;
+pub mod tensor_file;
 
 pub use euler_lagrange::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};

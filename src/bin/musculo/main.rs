@@ -6,6 +6,7 @@ mod export_mjcf;
 mod id;
 mod ik;
 mod inspect;
+mod loss;
 mod model;
 mod muscles;
 mod scale;
@@ -82,6 +83,9 @@ enum Command {
     Augment(augment::Args),
     /// Combine the shards of an `augment --shard K/N` run into one manifest and statistics.
     Merge(augment::MergeArgs),
+    /// The Euler–Lagrange residual M q̈ + C q̇ + G − τ − J_cᵀλ of a tensor file (an augmented
+    /// clip or a generated motion): L_euler, per-frame and per-coordinate figures.
+    Loss(loss::Args),
 }
 
 fn main() -> ExitCode {
@@ -101,6 +105,7 @@ fn main() -> ExitCode {
             Err(e) => Err(e),
         },
         Command::Merge(args) => augment::merge(&args),
+        Command::Loss(args) => loss::run(&args),
         Command::Check(args) => match check::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,

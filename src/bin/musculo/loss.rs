@@ -1,0 +1,121 @@
+//! `musculo loss`: the Euler–Lagrange residual r = M q̈ + C q̇ + G − τ − J_cᵀλ of a tensor file,
+//! summarised per coordinate and per frame.
+
+use musculo::loss::tensor_file::{ResidualSummary, TensorFrames, residual_of};
+use musculo::model::Model;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Tensor file (.npz with q, qd, qdd, tau and, where there are contacts,
+    /// contact_point_force), e.g. a clip written by `musculo augment`.
+    file: PathBuf,
+    /// OpenSim 4.x model file the tensors belong to (default: the built-in default model).
+    /// A clip that `musculo augment` scaled to its bone lengths belongs to the scaled model,
+    /// which `augment --opensim-files` writes beside it as <clip>.osim.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Also write the per-frame residual (frame, L_t, |r_t|, |r_t|/|tau_ID,t|) as CSV.
+    #[arg(long, value_name = "FILE.csv")]
+    per_frame: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
+}
+
+pub fn run(args: &Args) -> Result<(), musculo::Error> {
+    let model = match &args.model {
+        Some(p) => args.strict.load(p)?,
+        None => Model::default_fullbody(),
+    };
+    let frames = TensorFrames::read(&args.file, &model)?;
+    let s = residual_of(&model, &frames)?;
+    if let Some(path) = &args.per_frame {
+        let mut csv = String::from("frame,loss,residual_norm,relative_residual\n");
+        for t in 0..s.frames {
+            let l = s.frame_norm[t] * s.frame_norm[t];
+            let _ = writeln!(
+                csv,
+                "{t},{l:e},{:e},{:e}",
+                s.frame_norm[t], s.frame_relative[t]
+            );
+        }
+        crate::tool::write_output(path, csv.as_bytes(), &[args.file.as_path()])?;
+    }
+    let names = model.q_names();
+    if args.json {
+        let report = serde_json::json!({
+            "file": args.file.display().to_string(),
+            "model": model.name,
+            "frames": s.frames,
+            "contacts": frames.contacts,
+            "loss": s.loss,
+            "relative_residual": {
+                "median": median(&s.frame_relative),
+                "max": max(&s.frame_relative),
+            },
+            "coordinates": names.iter().enumerate().map(|(j, name)| serde_json::json!({
+                "name": name, "rms": s.coordinate_rms[j], "max": s.coordinate_max[j],
+            })).collect::<Vec<_>>(),
+        });
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).unwrap_or_default()
+        );
+    } else {
+        print_table(
+            &args.file.display().to_string(),
+            &model,
+            frames.contacts,
+            &s,
+        );
+    }
+    Ok(())
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s.get(s.len() / 2).copied().unwrap_or(0.0)
+}
+
+fn max(v: &[f64]) -> f64 {
+    v.iter().copied().fold(0.0, f64::max)
+}
+
+fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary) {
+    let worst = (0..s.frames)
+        .max_by(|&a, &b| s.frame_relative[a].total_cmp(&s.frame_relative[b]))
+        .unwrap_or(0);
+    println!(
+        "{file}: {} frames, model \"{}\", {contacts} contact points",
+        s.frames, model.name
+    );
+    println!("L_euler = Σ_t |r_t|² = {:.4e}", s.loss);
+    println!(
+        "|r_t| / |tau_ID,t|: median {:.3e}, max {:.3e} (frame {worst})",
+        median(&s.frame_relative),
+        max(&s.frame_relative)
+    );
+    if max(&s.frame_relative) > 1e-3 {
+        println!(
+            "note: a large residual in a clip written by `musculo augment` usually means the \
+             tensors belong to another model (a clip scaled to its bone lengths: run augment \
+             with --opensim-files and pass --model <clip>.osim)"
+        );
+    }
+    let names = model.q_names();
+    let mut order: Vec<usize> = (0..names.len()).collect();
+    order.sort_by(|&a, &b| s.coordinate_rms[b].total_cmp(&s.coordinate_rms[a]));
+    println!("largest residuals (N·m or N):");
+    println!("  {:<24} {:>12} {:>12}", "coordinate", "rms", "max");
+    for &j in order.iter().take(5) {
+        println!(
+            "  {:<24} {:>12.4e} {:>12.4e}",
+            names[j], s.coordinate_rms[j], s.coordinate_max[j]
+        );
+    }
+}

@@ -1,0 +1,168 @@
+//! The Euler–Lagrange residual of a tensor file: an `.npz` written by `musculo augment` (or a
+//! generated motion in the same format) read back and checked frame by frame.
+//!
+//! Arrays used (float32 or float64, T frames): `q`, `qd`, `qdd`, `tau` (T × n, the model's
+//! independent coordinates in `Model::q_names` order) and, when the file has contacts,
+//! `contact_point_force` (T × P × 3, ground axes, N) at the model's contact spheres, each
+//! loaded at its lowest point. `musculo augment` writes τ = τ_ID − J_cᵀλ (the floating-base rows
+//! carrying whatever the contacts leave unexplained), so its files have r ≈ 0 up to the
+//! float32 rounding of the stored arrays.
+
+use super::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput};
+use crate::model::Model;
+use crate::motion::npy::read_npz_as_f64;
+use crate::solve::contact::ContactSet;
+use std::path::Path;
+
+/// The frames of a tensor file, widened to f64.
+#[derive(Clone, Debug)]
+pub struct TensorFrames {
+    pub frames: usize,
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+    pub tau: Vec<f64>,
+    /// T × P × 3, empty without contacts.
+    pub lambda: Vec<f64>,
+    /// P, the contact points of `lambda`.
+    pub contacts: usize,
+}
+
+impl TensorFrames {
+    /// Reads `path` for `model` (n = `model.nq()` values per frame in every coordinate array).
+    pub fn read(path: &Path, model: &Model) -> crate::Result<TensorFrames> {
+        let source = path.display().to_string();
+        let arrays = read_npz_as_f64(path)?;
+        let n = model.nq();
+        let find = |name: &str| arrays.iter().find(|(k, _)| k == name).map(|(_, a)| a);
+        let bad = |msg: String| crate::Error::invalid("tensor file", format!("{source}: {msg}"));
+        let mut frames = None;
+        let mut coordinate_array = |name: &str| -> crate::Result<Vec<f64>> {
+            let a = find(name).ok_or_else(|| bad(format!("has no array `{name}`")))?;
+            if a.ndim() != 2 || a.shape()[1] != n {
+                return Err(bad(format!(
+                    "`{name}` has shape {:?}; the model \"{}\" needs T × {n}",
+                    a.shape(),
+                    model.name
+                )));
+            }
+            let t = a.shape()[0];
+            if *frames.get_or_insert(t) != t {
+                return Err(bad(format!("`{name}` has {t} frames, `q` has {frames:?}")));
+            }
+            Ok(a.iter().copied().collect())
+        };
+        let q = coordinate_array("q")?;
+        let qd = coordinate_array("qd")?;
+        let qdd = coordinate_array("qdd")?;
+        let tau = coordinate_array("tau")?;
+        let frames = frames.unwrap_or(0);
+        let (lambda, contacts) = match find("contact_point_force") {
+            None => (Vec::new(), 0),
+            Some(a) => {
+                if a.ndim() != 3 || a.shape()[0] != frames || a.shape()[2] != 3 {
+                    return Err(bad(format!(
+                        "`contact_point_force` has shape {:?}; expected {frames} × P × 3",
+                        a.shape()
+                    )));
+                }
+                (a.iter().copied().collect(), a.shape()[1])
+            }
+        };
+        if let Some((i, v)) = q
+            .iter()
+            .chain(&qd)
+            .chain(&qdd)
+            .chain(&tau)
+            .chain(&lambda)
+            .enumerate()
+            .find(|(_, v)| !v.is_finite())
+        {
+            return Err(bad(format!("value {i} of the arrays is {v}")));
+        }
+        Ok(TensorFrames {
+            frames,
+            q,
+            qd,
+            qdd,
+            tau,
+            lambda,
+            contacts,
+        })
+    }
+
+    /// The frames as a loss batch.
+    pub fn batch(&self) -> EulerLagrangeBatch<'_> {
+        EulerLagrangeBatch {
+            frames: self.frames,
+            q: &self.q,
+            qd: &self.qd,
+            qdd: &self.qdd,
+            tau: &self.tau,
+            lambda: &self.lambda,
+        }
+    }
+}
+
+/// Per-frame and per-coordinate figures of a residual.
+#[derive(Clone, Debug)]
+pub struct ResidualSummary {
+    pub frames: usize,
+    /// L_euler over all frames (unit weights).
+    pub loss: f64,
+    /// ‖r_t‖ per frame, and ‖r_t‖ / ‖τ_ID,t‖.
+    pub frame_norm: Vec<f64>,
+    pub frame_relative: Vec<f64>,
+    /// RMS and maximum |r_tj| over frames, per coordinate.
+    pub coordinate_rms: Vec<f64>,
+    pub coordinate_max: Vec<f64>,
+}
+
+/// The residual of `frames` against `model` and its contact spheres (none when the file has
+/// no contact forces); errors when the file's contact points do not match the model's.
+pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<ResidualSummary> {
+    let loss = if frames.contacts == 0 {
+        EulerLagrange::new()
+    } else {
+        let set = ContactSet::from_model(model)?;
+        if set.points.len() != frames.contacts {
+            return Err(crate::Error::invalid(
+                "tensor file",
+                format!(
+                    "`contact_point_force` has {} points; the model \"{}\" has {} contact spheres",
+                    frames.contacts,
+                    model.name,
+                    set.points.len()
+                ),
+            ));
+        }
+        EulerLagrange::new().with_contact_set(&set)
+    };
+    let mut out = EulerLagrangeOutput::default();
+    loss.evaluate(model, &frames.batch(), false, &mut out)?;
+    let n = model.nq();
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let mut s = ResidualSummary {
+        frames: frames.frames,
+        loss: out.loss,
+        frame_norm: Vec::with_capacity(frames.frames),
+        frame_relative: Vec::with_capacity(frames.frames),
+        coordinate_rms: vec![0.0; n],
+        coordinate_max: vec![0.0; n],
+    };
+    for t in 0..frames.frames {
+        let r = &out.residual[t * n..(t + 1) * n];
+        let rn = norm(r);
+        s.frame_norm.push(rn);
+        s.frame_relative
+            .push(rn / out.tau_id_norm[t].max(f64::MIN_POSITIVE));
+        for (j, v) in r.iter().enumerate() {
+            s.coordinate_rms[j] += v * v;
+            s.coordinate_max[j] = s.coordinate_max[j].max(v.abs());
+        }
+    }
+    for v in &mut s.coordinate_rms {
+        *v = (*v / frames.frames.max(1) as f64).sqrt();
+    }
+    Ok(s)
+}
