@@ -31,6 +31,7 @@ mod jacobian;
 mod reduction;
 mod rnea;
 mod rnea_derivatives;
+mod rnea_vjp;
 
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian};
 pub use contact_force_derivatives::{ContactForceDerivatives, contact_force_derivatives};
@@ -48,6 +49,7 @@ pub use jacobian::{
 };
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};
 pub use rnea_derivatives::{RneaDerivatives, rnea_derivatives, rnea_derivatives_full};
+pub use rnea_vjp::{PointForces, RneaVjp, rnea_vjp, rnea_vjp_full};
 
 use crate::model::Model;
 use crate::spatial::{Force, Mat3, Motion, SpatialInertia, Vec3};

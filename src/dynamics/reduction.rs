@@ -170,15 +170,33 @@ pub(crate) struct ReductionTangents {
     /// entries of the full-coordinate nodes are the ∂Φ/∂q_k.
     pub grad_q: Vec<f64>,
     node_acc: Vec<f64>,
+    /// g‴ = s f‴ of each one-argument function node at the current state.
+    node_g3: Vec<f64>,
     t_val: Vec<f64>,
     t_vel: Vec<f64>,
     t_acc: Vec<f64>,
+    /// The nodes that depend on q_k, in evaluation order:
+    /// `k_nodes[k_nodes_start[k]..k_nodes_start[k + 1]]`; all other tangents of direction k
+    /// are zero. Likewise the full coordinates that depend on q_k.
+    k_nodes_start: Vec<usize>,
+    k_nodes: Vec<usize>,
+    k_full_start: Vec<usize>,
+    k_full: Vec<usize>,
 }
 
 impl ReductionTangents {
     pub fn new(model: &Model) -> ReductionTangents {
         let r = &model.reduction;
         let (nf, n, nodes) = (model.n_full(), model.nq(), r.nodes.len());
+        let depends = |i: usize, k: usize| r.dep_index[r.dep_start[i]..r.dep_start[i + 1]].contains(&k);
+        let (mut k_nodes_start, mut k_nodes) = (vec![0], Vec::new());
+        let (mut k_full_start, mut k_full) = (vec![0], Vec::new());
+        for k in 0..n {
+            k_nodes.extend(eval_order(model).filter(|&i| depends(i, k)));
+            k_nodes_start.push(k_nodes.len());
+            k_full.extend((0..nf).filter(|&d| depends(r.n_coordinates + d, k)));
+            k_full_start.push(k_full.len());
+        }
         ReductionTangents {
             phi: DMatrix::zeros(nf, n),
             theta_dot_q: DMatrix::zeros(nf, n),
@@ -186,10 +204,21 @@ impl ReductionTangents {
             theta_ddot_qd: DMatrix::zeros(nf, n),
             grad_q: vec![0.0; n * r.dep_index.len()],
             node_acc: vec![0.0; nodes],
+            node_g3: vec![0.0; nodes],
             t_val: vec![0.0; nodes],
             t_vel: vec![0.0; nodes],
             t_acc: vec![0.0; nodes],
+            k_nodes_start,
+            k_nodes,
+            k_full_start,
+            k_full,
         }
+    }
+
+    /// The full coordinates that depend on q_k (the rows where column k of Φ, ∂θ̇/∂q, ∂θ̈/∂q
+    /// and ∂θ̈/∂q̇ can be non-zero).
+    pub fn full_of(&self, k: usize) -> &[usize] {
+        &self.k_full[self.k_full_start[k]..self.k_full_start[k + 1]]
     }
 
     /// Σ_d w_d ∂²θ_d/∂q_j∂q_k into `out[(j, k)]` (added), from the last [`Self::compute`].
@@ -232,10 +261,21 @@ impl ReductionTangents {
             }
             self.node_acc[i] = a;
         }
-        self.phi.fill(0.0);
+        // Φ's sparsity is fixed: only its non-zero pattern is written.
         for d in 0..model.n_full() {
             for e in r.phi_row(d) {
                 self.phi[(d, r.dep_index[e])] = node_grad[e];
+            }
+        }
+        for (i, node) in r.nodes.iter().enumerate() {
+            if let NodeKind::Function {
+                function,
+                args,
+                scale,
+            } = node
+                && args.len() == 1
+            {
+                self.node_g3[i] = scale * function.third_derivative1(node_value[args[0]]);
             }
         }
         let ReductionTangents {
@@ -244,15 +284,22 @@ impl ReductionTangents {
             theta_ddot_qd,
             grad_q,
             node_acc,
+            node_g3,
             t_val,
             t_vel,
             t_acc,
+            k_nodes_start,
+            k_nodes,
+            k_full_start,
+            k_full,
             ..
         } = self;
         for k in 0..model.nq() {
             let t_grad = &mut grad_q[k * ne..(k + 1) * ne];
-            // --- direction q_k ---
-            for i in eval_order(model) {
+            let nodes_k = &k_nodes[k_nodes_start[k]..k_nodes_start[k + 1]];
+            let full_k = &k_full[k_full_start[k]..k_full_start[k + 1]];
+            // --- direction q_k (tangents of nodes that do not depend on q_k stay 0) ---
+            for &i in nodes_k {
                 let g = r.dep_start[i]..r.dep_start[i + 1];
                 match &r.nodes[i] {
                     NodeKind::Independent(j) => {
@@ -275,11 +322,7 @@ impl ReductionTangents {
                             t_grad[e] = slope * t_grad[src + t];
                         }
                     }
-                    NodeKind::Function {
-                        function,
-                        args,
-                        scale,
-                    } => {
+                    NodeKind::Function { args, .. } => {
                         let nargs = args.len();
                         let g1 = &node_g1[r.arg_start[i]..r.arg_start[i] + nargs];
                         let g2 = &node_g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
@@ -299,8 +342,7 @@ impl ReductionTangents {
                         }
                         if nargs == 1 {
                             let c = args[0];
-                            let g3 = scale * function.third_derivative1(node_value[c]);
-                            tacc += g3 * t_val[c] * node_vel[c] * node_vel[c];
+                            tacc += node_g3[i] * t_val[c] * node_vel[c] * node_vel[c];
                         }
                         t_val[i] = tv;
                         t_vel[i] = tvel;
@@ -318,12 +360,15 @@ impl ReductionTangents {
                     }
                 }
             }
-            for d in 0..model.n_full() {
+            for &d in full_k {
                 theta_dot_q[(d, k)] = t_vel[nc + d];
                 theta_ddot_q[(d, k)] = t_acc[nc + d];
             }
+            for &i in nodes_k {
+                t_val[i] = 0.0;
+            }
             // --- direction q̇_k ---
-            for i in eval_order(model) {
+            for &i in nodes_k {
                 match &r.nodes[i] {
                     NodeKind::Independent(j) => {
                         t_vel[i] = if *j == k { 1.0 } else { 0.0 };
@@ -354,8 +399,12 @@ impl ReductionTangents {
                     }
                 }
             }
-            for d in 0..model.n_full() {
+            for &d in full_k {
                 theta_ddot_qd[(d, k)] = t_acc[nc + d];
+            }
+            for &i in nodes_k {
+                t_vel[i] = 0.0;
+                t_acc[i] = 0.0;
             }
         }
     }

@@ -8,29 +8,28 @@
 //! L_t = Σ_j w_j r_tj²,   L = Σ_t L_t
 //! ```
 //!
-//! and with u = W r (W = diag w):
+//! and with u = 2 W r (W = diag w):
 //!
 //! ```text
-//! ∂L_t/∂q  = 2 (∂τ_ID/∂q − ∂Q/∂q)ᵀ u     (Q = Σ_i J_iᵀ λ_i)
-//! ∂L_t/∂q̇  = 2 (∂τ_ID/∂q̇)ᵀ u
-//! ∂L_t/∂q̈  = 2 M u
-//! ∂L_t/∂τ  = −2 u
-//! ∂L_t/∂λ_i = −2 J_i u
+//! ∂L_t/∂q  = uᵀ ∂(τ_ID − Q)/∂q            (Q = Σ_i J_iᵀ λ_i)
+//! ∂L_t/∂q̇  = uᵀ ∂τ_ID/∂q̇
+//! ∂L_t/∂q̈  = M u
+//! ∂L_t/∂τ  = −u
+//! ∂L_t/∂λ_i = −J_i u
 //! ```
+//!
+//! each a vector–Jacobian product of [`crate::dynamics::RneaVjp`]: one forward pass (which
+//! gives r) and one backward pass per frame, O(n), without forming a Jacobian.
 //!
 //! A contact point is a carrier point fixed in a body plus an offset fixed in ground
 //! ([`LossContact`]): for a contact sphere of radius ρ on a floor with upward normal n the
 //! carrier is its centre and the offset −ρ n, so the force acts at the sphere's lowest point
 //! whatever the foot's orientation (as `solve::contact` places it).
 
-use crate::dynamics::{
-    self, ContactForceDerivatives, Data, RneaDerivatives, contact_force_derivatives,
-    rnea_derivatives,
-};
+use crate::dynamics::{Data, PointForces, RneaVjp};
 use crate::model::Model;
 use crate::solve::contact::ContactSet;
 use crate::spatial::Vec3;
-use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 /// Where a contact force acts: c + g, with c fixed in `body` and g fixed in ground.
@@ -236,71 +235,41 @@ impl EulerLagrange {
         for (c, f) in ws.forces.iter_mut().zip(frame.lambda.chunks(3)) {
             *c = Vec3::new(f[0], f[1], f[2]);
         }
-        // Q = Σ J_iᵀ λ_i (and ∂Q/∂q), then J_c at the same state for ∂L/∂λ
-        contact_force_derivatives(
-            model,
-            &mut ws.data,
-            frame.q,
+        let external = PointForces {
             carriers,
-            offsets,
-            &ws.forces,
-            &mut ws.contact,
-        )?;
-        if gradients {
-            for (pt, (c, g)) in ws.points.iter_mut().zip(carriers.iter().zip(offsets)) {
-                let rot = ws.data.body_pose(c.0).0;
-                *pt = (c.0, c.1 + rot.transpose() * g);
-            }
-            dynamics::contact_jacobian(model, &ws.data, &ws.points, &mut ws.jc)?;
-            rnea_derivatives(
-                model,
-                &mut ws.data,
-                frame.q,
-                frame.qd,
-                frame.qdd,
-                &mut ws.rnea,
-            )?;
-        } else {
-            dynamics::rnea(model, &mut ws.data, frame.q, frame.qd, frame.qdd)?;
-        }
-        // r = τ_ID − τ − Q,  u = W r,  L_t = rᵀ W r
-        let tau_id = ws.data.tau();
+            offsets_in_ground: offsets,
+            forces: &ws.forces,
+        };
+        // τ_ID − J_cᵀλ, then r = that − τ,  u = 2 W r,  L_t = rᵀ W r
+        let tau_net =
+            ws.vjp
+                .forward(model, &mut ws.data, frame.q, frame.qd, frame.qdd, &external)?;
         let (head, rest) = row.split_at_mut(2 + n);
-        head[1] = tau_id.norm();
-        let r = &mut head[2..];
         let mut loss = 0.0;
         for j in 0..n {
-            r[j] = tau_id[j] - frame.tau[j] - ws.contact.generalized_force[j];
+            let r = tau_net[j] - frame.tau[j];
             let w = self.weights.get(j).copied().unwrap_or(1.0);
-            ws.u[j] = w * r[j];
-            loss += ws.u[j] * r[j];
+            head[2 + j] = r;
+            ws.u[j] = 2.0 * w * r;
+            loss += w * r * r;
         }
         head[0] = loss;
+        head[1] = ws.vjp.tau_id.norm();
         if gradients {
+            ws.vjp.backward(model, &ws.data, &ws.u)?;
             let (gq, rest) = rest.split_at_mut(n);
             let (gqd, rest) = rest.split_at_mut(n);
             let (gqdd, rest) = rest.split_at_mut(n);
             let (gtau, glambda) = rest.split_at_mut(n);
-            let d = &ws.rnea;
-            for k in 0..n {
-                let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
-                for j in 0..n {
-                    let u = ws.u[j];
-                    a += (d.dtau_dq[(j, k)] - ws.contact.dq[(j, k)]) * u;
-                    b += d.dtau_dqd[(j, k)] * u;
-                    c += d.dtau_dqdd[(j, k)] * u;
-                }
-                gq[k] = 2.0 * a;
-                gqd[k] = 2.0 * b;
-                gqdd[k] = 2.0 * c;
-                gtau[k] = -2.0 * ws.u[k];
+            // ∂L/∂q = uᵀ∂(τ_ID − J_cᵀλ)/∂q, likewise q̇, q̈;  ∂L/∂τ = −u;  ∂L/∂λ_i = −J_i u
+            gq.copy_from_slice(ws.vjp.dq.as_slice());
+            gqd.copy_from_slice(ws.vjp.dqd.as_slice());
+            gqdd.copy_from_slice(ws.vjp.dqdd.as_slice());
+            for (g, u) in gtau.iter_mut().zip(&ws.u) {
+                *g = -u;
             }
-            for (i, g) in glambda.iter_mut().enumerate() {
-                let mut v = 0.0;
-                for j in 0..n {
-                    v += ws.jc[(i, j)] * ws.u[j];
-                }
-                *g = -2.0 * v;
+            for (g, d) in glambda.chunks_mut(3).zip(&ws.vjp.dforces) {
+                g.copy_from_slice(d.as_slice());
             }
         }
         Ok(())
@@ -318,11 +287,8 @@ struct Frame<'a> {
 /// One worker's arrays, allocated once per worker.
 struct Workspace {
     data: Data,
-    rnea: RneaDerivatives,
-    contact: ContactForceDerivatives,
+    vjp: RneaVjp,
     forces: Vec<Vec3>,
-    points: Vec<(usize, Vec3)>,
-    jc: DMatrix<f64>,
     u: Vec<f64>,
 }
 
@@ -330,11 +296,8 @@ impl Workspace {
     fn new(model: &Model, contacts: usize) -> Workspace {
         Workspace {
             data: Data::new(model),
-            rnea: RneaDerivatives::new(model),
-            contact: ContactForceDerivatives::new(model),
+            vjp: RneaVjp::new(model),
             forces: vec![Vec3::zeros(); contacts],
-            points: vec![(0, Vec3::zeros()); contacts],
-            jc: DMatrix::zeros(3 * contacts, model.nq()),
             u: vec![0.0; model.nq()],
         }
     }

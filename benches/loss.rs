@@ -1,0 +1,208 @@
+//! Per-frame cost of the Euler–Lagrange loss with all its gradients, beside one
+//! inverse-dynamics call on the same states (the peer: the cheap-gradient bound of reverse
+//! mode is a small multiple of it) and the full Jacobians of inverse dynamics.
+//!
+//! Columns, per frame on one core (median over batches of 200 random states, min–max):
+//! - `ID`: `dynamics::rnea`;
+//! - `VJP`: `RneaVjp::forward` + `backward` with 8 external point forces (uᵀ∂τ/∂q, q̇, q̈, λ);
+//! - `loss+grad`: `loss::EulerLagrange::evaluate` with gradients over the batch (rayon pool
+//!   of one thread), per frame;
+//! - `Jacobians`: `dynamics::rnea_derivatives` (∂τ/∂q, ∂τ/∂q̇, ∂τ/∂q̈ as matrices).
+//!
+//! Run: `cargo bench --bench loss` (gait2392 and Rajagopal2016 from MUSCULO_REFERENCE or
+//! ../shared/reference when present).
+
+use musculo::dynamics::{self, PointForces, RneaDerivatives, RneaVjp};
+use musculo::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
+use musculo::random::SplitMix64;
+use musculo::spatial::Vec3;
+use musculo::{Data, Model};
+use std::hint::black_box;
+use std::time::Instant;
+
+const FRAMES: usize = 200;
+const BATCHES: usize = 21;
+
+struct Batch {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    tau: Vec<f64>,
+    lambda: Vec<f64>,
+}
+
+fn batch(model: &Model, contacts: usize) -> Batch {
+    let mut rng = SplitMix64(7);
+    let n = model.nq();
+    let mut q = Vec::with_capacity(FRAMES * n);
+    for _ in 0..FRAMES {
+        for &c in &model.reduction.independent {
+            let [lo, hi] = model.coordinates[c].range;
+            q.push(rng.uniform(lo, hi));
+        }
+    }
+    let mut draw = |len: usize, a: f64| (0..len).map(|_| rng.uniform(-a, a)).collect::<Vec<_>>();
+    Batch {
+        q,
+        qd: draw(FRAMES * n, 1.0),
+        qdd: draw(FRAMES * n, 5.0),
+        tau: draw(FRAMES * n, 50.0),
+        lambda: draw(FRAMES * 3 * contacts, 300.0),
+    }
+}
+
+/// Median, min and max per-frame time in µs of `f` run over the batch, `BATCHES` times.
+fn time(mut f: impl FnMut()) -> (f64, f64, f64) {
+    f();
+    let mut t: Vec<f64> = (0..BATCHES)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64() * 1e6 / FRAMES as f64
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    (t[t.len() / 2], t[0], t[t.len() - 1])
+}
+
+/// Contact points on the feet: the model's spheres, or 4 points under the heels and toes.
+fn contacts(model: &Model) -> Vec<LossContact> {
+    if let Ok(set) = musculo::solve::contact::ContactSet::from_model(model) {
+        return EulerLagrange::new().with_contact_set(&set).contacts;
+    }
+    ["calcn_r", "calcn_l", "toes_r", "toes_l"]
+        .iter()
+        .filter_map(|b| {
+            Some(LossContact {
+                name: b.to_string(),
+                body: model.body_index(b)?,
+                location_in_body: Vec3::new(0.05, -0.01, 0.0),
+                offset_in_ground: Vec3::new(0.0, -0.03, 0.0),
+            })
+        })
+        .collect()
+}
+
+fn bench(name: &str, model: &Model) {
+    let n = model.nq();
+    let loss = EulerLagrange {
+        contacts: contacts(model),
+        weights: vec![],
+    };
+    let p = loss.contacts.len();
+    let b = batch(model, p);
+    let mut data = Data::new(model);
+    let id = time(|| {
+        for f in 0..FRAMES {
+            let r = f * n..(f + 1) * n;
+            black_box(
+                dynamics::rnea(
+                    model,
+                    &mut data,
+                    &b.q[r.clone()],
+                    &b.qd[r.clone()],
+                    &b.qdd[r],
+                )
+                .unwrap(),
+            );
+        }
+    });
+    let carriers: Vec<(usize, Vec3)> = loss
+        .contacts
+        .iter()
+        .map(|c| (c.body, c.location_in_body))
+        .collect();
+    let offsets: Vec<Vec3> = loss.contacts.iter().map(|c| c.offset_in_ground).collect();
+    let mut forces = vec![Vec3::zeros(); p];
+    let mut vjp = RneaVjp::new(model);
+    let u = vec![0.5; n];
+    let vjp_time = time(|| {
+        for f in 0..FRAMES {
+            let r = f * n..(f + 1) * n;
+            for (c, l) in forces
+                .iter_mut()
+                .zip(b.lambda[f * 3 * p..(f + 1) * 3 * p].chunks(3))
+            {
+                *c = Vec3::new(l[0], l[1], l[2]);
+            }
+            let ext = PointForces {
+                carriers: &carriers,
+                offsets_in_ground: &offsets,
+                forces: &forces,
+            };
+            vjp.forward(
+                model,
+                &mut data,
+                &b.q[r.clone()],
+                &b.qd[r.clone()],
+                &b.qdd[r],
+                &ext,
+            )
+            .unwrap();
+            vjp.backward(model, &data, &u).unwrap();
+            black_box(&vjp.dq);
+        }
+    });
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let mut out = EulerLagrangeOutput::default();
+    let lb = EulerLagrangeBatch {
+        frames: FRAMES,
+        q: &b.q,
+        qd: &b.qd,
+        qdd: &b.qdd,
+        tau: &b.tau,
+        lambda: &b.lambda,
+    };
+    let loss_time = pool.install(|| time(|| loss.evaluate(model, &lb, true, &mut out).unwrap()));
+    let mut der = RneaDerivatives::new(model);
+    let jac = time(|| {
+        for f in 0..FRAMES {
+            let r = f * n..(f + 1) * n;
+            dynamics::rnea_derivatives(
+                model,
+                &mut data,
+                &b.q[r.clone()],
+                &b.qd[r.clone()],
+                &b.qdd[r],
+                &mut der,
+            )
+            .unwrap();
+            black_box(&der.dtau_dq);
+        }
+    });
+    let cell = |t: (f64, f64, f64)| format!("{:>7.2} ({:.2}–{:.2})", t.0, t.1, t.2);
+    println!(
+        "{name:<18} n={n:<3} P={p:<2} ID {}  VJP {} = {:.1}× ID  loss+grad {} = {:.1}× ID  Jacobians {} = {:.1}× ID",
+        cell(id),
+        cell(vjp_time),
+        vjp_time.0 / id.0,
+        cell(loss_time),
+        loss_time.0 / id.0,
+        cell(jac),
+        jac.0 / id.0
+    );
+}
+
+fn main() {
+    println!(
+        "per frame, µs, one core: median (min–max) over {BATCHES} batches of {FRAMES} random states"
+    );
+    bench("musculo_fullbody", &Model::default_fullbody());
+    for (name, rel) in [
+        (
+            "gait2392",
+            "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        ),
+        (
+            "Rajagopal2016",
+            "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+        ),
+    ] {
+        if let Some(path) = musculo::reference::file(rel) {
+            bench(name, &Model::from_osim_file(&path).unwrap());
+        }
+    }
+}
