@@ -14,7 +14,9 @@
 //! MJCF that `musculo export-mjcf` writes): `M_full` (`forward_kinematics_full` + `crba_full`),
 //! `bias_full` and `ID_full` (`rnea_full` with θ̈ = 0 and with θ̈ = Φ q̈ + Φ̇ q̇), and
 //! `ID_derivatives_full` (`rnea_derivatives_full`: ∂τ/∂θ and ∂τ/∂θ̇), and in q
-//! `ID_derivatives` (`rnea_derivatives`: ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ = M).
+//! `ID_derivatives` (`rnea_derivatives`: ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ = M), and `ID_vjp`
+//! (`RneaVjp::forward` + `backward`: τ and uᵀ∂τ/∂q, uᵀ∂τ/∂q̇, uᵀ∂τ/∂q̈ for one weight vector u,
+//! what the gradient of a loss Σ‖r‖² needs).
 //!
 //! States: the rows of STATES.npy (B × 3n float64, each row q, q̇, q̈), or else N random states
 //! (default 100; seed fixed): q uniform over each independent coordinate's range, q̇ uniform in
@@ -279,6 +281,17 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Ok(())
     })?;
 
+    let mut vjp = dynamics::RneaVjp::new(&model);
+    let weights = vec![0.5; model.nq()];
+    let id_vjp = time_calls(b, k, |i| {
+        let st = &s[i];
+        let none = dynamics::PointForces::default();
+        vjp.forward(&model, &mut data, &st.q, &st.qd, &st.qdd, &none)?;
+        vjp.backward(&model, &data, &weights)?;
+        black_box(&vjp.dq);
+        Ok(())
+    })?;
+
     if let Some(path) = &o.full {
         let rows =
             |f: fn(&State) -> &Vec<f64>| Array2::from_shape_fn((b, nf), |(i, j)| f(&s[i])[j]);
@@ -327,6 +340,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "M": m, "bias": bias, "ID": id,
             "M_full": m_full, "bias_full": bias_full, "ID_full": id_full, "ID_derivatives_full": id_derivatives_full,
             "ID_derivatives": id_derivatives,
+            "ID_vjp": id_vjp,
         },
     });
     println!("{}", serde_json::to_string_pretty(&report)?);

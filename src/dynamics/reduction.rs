@@ -188,7 +188,8 @@ impl ReductionTangents {
     pub fn new(model: &Model) -> ReductionTangents {
         let r = &model.reduction;
         let (nf, n, nodes) = (model.n_full(), model.nq(), r.nodes.len());
-        let depends = |i: usize, k: usize| r.dep_index[r.dep_start[i]..r.dep_start[i + 1]].contains(&k);
+        let depends =
+            |i: usize, k: usize| r.dep_index[r.dep_start[i]..r.dep_start[i + 1]].contains(&k);
         let (mut k_nodes_start, mut k_nodes) = (vec![0], Vec::new());
         let (mut k_full_start, mut k_full) = (vec![0], Vec::new());
         for k in 0..n {

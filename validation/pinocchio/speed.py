@@ -62,6 +62,8 @@ ROWS = [
     ("ID = rnea", "ID", "rnea", True),
     ("ID, full θ", "ID_full", "rnea", False),
     ("ID derivatives", "ID_derivatives_full", "computeRNEADerivatives", False),
+    ("ID derivatives, q", "ID_derivatives", "computeRNEADerivatives", True),
+    ("ID VJP uᵀ∂τ (loss gradient)", "ID_vjp", "computeRNEADerivatives", True),
 ]
 
 
