@@ -11,6 +11,9 @@
 //!   or are the CI itself (`cargo test`): `.ci/run` runs them after its set-up steps; this
 //!   test checks that each of them appears in `.ci/run` (ignoring `--locked`).
 //! - ` ```text ` — output listings; ` ```rust ` — library code.
+//! - ` ```python ` — the Python package's examples, only in its section ("## Python package"):
+//!   `python/tests/test_musculo.py::test_readme_examples` runs them against the built wheel
+//!   (`scripts/build-python.sh`, in `.ci/run`).
 //!
 //! After the run, every file the commands wrote must be ignored by `.gitignore`, and the
 //! README's rebuild commands (`model build`, `model reserves`) must reproduce the shipped
@@ -108,8 +111,22 @@ fn readme() -> String {
 
 #[test]
 fn every_fenced_block_is_tagged() {
-    let known = ["sh", "sh ci", "text", "rust"];
-    for b in blocks(&readme()) {
+    let known = ["sh", "sh ci", "text", "rust", "python"];
+    let text = readme();
+    let python_section = text
+        .find("\n## Python package")
+        .expect("a Python package section");
+    let section_end = text[python_section + 1..]
+        .find("\n## ")
+        .map_or(text.len(), |e| python_section + 1 + e);
+    let line_of = |at: usize| text[..at].lines().count() + 1;
+    let (first, last) = (line_of(python_section), line_of(section_end));
+    for b in blocks(&text) {
+        assert!(
+            b.info != "python" || (first..=last).contains(&b.line),
+            "README.md:{}: python blocks belong in the Python package section, whose test runs them",
+            b.line
+        );
         assert!(
             known.contains(&b.info.as_str()),
             "README.md:{}: fenced block tagged `{}`; use one of {known:?} (see tests/readme.rs)",

@@ -1,0 +1,621 @@
+//! `musculo._musculo`, the extension module of the Python package: models, dynamics, muscles
+//! and the Euler–Lagrange loss on numpy arrays. Thin by design: it converts arrays (any leading
+//! batch shape; the last axis holds one frame), releases the GIL while the library works
+//! (frames in parallel on rayon's threads), and raises `musculo.MusculoError` with the
+//! library's message for bad input.
+
+use musculo::dynamics::{self, Data, RneaDerivatives};
+use musculo::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
+use musculo::muscle::{MuscleData, MuscleSet, TendonMode, compute_muscles};
+use musculo::solve::contact::ContactSet;
+use musculo::spatial::Vec3;
+use ndarray::{ArrayD, IxDyn};
+use numpy::{AllowTypeChange, IntoPyArray, PyArrayDyn, PyArrayLikeDyn};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
+
+pyo3::create_exception!(
+    _musculo,
+    MusculoError,
+    PyValueError,
+    "An error reported by musculo: bad input (shape, non-finite value, unknown name) or a bad model file."
+);
+
+fn to_py(e: musculo::Error) -> PyErr {
+    MusculoError::new_err(e.to_string())
+}
+
+type Input<'py> = PyArrayLikeDyn<'py, f64, AllowTypeChange>;
+type Output<'py> = Bound<'py, PyArrayDyn<f64>>;
+
+/// The frames of an array whose last axis holds `width` values: (values in C order, leading
+/// shape).
+fn frames(name: &str, a: &Input, width: usize) -> PyResult<(Vec<f64>, Vec<usize>)> {
+    let shape = a.as_array().shape().to_vec();
+    if shape.last() != Some(&width) {
+        return Err(MusculoError::new_err(format!(
+            "{name}: shape {shape:?}; its last axis must have {width} values"
+        )));
+    }
+    Ok((
+        a.as_array().iter().copied().collect(),
+        shape[..shape.len() - 1].to_vec(),
+    ))
+}
+
+/// Frames of a second array that must have the leading shape `lead`.
+fn frames_like(name: &str, a: &Input, width: usize, lead: &[usize]) -> PyResult<Vec<f64>> {
+    let (v, l) = frames(name, a, width)?;
+    if l != lead {
+        return Err(MusculoError::new_err(format!(
+            "{name}: leading shape {l:?} differs from q's {lead:?}"
+        )));
+    }
+    Ok(v)
+}
+
+fn array<'py>(
+    py: Python<'py>,
+    lead: &[usize],
+    tail: &[usize],
+    values: Vec<f64>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let shape: Vec<usize> = lead.iter().chain(tail).copied().collect();
+    let a = ArrayD::from_shape_vec(IxDyn(&shape), values)
+        .map_err(|e| MusculoError::new_err(format!("internal shape error: {e}")))?;
+    Ok(a.into_pyarray(py))
+}
+
+/// Runs `f(workspace, frame, row)` for every frame in parallel (one workspace per worker),
+/// each writing its `width` values of the result.
+fn per_frame<W, I, F>(frames: usize, width: usize, init: I, f: F) -> musculo::Result<Vec<f64>>
+where
+    I: Fn() -> W + Sync + Send,
+    F: Fn(&mut W, usize, &mut [f64]) -> musculo::Result<()> + Sync + Send,
+{
+    let mut out = vec![0.0; frames * width];
+    let at = |i: usize, e: musculo::Error| musculo::Error::InvalidArgument {
+        argument: "frames",
+        message: format!("frame {i}: {e}"),
+    };
+    if width == 0 {
+        let mut w = init();
+        for i in 0..frames {
+            f(&mut w, i, &mut []).map_err(|e| at(i, e))?;
+        }
+        return Ok(out);
+    }
+    out.par_chunks_mut(width)
+        .enumerate()
+        .try_for_each_init(init, |w, (i, row)| f(w, i, row).map_err(|e| at(i, e)))?;
+    Ok(out)
+}
+
+/// A musculoskeletal model (immutable; shared by every call).
+#[pyclass(frozen, module = "musculo")]
+struct Model {
+    inner: Arc<musculo::Model>,
+    muscles: OnceLock<Result<Arc<MuscleSet>, String>>,
+}
+
+impl Model {
+    fn wrap(model: musculo::Model) -> Model {
+        Model {
+            inner: Arc::new(model),
+            muscles: OnceLock::new(),
+        }
+    }
+
+    fn muscle_set(&self) -> PyResult<Arc<MuscleSet>> {
+        self.muscles
+            .get_or_init(|| {
+                MuscleSet::new(&self.inner)
+                    .map(Arc::new)
+                    .map_err(|e| e.to_string())
+            })
+            .clone()
+            .map_err(MusculoError::new_err)
+    }
+
+    fn body(&self, name: &str) -> PyResult<usize> {
+        self.inner.body_index(name).ok_or_else(|| {
+            MusculoError::new_err(format!(
+                "no body \"{name}\" in model \"{}\"",
+                self.inner.name
+            ))
+        })
+    }
+}
+
+#[pymethods]
+impl Model {
+    /// The built-in default full-body model (21 segments, 29 degrees of freedom, 324 muscles).
+    #[staticmethod]
+    fn default() -> Model {
+        Model::wrap(musculo::Model::default_fullbody())
+    }
+
+    /// Reads an OpenSim 4.x model file (.osim).
+    #[staticmethod]
+    fn from_osim(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
+        py.detach(|| musculo::Model::from_osim_file(&path))
+            .map(Model::wrap)
+            .map_err(to_py)
+    }
+
+    /// Reads OpenSim 4.x model XML from a string (`source` names it in messages).
+    #[staticmethod]
+    #[pyo3(signature = (xml, source = "<string>"))]
+    fn from_osim_string(py: Python<'_>, xml: &str, source: &str) -> PyResult<Model> {
+        py.detach(|| musculo::Model::from_osim_str(xml, source))
+            .map(Model::wrap)
+            .map_err(to_py)
+    }
+
+    #[getter]
+    fn name(&self) -> String {
+        self.inner.name.clone()
+    }
+
+    /// Number of independent coordinates n (the length of q).
+    #[getter]
+    fn nq(&self) -> usize {
+        self.inner.nq()
+    }
+
+    /// Number of full coordinates (movable transform axes).
+    #[getter]
+    fn n_full(&self) -> usize {
+        self.inner.n_full()
+    }
+
+    /// Names of the independent coordinates, in q's order.
+    #[getter]
+    fn coordinate_names(&self) -> Vec<String> {
+        self.inner.q_names().iter().map(|s| s.to_string()).collect()
+    }
+
+    #[getter]
+    fn body_names(&self) -> Vec<String> {
+        self.inner.bodies.iter().map(|b| b.name.clone()).collect()
+    }
+
+    /// Names of the muscles, in the order of muscle arrays.
+    #[getter]
+    fn muscle_names(&self) -> PyResult<Vec<String>> {
+        Ok(self.muscle_set()?.names().map(str::to_string).collect())
+    }
+
+    #[getter]
+    fn total_mass(&self) -> f64 {
+        self.inner.total_mass()
+    }
+
+    /// The default coordinate values (n).
+    fn default_q<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        array(py, &[], &[self.inner.nq()], self.inner.default_q())
+    }
+
+    /// The joint-space mass matrix M(q): (..., n) → (..., n, n).
+    fn mass_matrix<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.inner, self.inner.nq());
+        let (q, lead) = frames("q", &q, n)?;
+        let t = q.len() / n.max(1);
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    n * n,
+                    || Data::new(m),
+                    |data, i, row| {
+                        let mm = dynamics::crba(m, data, &q[i * n..(i + 1) * n])?;
+                        // row-major
+                        for r in 0..n {
+                            for c in 0..n {
+                                row[r * n + c] = mm[(r, c)];
+                            }
+                        }
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        array(py, &lead, &[n, n], out)
+    }
+
+    /// The bias forces C(q, q̇) q̇ + G(q): (..., n) each → (..., n).
+    fn bias<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qd: Input<'py>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.inner, self.inner.nq());
+        let (q, lead) = frames("q", &q, n)?;
+        let qd = frames_like("qd", &qd, n, &lead)?;
+        let t = q.len() / n.max(1);
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    n,
+                    || Data::new(m),
+                    |data, i, row| {
+                        let r = i * n..(i + 1) * n;
+                        row.copy_from_slice(
+                            dynamics::nonlinear_effects(m, data, &q[r.clone()], &qd[r])?.as_slice(),
+                        );
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        array(py, &lead, &[n], out)
+    }
+
+    /// Inverse dynamics τ = M q̈ + C q̇ + G: (..., n) each → (..., n).
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qd: Input<'py>,
+        qdd: Input<'py>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.inner, self.inner.nq());
+        let (q, lead) = frames("q", &q, n)?;
+        let qd = frames_like("qd", &qd, n, &lead)?;
+        let qdd = frames_like("qdd", &qdd, n, &lead)?;
+        let t = q.len() / n.max(1);
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    n,
+                    || Data::new(m),
+                    |data, i, row| {
+                        let r = i * n..(i + 1) * n;
+                        row.copy_from_slice(
+                            dynamics::rnea(m, data, &q[r.clone()], &qd[r.clone()], &qdd[r])?
+                                .as_slice(),
+                        );
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        array(py, &lead, &[n], out)
+    }
+
+    /// ∂τ/∂q, ∂τ/∂q̇, ∂τ/∂q̈ of inverse dynamics: (..., n) each → three (..., n, n) arrays.
+    fn inverse_dynamics_derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qd: Input<'py>,
+        qdd: Input<'py>,
+    ) -> PyResult<(Output<'py>, Output<'py>, Output<'py>)> {
+        let (m, n) = (&*self.inner, self.inner.nq());
+        let (q, lead) = frames("q", &q, n)?;
+        let qd = frames_like("qd", &qd, n, &lead)?;
+        let qdd = frames_like("qdd", &qdd, n, &lead)?;
+        let t = q.len() / n.max(1);
+        let nn = n * n;
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    3 * nn,
+                    || (Data::new(m), RneaDerivatives::new(m)),
+                    |(data, der), i, row| {
+                        let r = i * n..(i + 1) * n;
+                        dynamics::rnea_derivatives(
+                            m,
+                            data,
+                            &q[r.clone()],
+                            &qd[r.clone()],
+                            &qdd[r],
+                            der,
+                        )?;
+                        for (k, mat) in [&der.dtau_dq, &der.dtau_dqd, &der.dtau_dqdd]
+                            .iter()
+                            .enumerate()
+                        {
+                            for a in 0..n {
+                                for b in 0..n {
+                                    row[k * nn + a * n + b] = mat[(a, b)];
+                                }
+                            }
+                        }
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        let mut parts = [Vec::new(), Vec::new(), Vec::new()];
+        for row in out.chunks(3 * nn.max(1)) {
+            for (k, p) in parts.iter_mut().enumerate() {
+                p.extend_from_slice(&row[k * nn..(k + 1) * nn]);
+            }
+        }
+        let [a, b, c] = parts;
+        Ok((
+            array(py, &lead, &[n, n], a)?,
+            array(py, &lead, &[n, n], b)?,
+            array(py, &lead, &[n, n], c)?,
+        ))
+    }
+
+    /// The contact Jacobian of body-fixed points `[(body name, [x, y, z] in the body), …]`:
+    /// (..., n) → (..., 3P, n), rows 3i..3i+3 the velocity of point i in ground.
+    fn contact_jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        points: Vec<(String, [f64; 3])>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.inner, self.inner.nq());
+        let pts: Vec<(usize, Vec3)> = points
+            .iter()
+            .map(|(b, p)| Ok((self.body(b)?, Vec3::new(p[0], p[1], p[2]))))
+            .collect::<PyResult<_>>()?;
+        let (q, lead) = frames("q", &q, n)?;
+        let t = q.len() / n.max(1);
+        let rows = 3 * pts.len();
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    rows * n,
+                    || (Data::new(m), nalgebra::DMatrix::zeros(rows, n)),
+                    |(data, jc), i, row| {
+                        dynamics::forward_kinematics(m, data, &q[i * n..(i + 1) * n])?;
+                        dynamics::contact_jacobian(m, data, &pts, jc)?;
+                        for a in 0..rows {
+                            for b in 0..n {
+                                row[a * n + b] = jc[(a, b)];
+                            }
+                        }
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        array(py, &lead, &[rows, n], out)
+    }
+
+    /// Musculotendon lengths and moment arms (r = −∂ℓ/∂q, so a tension F ≥ 0 gives the
+    /// generalized force r F): (..., n) → ((..., m), (..., n, m)).
+    fn muscle_paths<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+    ) -> PyResult<(Output<'py>, Output<'py>)> {
+        let set = self.muscle_set()?;
+        let (m, n, k) = (&*self.inner, self.inner.nq(), set.len());
+        let (q, lead) = frames("q", &q, n)?;
+        let t = q.len() / n.max(1);
+        let zeros = vec![0.0; k];
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    k + n * k,
+                    || (Data::new(m), MuscleData::new(m, &set)),
+                    |(data, md), i, row| {
+                        dynamics::forward_kinematics(m, data, &q[i * n..(i + 1) * n])?;
+                        compute_muscles(m, data, &set, &zeros, TendonMode::Rigid, false, md)?;
+                        row[..k].copy_from_slice(&md.paths.length);
+                        for a in 0..n {
+                            for b in 0..k {
+                                row[k + a * k + b] = md.paths.moment_arms[(a, b)];
+                            }
+                        }
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        let (mut lengths, mut arms) = (Vec::new(), Vec::new());
+        for row in out.chunks((k + n * k).max(1)).take(t) {
+            lengths.extend_from_slice(&row[..k]);
+            arms.extend_from_slice(&row[k..]);
+        }
+        Ok((
+            array(py, &lead, &[k], lengths)?,
+            array(py, &lead, &[n, k], arms)?,
+        ))
+    }
+
+    /// Muscle (tendon) forces at activations a: (..., n), (..., n), (..., m) → (..., m), with
+    /// each muscle's own tendon model, or rigid tendons with `rigid_tendon=True`.
+    #[pyo3(signature = (q, qd, activation, rigid_tendon = false))]
+    fn muscle_forces<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qd: Input<'py>,
+        activation: Input<'py>,
+        rigid_tendon: bool,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let set = self.muscle_set()?;
+        let (m, n, k) = (&*self.inner, self.inner.nq(), set.len());
+        let (q, lead) = frames("q", &q, n)?;
+        let qd = frames_like("qd", &qd, n, &lead)?;
+        let act = frames_like("activation", &activation, k, &lead)?;
+        let t = q.len() / n.max(1);
+        let mode = if rigid_tendon {
+            TendonMode::Rigid
+        } else {
+            TendonMode::AsModel
+        };
+        let out = py
+            .detach(|| {
+                per_frame(
+                    t,
+                    k,
+                    || (Data::new(m), MuscleData::new(m, &set)),
+                    |(data, md), i, row| {
+                        let r = i * n..(i + 1) * n;
+                        dynamics::forward_kinematics_velocity(m, data, &q[r.clone()], &qd[r])?;
+                        compute_muscles(m, data, &set, &act[i * k..(i + 1) * k], mode, false, md)?;
+                        row.copy_from_slice(&md.force);
+                        Ok(())
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        array(py, &lead, &[k], out)
+    }
+}
+
+/// The Euler–Lagrange loss L = Σ_t Σ_j w_j r_tj², r = M q̈ + C q̇ + G − τ − Σ_i J_iᵀ λ_i, with
+/// its gradients.
+#[pyclass(frozen, module = "musculo")]
+struct EulerLagrangeLoss {
+    model: Arc<musculo::Model>,
+    loss: EulerLagrange,
+}
+
+#[pymethods]
+impl EulerLagrangeLoss {
+    /// `contacts`: None (no contact forces, the default), "model" (the model's contact
+    /// spheres, each loaded at its lowest point on the floor), or a list of `(body name,
+    /// [x, y, z] in the body, [gx, gy, gz] offset fixed in ground)`. `weights`: one w_j ≥ 0 per
+    /// coordinate (default all 1).
+    #[new]
+    #[pyo3(signature = (model, contacts = None, weights = None))]
+    fn new(
+        model: &Model,
+        contacts: Option<&Bound<'_, PyAny>>,
+        weights: Option<Vec<f64>>,
+    ) -> PyResult<EulerLagrangeLoss> {
+        let mut loss = match contacts {
+            None => EulerLagrange::new(),
+            Some(c) if c.extract::<String>().is_ok() => {
+                let word: String = c.extract()?;
+                if word != "model" {
+                    return Err(MusculoError::new_err(format!(
+                        "contacts: \"{word}\" — give \"model\", None or a list of (body, location, offset)"
+                    )));
+                }
+                EulerLagrange::new()
+                    .with_contact_set(&ContactSet::from_model(&model.inner).map_err(to_py)?)
+            }
+            Some(c) => {
+                let list: Vec<(String, [f64; 3], [f64; 3])> = c.extract()?;
+                EulerLagrange {
+                    contacts: list
+                        .iter()
+                        .enumerate()
+                        .map(|(i, (b, c, g))| {
+                            Ok(LossContact {
+                                name: format!("{b}#{i}"),
+                                body: model.body(b)?,
+                                location_in_body: Vec3::new(c[0], c[1], c[2]),
+                                offset_in_ground: Vec3::new(g[0], g[1], g[2]),
+                            })
+                        })
+                        .collect::<PyResult<_>>()?,
+                    weights: vec![],
+                }
+            }
+        };
+        loss.weights = weights.unwrap_or_default();
+        loss.validate(&model.inner).map_err(to_py)?;
+        Ok(EulerLagrangeLoss {
+            model: model.inner.clone(),
+            loss,
+        })
+    }
+
+    /// Names of the contact points, in the order of λ's second-to-last axis.
+    #[getter]
+    fn contact_names(&self) -> Vec<String> {
+        self.loss.contacts.iter().map(|c| c.name.clone()).collect()
+    }
+
+    /// L and its parts for q, q̇, q̈, τ (..., n) and λ (..., P, 3): a dict with `loss` (float),
+    /// `per_frame` (...), `residual` (..., n) and, with `gradients`, `grad_q`, `grad_qd`,
+    /// `grad_qdd`, `grad_tau` (..., n) and `grad_lambda` (..., P, 3).
+    #[pyo3(signature = (q, qd, qdd, tau, lam = None, gradients = true))]
+    #[allow(clippy::too_many_arguments)]
+    fn __call__<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qd: Input<'py>,
+        qdd: Input<'py>,
+        tau: Input<'py>,
+        lam: Option<Input<'py>>,
+        gradients: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (m, n, p) = (&*self.model, self.model.nq(), self.loss.contacts.len());
+        let (q, lead) = frames("q", &q, n)?;
+        let qd = frames_like("qd", &qd, n, &lead)?;
+        let qdd = frames_like("qdd", &qdd, n, &lead)?;
+        let tau = frames_like("tau", &tau, n, &lead)?;
+        let t = q.len() / n.max(1);
+        let lambda = match (&lam, p) {
+            (None, 0) => vec![],
+            (None, _) => {
+                return Err(MusculoError::new_err(format!(
+                    "lam: this loss has {p} contact points; give λ of shape (..., {p}, 3)"
+                )));
+            }
+            (Some(l), _) => {
+                let (v, lead_l) = frames("lam", l, 3)?;
+                let expected: Vec<usize> = lead.iter().copied().chain([p]).collect();
+                if lead_l != expected {
+                    return Err(MusculoError::new_err(format!(
+                        "lam: shape {:?}; expected {:?}",
+                        l.as_array().shape(),
+                        expected.iter().chain(&[3]).collect::<Vec<_>>()
+                    )));
+                }
+                v
+            }
+        };
+        let mut out = EulerLagrangeOutput::default();
+        py.detach(|| {
+            let batch = EulerLagrangeBatch {
+                frames: t,
+                q: &q,
+                qd: &qd,
+                qdd: &qdd,
+                tau: &tau,
+                lambda: &lambda,
+            };
+            self.loss.evaluate(m, &batch, gradients, &mut out)
+        })
+        .map_err(to_py)?;
+        let d = PyDict::new(py);
+        d.set_item("loss", out.loss)?;
+        d.set_item("per_frame", array(py, &lead, &[], out.per_frame)?)?;
+        d.set_item("residual", array(py, &lead, &[n], out.residual)?)?;
+        if gradients {
+            d.set_item("grad_q", array(py, &lead, &[n], out.grad_q)?)?;
+            d.set_item("grad_qd", array(py, &lead, &[n], out.grad_qd)?)?;
+            d.set_item("grad_qdd", array(py, &lead, &[n], out.grad_qdd)?)?;
+            d.set_item("grad_tau", array(py, &lead, &[n], out.grad_tau)?)?;
+            d.set_item("grad_lambda", array(py, &lead, &[p, 3], out.grad_lambda)?)?;
+        }
+        Ok(d)
+    }
+}
+
+#[pymodule]
+fn _musculo(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Model>()?;
+    m.add_class::<EulerLagrangeLoss>()?;
+    m.add("MusculoError", m.py().get_type::<MusculoError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

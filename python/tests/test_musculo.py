@@ -1,0 +1,157 @@
+"""The Python package against independent references: M from inverse-dynamics columns,
+the loss gradients against central differences of the loss, errors as exceptions, and the
+torch wrapper with torch.autograd.gradcheck where torch is installed."""
+
+import os
+
+import numpy as np
+import pytest
+
+import musculo
+
+REFERENCE = os.environ.get("MUSCULO_REFERENCE", os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "reference"))
+GAIT2392 = os.path.join(REFERENCE, "opensim-models", "Models", "Gait2392_Simbody", "gait2392_thelen2003muscle.osim")
+
+
+@pytest.fixture(scope="module")
+def model():
+    return musculo.Model.default()
+
+
+def state(model, frames, seed):
+    rng = np.random.default_rng(seed)
+    n = model.nq
+    return (rng.uniform(-0.5, 0.5, (frames, n)), rng.uniform(-1, 1, (frames, n)),
+            rng.uniform(-5, 5, (frames, n)))
+
+
+def test_the_default_model(model):
+    assert (model.nq, len(model.muscle_names), round(model.total_mass, 6)) == (29, 324, 75.0)
+    assert len(model.coordinate_names) == model.nq
+
+
+def test_mass_matrix_equals_inverse_dynamics_columns_and_batches_keep_their_shape(model):
+    q, qd, _ = state(model, 6, 1)
+    q = q.reshape(2, 3, model.nq)
+    m = model.mass_matrix(q)
+    assert m.shape == (2, 3, model.nq, model.nq)
+    zero = np.zeros(model.nq)
+    g = model.bias(q[1, 2], zero)
+    for j in range(model.nq):
+        e = np.eye(model.nq)[j]
+        col = model.inverse_dynamics(q[1, 2], zero, e) - g
+        np.testing.assert_allclose(m[1, 2][:, j], col, rtol=0, atol=1e-10 * np.abs(m).max())
+    np.testing.assert_allclose(m, np.swapaxes(m, -1, -2), atol=1e-12)
+
+
+def test_inverse_dynamics_derivatives_equal_central_differences(model):
+    q, qd, qdd = (x[0] for x in state(model, 1, 2))
+    dq, dqd, dqdd = model.inverse_dynamics_derivatives(q, qd, qdd)
+    h = 1e-6
+    for j in (0, 5, 12, 20):
+        e = np.zeros(model.nq)
+        e[j] = h
+        fd = (model.inverse_dynamics(q + e, qd, qdd) - model.inverse_dynamics(q - e, qd, qdd)) / (2 * h)
+        np.testing.assert_allclose(dq[:, j], fd, atol=1e-6 * np.abs(dq).max())
+        fd = (model.inverse_dynamics(q, qd + e, qdd) - model.inverse_dynamics(q, qd - e, qdd)) / (2 * h)
+        np.testing.assert_allclose(dqd[:, j], fd, atol=1e-6 * np.abs(dqd).max())
+    np.testing.assert_allclose(dqdd, model.mass_matrix(q), atol=1e-12)
+
+
+def test_loss_gradients_equal_central_differences(model):
+    loss = musculo.EulerLagrangeLoss(model, contacts="model")
+    p = len(loss.contact_names)
+    assert p == 8
+    q, qd, qdd = state(model, 3, 3)
+    rng = np.random.default_rng(4)
+    tau = rng.uniform(-50, 50, q.shape)
+    lam = rng.uniform(-300, 300, (3, p, 3))
+    inputs = [q, qd, qdd, tau, lam]
+    out = loss(*inputs)
+    assert out["residual"].shape == q.shape and out["per_frame"].shape == (3,)
+    np.testing.assert_allclose(out["loss"], out["per_frame"].sum(), rtol=1e-12)
+    rng = np.random.default_rng(5)
+    for k, name in enumerate(["grad_q", "grad_qd", "grad_qdd", "grad_tau", "grad_lambda"]):
+        g = out[name]
+        assert g.shape == inputs[k].shape
+        for _ in range(6):
+            idx = tuple(rng.integers(0, s) for s in g.shape)
+            x = [a.copy() for a in inputs]
+            h = 1e-6 * max(1.0, abs(x[k][idx]))
+            x[k][idx] += h
+            lp = loss(*x, gradients=False)["loss"]
+            x[k][idx] -= 2 * h
+            lm = loss(*x, gradients=False)["loss"]
+            fd = (lp - lm) / (2 * h)
+            assert abs(g[idx] - fd) <= 1e-6 * np.abs(g).max(), (name, idx, g[idx], fd)
+
+
+def test_a_consistent_motion_has_zero_loss(model):
+    loss = musculo.EulerLagrangeLoss(model)
+    q, qd, qdd = state(model, 4, 6)
+    tau = model.inverse_dynamics(q, qd, qdd)
+    out = loss(q, qd, qdd, tau)
+    assert out["loss"] < 1e-20 * (tau ** 2).sum()
+    tau[2, 7] += 0.5
+    np.testing.assert_allclose(loss(q, qd, qdd, tau)["per_frame"][2], 0.25, rtol=1e-9)
+
+
+def test_muscle_paths_and_forces(model):
+    q = model.default_q()
+    lengths, arms = model.muscle_paths(q)
+    assert lengths.shape == (324,) and arms.shape == (model.nq, 324)
+    assert np.all(lengths > 0.01) and np.all(lengths < 1.0)
+    f = model.muscle_forces(q, np.zeros(model.nq), np.full(324, 0.5), rigid_tendon=True)
+    assert f.shape == (324,) and np.all(f >= 0)
+
+
+def test_errors_are_exceptions_with_the_library_message(model):
+    with pytest.raises(musculo.MusculoError, match="last axis must have 29"):
+        model.mass_matrix(np.zeros(5))
+    with pytest.raises(ValueError, match="not finite"):
+        model.inverse_dynamics(np.full(29, np.nan), np.zeros(29), np.zeros(29))
+    with pytest.raises(musculo.MusculoError, match="no body"):
+        musculo.EulerLagrangeLoss(model, contacts=[("nowhere", [0, 0, 0], [0, 0, 0])])
+    with pytest.raises(musculo.MusculoError):
+        musculo.Model.from_osim("/nonexistent/model.osim")
+    with pytest.raises(musculo.MusculoError, match="λ"):
+        musculo.EulerLagrangeLoss(model, contacts="model")(*state(model, 1, 7), np.zeros((1, 29)))
+
+
+@pytest.mark.skipif(not os.path.exists(GAIT2392), reason="reference data not found")
+def test_an_opensim_model_from_a_file():
+    m = musculo.Model.from_osim(GAIT2392)
+    assert m.nq == 23 and len(m.muscle_names) == 92
+
+
+def test_torch_wrapper_passes_gradcheck(model):
+    torch = pytest.importorskip("torch")
+    from musculo.torch import PhysicsLoss
+
+    physics = PhysicsLoss(model, contacts="model")
+    q, qd, qdd = state(model, 2, 8)
+    # near a consistent motion (τ ≈ τ_ID, small λ) the loss is small, so central differences
+    # of it are not swamped by round-off
+    rng = np.random.default_rng(9)
+    tau = model.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.5, q.shape)
+    lam = rng.normal(0, 1.0, (2, 8, 3))
+    args = tuple(torch.tensor(x, dtype=torch.float64, requires_grad=True) for x in (q, qd, qdd, tau, lam))
+    assert torch.autograd.gradcheck(physics, args, eps=1e-6, atol=1e-5, rtol=1e-5)
+
+
+def test_readme_examples():
+    readme = os.path.join(os.path.dirname(__file__), "..", "..", "README.md")
+    if not os.path.exists(readme):
+        pytest.skip("README.md not beside the tests")
+    text = open(readme, encoding="utf-8").read()
+    section = text[text.index("## Python package"):]
+    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:3]]
+    namespace = {}
+    exec(blocks[0], namespace)
+    assert namespace["out"]["grad_q"].shape == (16, 196, namespace["model"].nq)
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return
+    exec(blocks[1], namespace)
+    assert namespace["q"].grad is not None
