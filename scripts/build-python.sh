@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds musculo's Python wheel (abi3, maturin from PyPI) and tests it in a fresh virtual
-# environment with numpy and pytest (torch from PyPI only with MUSCULO_TORCH=1: the wrapper's gradcheck).
+# environment with numpy and pytest; MUSCULO_TORCH=1 / MUSCULO_JAX=1 add torch / jax from PyPI
+# for the wrappers' tests (skipped without them).
 #   scripts/build-python.sh            # wheel in target/wheels, tests run
 # Cached under .python/ (ignored); nothing is installed outside it.
 set -euo pipefail
@@ -23,6 +24,9 @@ rm -rf "$test_env"
 "$test_env/bin/pip" install -q --disable-pip-version-check "$wheel" numpy pytest
 if [ "${MUSCULO_TORCH:-0}" = 1 ]; then
     "$test_env/bin/pip" install -q --disable-pip-version-check torch
+fi
+if [ "${MUSCULO_JAX:-0}" = 1 ]; then
+    "$test_env/bin/pip" install -q --disable-pip-version-check jax
 fi
 # from outside the source tree, so that the installed package is the one tested
 cd /tmp

@@ -155,3 +155,31 @@ def test_readme_examples():
         return
     exec(blocks[1], namespace)
     assert namespace["q"].grad is not None
+
+
+def test_jax_wrapper_gives_the_loss_gradients_under_grad_and_jit(model):
+    jax = pytest.importorskip("jax")
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+
+    from musculo.jax import physics_loss
+
+    f = physics_loss(model, contacts="model")
+    q, qd, qdd = state(model, 2, 10)
+    rng = np.random.default_rng(11)
+    tau = model.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.5, q.shape)
+    lam = rng.normal(0, 1.0, (2, 8, 3))
+    args = [jnp.asarray(x) for x in (q, qd, qdd, tau, lam)]
+    value, grads = jax.value_and_grad(f, argnums=(0, 1, 2, 3, 4))(*args)
+    ref = musculo.EulerLagrangeLoss(model, contacts="model")(q, qd, qdd, tau, lam)
+    assert float(value) == pytest.approx(ref["loss"], rel=1e-12)
+    for g, name in zip(grads, ["grad_q", "grad_qd", "grad_qdd", "grad_tau", "grad_lambda"]):
+        np.testing.assert_allclose(np.asarray(g), ref[name], rtol=1e-12, atol=0)
+    # a directional derivative of the jitted gradient against a central difference of the loss
+    direction = [rng.normal(0, 1, x.shape) for x in (q, qd, qdd, tau, lam)]
+    jitted = jax.jit(jax.grad(f, argnums=(0, 1, 2, 3, 4)))(*args)
+    slope = sum(float(np.sum(np.asarray(g) * d)) for g, d in zip(jitted, direction))
+    h = 1e-6
+    plus = f(*[a + h * d for a, d in zip(args, direction)])
+    minus = f(*[a - h * d for a, d in zip(args, direction)])
+    assert slope == pytest.approx(float(plus - minus) / (2 * h), rel=1e-6)
