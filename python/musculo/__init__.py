@@ -12,6 +12,6 @@ with the library's message.
 True
 """
 
-from ._musculo import EulerLagrangeLoss, Model, MusculoError, __version__
+from ._musculo import EulerLagrangeLoss, Model, MusculoError, __version__, augment_clip
 
-__all__ = ["Model", "EulerLagrangeLoss", "MusculoError", "__version__"]
+__all__ = ["Model", "EulerLagrangeLoss", "MusculoError", "augment_clip", "__version__"]

@@ -611,10 +611,93 @@ impl EulerLagrangeLoss {
     }
 }
 
+/// A JSON value as the Python object json.loads would give.
+fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::IntoPyObjectExt;
+    use serde_json::Value;
+    Ok(match v {
+        Value::Null => py.None().into_bound(py),
+        Value::Bool(b) => b.into_bound_py_any(py)?,
+        Value::Number(n) => match n.as_i64() {
+            Some(i) => i.into_bound_py_any(py)?,
+            None => n.as_f64().unwrap_or(f64::NAN).into_bound_py_any(py)?,
+        },
+        Value::String(s) => s.into_bound_py_any(py)?,
+        Value::Array(a) => a
+            .iter()
+            .map(|x| json_to_py(py, x))
+            .collect::<PyResult<Vec<_>>>()?
+            .into_bound_py_any(py)?,
+        Value::Object(o) => {
+            let d = PyDict::new(py);
+            for (k, x) in o {
+                d.set_item(k, json_to_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}
+
+/// Runs `musculo augment`'s chain on one HumanML3D clip given as an array — `new_joints`
+/// (T × 22 × 3, m, y up) or `new_joint_vecs` (T × 263) — at `fps` frames per second: the
+/// default model scaled to the clip's bone lengths (with `scale_to_clip`), inverse
+/// kinematics, inverse dynamics with contact forces from kinematics, static optimization and
+/// excitations. Returns a dict of float32 arrays named as in the `.npz` files of `musculo
+/// augment` (`q`, `qd`, `qdd`, `tau`, `contact_point_force`, `muscle_act`, `x`, …), with
+/// `quality` (the manifest's per-clip figures) and `model_xml` (the scaled model as OpenSim
+/// XML, None when not scaled: `Model.from_osim_string(out["model_xml"])` is the model the
+/// arrays belong to).
+#[pyfunction]
+#[pyo3(signature = (joints, fps = 20.0, scale_to_clip = true))]
+fn augment_clip<'py>(
+    py: Python<'py>,
+    joints: Input<'py>,
+    fps: f64,
+    scale_to_clip: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    use musculo::augment::chain::{Chain, ChainOptions};
+    use musculo::augment::perturb::Variant;
+    use musculo::motion::{humanml3d, skeleton::SkeletonMap};
+    let array = joints.as_array().to_owned();
+    let output = py
+        .detach(|| -> musculo::Result<_> {
+            let options = humanml3d::Options {
+                rate_hz: fps,
+                ..humanml3d::Options::default()
+            };
+            let motion = humanml3d::from_array(array.view(), "<array>", &options)?;
+            let map = SkeletonMap::builtin("humanml3d")?;
+            let chain = Chain::new(
+                musculo::DEFAULT_MODEL_OSIM.to_string(),
+                "musculo_fullbody.osim".to_string(),
+                ChainOptions {
+                    scale_to_clip,
+                    opensim_files: true,
+                    ..ChainOptions::default()
+                },
+            )?;
+            chain.run(&motion, Some(&map), &Variant::identity())
+        })
+        .map_err(to_py)?;
+    let d = PyDict::new(py);
+    for a in output.arrays {
+        let values = ArrayD::from_shape_vec(IxDyn(&a.shape), a.values)
+            .map_err(|e| MusculoError::new_err(format!("internal shape error: {e}")))?;
+        d.set_item(a.name, values.into_pyarray(py))?;
+    }
+    let quality = serde_json::to_value(&output.quality)
+        .map_err(|e| MusculoError::new_err(format!("quality: {e}")))?;
+    d.set_item("quality", json_to_py(py, &quality)?)?;
+    d.set_item("model_xml", output.model_xml)?;
+    d.set_item("warnings", output.warnings)?;
+    Ok(d)
+}
+
 #[pymodule]
 fn _musculo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<EulerLagrangeLoss>()?;
+    m.add_function(wrap_pyfunction!(augment_clip, m)?)?;
     m.add("MusculoError", m.py().get_type::<MusculoError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -183,3 +183,24 @@ def test_jax_wrapper_gives_the_loss_gradients_under_grad_and_jit(model):
     plus = f(*[a + h * d for a, d in zip(args, direction)])
     minus = f(*[a - h * d for a, d in zip(args, direction)])
     assert slope == pytest.approx(float(plus - minus) / (2 * h), rel=1e-6)
+
+
+HUMANML3D = os.path.join(REFERENCE, "humanml3d", "new_joints_012314.npy")
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_augment_clip_gives_tensors_that_satisfy_the_equations_of_motion():
+    joints = np.load(HUMANML3D)
+    out = musculo.augment_clip(joints, fps=20.0)
+    t = joints.shape[0]
+    assert out["quality"]["frames"] == t and out["q"].shape[0] == t
+    assert out["q"].dtype == np.float32 and out["muscle_act"].shape == (t, 324)
+    model = musculo.Model.from_osim_string(out["model_xml"], "scaled")
+    loss = musculo.EulerLagrangeLoss(model, contacts="model")
+    arrays = [out[k].astype(np.float64) for k in ("q", "qd", "qdd", "tau", "contact_point_force")]
+    res = loss(*arrays, gradients=False)
+    tau_id = model.inverse_dynamics(*arrays[:3])
+    relative = np.linalg.norm(res["residual"], axis=-1) / np.linalg.norm(tau_id, axis=-1)
+    assert relative.max() < 1e-6, relative.max()
+    with pytest.raises(musculo.MusculoError):
+        musculo.augment_clip(joints[:, :5])
