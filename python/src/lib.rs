@@ -434,6 +434,45 @@ impl Model {
         ))
     }
 
+    /// Inverse kinematics of a HumanML3D or KIT-ML clip (as for [`augment_clip`]) onto this
+    /// model through the format's built-in skeleton map (the model needs the map's markers,
+    /// as the default model has): per frame the weighted least-squares fit of the joint
+    /// centres within the coordinate limits, warm-started from the previous frame. Returns a
+    /// dict: `q` (T × n), `rmse` and `max_error` (T, m), `marker_error` (T × K, m) and
+    /// `frames_at_limit`. The model is not scaled here (`augment_clip` scales it).
+    #[pyo3(signature = (joints, fps = None, format = "humanml3d"))]
+    fn inverse_kinematics<'py>(
+        &self,
+        py: Python<'py>,
+        joints: Input<'py>,
+        fps: Option<f64>,
+        format: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use musculo::motion::skeleton::SkeletonMap;
+        use musculo::solve::ik;
+        let clip = joints.as_array().to_owned();
+        let m = &*self.inner;
+        let solution = py
+            .detach(|| -> musculo::Result<_> {
+                let (motion, map_name) = motion_from_array(clip.view(), format, fps)?;
+                let (targets, tasks) = SkeletonMap::builtin(map_name)?.apply(m, &motion)?;
+                ik::solve_motion(m, &targets, &tasks, &ik::IkSettings::default(), &|_| {})
+            })
+            .map_err(to_py)?;
+        let (t, n) = (solution.n_frames(), solution.nq);
+        let k = solution.marker_error.len() / t.max(1);
+        let d = PyDict::new(py);
+        d.set_item("frames_at_limit", solution.frames_at_limit())?;
+        d.set_item("q", array(py, &[t], &[n], solution.q)?)?;
+        d.set_item("rmse", array(py, &[t], &[], solution.rmse)?)?;
+        d.set_item("max_error", array(py, &[t], &[], solution.max_error)?)?;
+        d.set_item(
+            "marker_error",
+            array(py, &[t], &[k], solution.marker_error)?,
+        )?;
+        Ok(d)
+    }
+
     /// Muscle (tendon) forces at activations a: (..., n), (..., n), (..., m) → (..., m), with
     /// each muscle's own tendon model, or rigid tendons with `rigid_tendon=True`.
     #[pyo3(signature = (q, qd, activation, rigid_tendon = false))]
@@ -638,9 +677,36 @@ fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py
     })
 }
 
-/// Runs `musculo augment`'s chain on one HumanML3D clip given as an array — `new_joints`
-/// (T × 22 × 3, m, y up) or `new_joint_vecs` (T × 263) — at `fps` frames per second: the
-/// default model scaled to the clip's bone lengths (with `scale_to_clip`), inverse
+/// A HumanML3D or KIT-ML clip from an array (joints T × J × 3 or features T × F) at `fps`
+/// (default: the format's rate), with the name of its built-in skeleton map.
+fn motion_from_array(
+    array: ndarray::ArrayViewD<'_, f64>,
+    format: &str,
+    fps: Option<f64>,
+) -> musculo::Result<(musculo::motion::Motion, &'static str)> {
+    use musculo::motion::{humanml3d, kit};
+    match format {
+        "humanml3d" => {
+            let mut o = humanml3d::Options::default();
+            o.rate_hz = fps.unwrap_or(o.rate_hz);
+            Ok((humanml3d::from_array(array, "<array>", &o)?, "humanml3d"))
+        }
+        "kit" => {
+            let mut o = kit::Options::default();
+            o.rate_hz = fps.unwrap_or(o.rate_hz);
+            Ok((kit::from_array(array, "<array>", &o)?, "kit"))
+        }
+        other => Err(musculo::Error::InvalidArgument {
+            argument: "format",
+            message: format!("\"{other}\": give \"humanml3d\" or \"kit\""),
+        }),
+    }
+}
+
+/// Runs `musculo augment`'s chain on one clip given as an array — HumanML3D `new_joints`
+/// (T × 22 × 3, m, y up) or `new_joint_vecs` (T × 263), or KIT-ML's (T × 21 × 3, T × 251) with
+/// `format="kit"` — at `fps` frames per second (default the format's: 20, 12.5): the default
+/// model scaled to the clip's bone lengths (with `scale_to_clip`), inverse
 /// kinematics, inverse dynamics with contact forces from kinematics, static optimization and
 /// excitations. Returns a dict of float32 arrays named as in the `.npz` files of `musculo
 /// augment` (`q`, `qd`, `qdd`, `tau`, `contact_point_force`, `muscle_act`, `x`, …), with
@@ -648,25 +714,22 @@ fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py
 /// XML, None when not scaled: `Model.from_osim_string(out["model_xml"])` is the model the
 /// arrays belong to).
 #[pyfunction]
-#[pyo3(signature = (joints, fps = 20.0, scale_to_clip = true))]
+#[pyo3(signature = (joints, fps = None, format = "humanml3d", scale_to_clip = true))]
 fn augment_clip<'py>(
     py: Python<'py>,
     joints: Input<'py>,
-    fps: f64,
+    fps: Option<f64>,
+    format: &str,
     scale_to_clip: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     use musculo::augment::chain::{Chain, ChainOptions};
     use musculo::augment::perturb::Variant;
-    use musculo::motion::{humanml3d, skeleton::SkeletonMap};
+    use musculo::motion::skeleton::SkeletonMap;
     let array = joints.as_array().to_owned();
     let output = py
         .detach(|| -> musculo::Result<_> {
-            let options = humanml3d::Options {
-                rate_hz: fps,
-                ..humanml3d::Options::default()
-            };
-            let motion = humanml3d::from_array(array.view(), "<array>", &options)?;
-            let map = SkeletonMap::builtin("humanml3d")?;
+            let (motion, map_name) = motion_from_array(array.view(), format, fps)?;
+            let map = SkeletonMap::builtin(map_name)?;
             let chain = Chain::new(
                 musculo::DEFAULT_MODEL_OSIM.to_string(),
                 "musculo_fullbody.osim".to_string(),

@@ -204,3 +204,23 @@ def test_augment_clip_gives_tensors_that_satisfy_the_equations_of_motion():
     assert relative.max() < 1e-6, relative.max()
     with pytest.raises(musculo.MusculoError):
         musculo.augment_clip(joints[:, :5])
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_inverse_kinematics_of_a_humanml3d_clip(model):
+    joints = np.load(HUMANML3D)
+    ik = model.inverse_kinematics(joints)
+    t = joints.shape[0]
+    assert ik["q"].shape == (t, model.nq) and ik["rmse"].shape == (t,)
+    assert ik["marker_error"].shape[0] == t and np.all(np.isfinite(ik["q"]))
+    # the unscaled default model fits this subject's joint centres to a few centimetres (42 mm
+    # median), the model scaled to the clip's bones to about 12 mm, as augment's own IK reports
+    assert np.median(ik["rmse"]) < 0.05, np.median(ik["rmse"])
+    assert np.all(ik["max_error"] >= ik["rmse"] - 1e-12)
+    out = musculo.augment_clip(joints)
+    scaled = musculo.Model.from_osim_string(out["model_xml"]).inverse_kinematics(joints)
+    assert np.median(scaled["rmse"]) < 0.02
+    assert np.median(scaled["rmse"]) == pytest.approx(out["quality"]["ik_rmse_median"], rel=0.05)
+    assert scaled["frames_at_limit"] == out["quality"]["ik_frames_at_bound"]
+    with pytest.raises(musculo.MusculoError, match="kit"):
+        model.inverse_kinematics(joints, format="bvh")
