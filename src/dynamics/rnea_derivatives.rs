@@ -25,8 +25,10 @@
 //! ```
 //!
 //! and for the direction θ̇_j the same with δs = 0, δI = 0 and δθ̇_d = [d = j], i.e.
-//! δv_d = s_j beyond j and δa_b gains v_j ×ₘ s_j. Each direction is one O(n) pass over the
-//! tree: O(n²) for both Jacobians, allocation-free after [`RneaDerivatives::new`].
+//! δv_d = s_j beyond j and δa_b gains v_j ×ₘ s_j. The tangents vanish outside the subtree
+//! that θ_j moves, and the joints above it see only the subtree's total δF, so each direction
+//! is one pass over that subtree plus the path to ground: O(n·depth) for both Jacobians,
+//! allocation-free after [`RneaDerivatives::new`].
 //!
 //! In the independent coordinates q (θ = φ(q), θ̇ = Φq̇, θ̈ = Φq̈ + Φ̇q̇, τ = Φᵀ τ_full) the
 //! chain rule gives, with D_θ, D_θ̇ the full-coordinate Jacobians above and M_full = ∂τ_full/∂θ̈:
@@ -86,6 +88,13 @@ pub(crate) struct MovedBy {
     /// [j * n_full + d]: axis s_d moves with θ_j (d comes after j in j's joint, or belongs to
     /// a joint whose parent body moves with θ_j).
     dof: Vec<bool>,
+    /// The joints whose child body moves with θ_j (j's own first), in tree order:
+    /// `subtree[subtree_start[j]..subtree_start[j + 1]]`.
+    subtree_start: Vec<usize>,
+    subtree: Vec<usize>,
+    /// The full coordinates of the joints above j's (their bodies are ancestors of j's body).
+    above_start: Vec<usize>,
+    above: Vec<usize>,
 }
 
 impl MovedBy {
@@ -108,12 +117,47 @@ impl MovedBy {
                 dof[j * nf + d] = (dd.joint == dj.joint && d > j) || row[joint.parent_body];
             }
         }
+        let (mut subtree_start, mut subtree) = (vec![0], Vec::new());
+        let (mut above_start, mut above) = (vec![0], Vec::new());
+        for (j, dj) in model.dofs.iter().enumerate() {
+            let moved = &body[j * nb..(j + 1) * nb];
+            subtree.extend((0..model.joints.len()).filter(|&i| moved[model.joints[i].child_body]));
+            subtree_start.push(subtree.len());
+            // walk from j's joint's parent body to ground
+            let mut b = model.joints[dj.joint].parent_body;
+            let mut chain = Vec::new();
+            while b != 0 {
+                let i = model
+                    .joints
+                    .iter()
+                    .position(|jt| jt.child_body == b)
+                    .expect("every moving body has a joint");
+                chain.extend(model.joints[i].dof_range.clone());
+                b = model.joints[i].parent_body;
+            }
+            above.extend(chain);
+            above_start.push(above.len());
+        }
         MovedBy {
             n_bodies: nb,
             n_full: nf,
             body,
             dof,
+            subtree_start,
+            subtree,
+            above_start,
+            above,
         }
+    }
+
+    /// The joints θ_j moves the child of (j's own first), in tree order.
+    pub fn subtree_joints(&self, j: usize) -> &[usize] {
+        &self.subtree[self.subtree_start[j]..self.subtree_start[j + 1]]
+    }
+
+    /// The full coordinates of the joints between ground and j's joint.
+    pub fn dofs_above(&self, j: usize) -> &[usize] {
+        &self.above[self.above_start[j]..self.above_start[j + 1]]
     }
 
     /// Per body: moves with θ_j.
@@ -216,22 +260,68 @@ pub fn rnea_derivatives(
         ..
     } = out;
     let m_full = &data.mass_matrix_full;
+    // Φ and the tangents are sparse (column k is non-zero only on the full coordinates that
+    // depend on q_k), so the products below run over those entries only.
     // ∂τ/∂q = Σ_d τ_full,d ∂²θ_d/∂q∂q + Φᵀ (D_θ Φ + D_θ̇ ∂θ̇/∂q + M_full ∂θ̈/∂q)
-    chain.gemm(1.0, dtau_dtheta, &t.phi, 0.0);
-    chain.gemm(1.0, dtau_dtheta_dot, &t.theta_dot_q, 1.0);
-    chain.gemm(1.0, m_full, &t.theta_ddot_q, 1.0);
+    sparse_chain(
+        t,
+        &[
+            (dtau_dtheta, &t.phi),
+            (dtau_dtheta_dot, &t.theta_dot_q),
+            (m_full, &t.theta_ddot_q),
+        ],
+        chain,
+    );
     dtau_dq.fill(0.0);
     t.add_weighted_hessian(model, &data.tau_full, dtau_dq);
-    dtau_dq.gemm_tr(1.0, &t.phi, chain, 1.0);
+    add_phi_transpose_times(t, chain, dtau_dq);
     // ∂τ/∂q̇ = Φᵀ (D_θ̇ Φ + M_full ∂(Φ̇q̇)/∂q̇)
-    chain.gemm(1.0, dtau_dtheta_dot, &t.phi, 0.0);
-    chain.gemm(1.0, m_full, &t.theta_ddot_qd, 1.0);
-    dtau_dqd.gemm_tr(1.0, &t.phi, chain, 0.0);
+    sparse_chain(
+        t,
+        &[(dtau_dtheta_dot, &t.phi), (m_full, &t.theta_ddot_qd)],
+        chain,
+    );
+    dtau_dqd.fill(0.0);
+    add_phi_transpose_times(t, chain, dtau_dqd);
     // ∂τ/∂q̈ = Φᵀ M_full Φ
-    chain.gemm(1.0, m_full, &t.phi, 0.0);
-    dtau_dqdd.gemm_tr(1.0, &t.phi, chain, 0.0);
+    sparse_chain(t, &[(m_full, &t.phi)], chain);
+    dtau_dqdd.fill(0.0);
+    add_phi_transpose_times(t, chain, dtau_dqdd);
     super::rnea(model, data, q, qd, qdd)?;
     Ok(())
+}
+
+/// chain = Σ_pairs A B for n_full × n_full matrices A and n_full × n matrices B whose column k
+/// is non-zero only on `t.full_of(k)`.
+fn sparse_chain(
+    t: &ReductionTangents,
+    pairs: &[(&DMatrix<f64>, &DMatrix<f64>)],
+    chain: &mut DMatrix<f64>,
+) {
+    for k in 0..chain.ncols() {
+        let mut col = chain.column_mut(k);
+        col.fill(0.0);
+        for &d in t.full_of(k) {
+            for (a, b) in pairs {
+                let w = b[(d, k)];
+                if w != 0.0 {
+                    col.axpy(w, &a.column(d), 1.0);
+                }
+            }
+        }
+    }
+}
+
+/// out += Φᵀ chain (Φ's column j non-zero only on `t.full_of(j)`).
+fn add_phi_transpose_times(t: &ReductionTangents, chain: &DMatrix<f64>, out: &mut DMatrix<f64>) {
+    for j in 0..out.nrows() {
+        for &d in t.full_of(j) {
+            let w = t.phi[(d, j)];
+            for k in 0..out.ncols() {
+                out[(j, k)] += w * chain[(d, k)];
+            }
+        }
+    }
 }
 
 /// ∂τ_full/∂θ and ∂τ_full/∂θ̇ of [`super::rnea_full`] at (θ, θ̇, θ̈), gravity included, into
@@ -279,21 +369,31 @@ pub fn rnea_derivatives_full(
         d_axis,
         ..
     } = out;
+    // Each direction moves only the subtree of its joint: the tangents are zero elsewhere,
+    // and the bodies above see the subtree's δF unchanged. O(subtree + depth) per direction.
+    dtau_dtheta.fill(0.0);
+    dtau_dtheta_dot.fill(0.0);
     for j in 0..nf {
         let sj = s[j];
         let (body_moves, dof_moves) = (moves.bodies(j), moves.dofs(j));
+        let joints = moves.subtree_joints(j);
+        let own = &model.joints[model.dofs[j].joint];
+        let top = own.child_body;
 
         // --- direction θ_j ---
-        for d in 0..nf {
-            d_axis[d] = if dof_moves[d] {
-                sj.cross_motion(&s[d])
-            } else {
-                Motion::ZERO
-            };
+        for &i in joints {
+            for d in model.joints[i].dof_range.clone() {
+                d_axis[d] = if dof_moves[d] {
+                    sj.cross_motion(&s[d])
+                } else {
+                    Motion::ZERO
+                };
+            }
         }
-        d_vel[0] = Motion::ZERO;
-        d_acc[0] = Motion::ZERO;
-        for joint in &model.joints {
+        d_vel[own.parent_body] = Motion::ZERO;
+        d_acc[own.parent_body] = Motion::ZERO;
+        for &i in joints {
+            let joint = &model.joints[i];
             let mut dv = d_vel[joint.parent_body];
             let mut da = d_acc[joint.parent_body];
             for d in joint.dof_range.clone() {
@@ -310,6 +410,7 @@ pub fn rnea_derivatives_full(
         }
         body_force_tangents(
             model,
+            joints,
             inertia,
             v,
             a,
@@ -318,15 +419,19 @@ pub fn rnea_derivatives_full(
             Some((&sj, body_moves)),
             d_force,
         );
-        for d in 0..nf {
-            let b = model.dofs[d].body;
-            dtau_dtheta[(d, j)] = d_axis[d].dot(&total[b]) + s[d].dot(&d_force[b]);
+        for &i in joints {
+            for d in model.joints[i].dof_range.clone() {
+                let b = model.dofs[d].body;
+                dtau_dtheta[(d, j)] = d_axis[d].dot(&total[b]) + s[d].dot(&d_force[b]);
+            }
+        }
+        for &d in moves.dofs_above(j) {
+            dtau_dtheta[(d, j)] = s[d].dot(&d_force[top]);
         }
 
         // --- direction θ̇_j ---
-        d_vel[0] = Motion::ZERO;
-        d_acc[0] = Motion::ZERO;
-        for joint in &model.joints {
+        for &i in joints {
+            let joint = &model.joints[i];
             let mut dv = d_vel[joint.parent_body];
             let mut da = d_acc[joint.parent_body];
             for d in joint.dof_range.clone() {
@@ -340,20 +445,27 @@ pub fn rnea_derivatives_full(
             d_vel[joint.child_body] = dv;
             d_acc[joint.child_body] = da;
         }
-        body_force_tangents(model, inertia, v, a, d_vel, d_acc, None, d_force);
-        for d in 0..nf {
-            dtau_dtheta_dot[(d, j)] = s[d].dot(&d_force[model.dofs[d].body]);
+        body_force_tangents(model, joints, inertia, v, a, d_vel, d_acc, None, d_force);
+        for &i in joints {
+            for d in model.joints[i].dof_range.clone() {
+                dtau_dtheta_dot[(d, j)] = s[d].dot(&d_force[model.dofs[d].body]);
+            }
+        }
+        for &d in moves.dofs_above(j) {
+            dtau_dtheta_dot[(d, j)] = s[d].dot(&d_force[top]);
         }
     }
     Ok(())
 }
 
-/// δF_b of every body from δv, δa, and for a position direction the screw s_j with the bodies
-/// it moves (their inertias turn with it): δf_b = δI_b a_b + I_b δa_b + δv_b ×* I_b v_b +
-/// v_b ×* (δI_b v_b + I_b δv_b), accumulated from the leaves to the root.
+/// δF_b of the bodies of `joints` (a subtree, in tree order) from δv, δa, and for a position
+/// direction the screw s_j with the bodies it moves (their inertias turn with it):
+/// δf_b = δI_b a_b + I_b δa_b + δv_b ×* I_b v_b + v_b ×* (δI_b v_b + I_b δv_b), accumulated from
+/// the leaves to the subtree's root body (the first joint's child).
 #[allow(clippy::too_many_arguments)]
 fn body_force_tangents(
     model: &Model,
+    joints: &[usize],
     inertia: &[SpatialInertia],
     v: &[Motion],
     a: &[Motion],
@@ -362,8 +474,8 @@ fn body_force_tangents(
     screw: Option<(&Motion, &[bool])>,
     d_force: &mut [Force],
 ) {
-    d_force[0] = Force::ZERO;
-    for b in 1..model.bodies.len() {
+    for &jt in joints {
+        let b = model.joints[jt].child_body;
         let i = &inertia[b];
         let iv = i.mul_motion(&v[b]);
         let mut f = i
@@ -387,10 +499,9 @@ fn body_force_tangents(
         }
         d_force[b] = f;
     }
-    for joint in model.joints.iter().rev() {
-        if joint.parent_body != 0 {
-            let f = d_force[joint.child_body];
-            d_force[joint.parent_body].add_assign(&f);
-        }
+    for &jt in joints.iter().skip(1).rev() {
+        let joint = &model.joints[jt];
+        let f = d_force[joint.child_body];
+        d_force[joint.parent_body].add_assign(&f);
     }
 }
