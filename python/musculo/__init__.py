@@ -12,6 +12,22 @@ with the library's message.
 True
 """
 
-from ._musculo import EulerLagrangeLoss, Model, MusculoError, __version__, augment_clip
+from ._musculo import (
+    EulerLagrangeLoss,
+    Model,
+    MusculoError,
+    __version__,
+    augment_clip,
+    augment_file,
+    read_motion,
+)
 
-__all__ = ["Model", "EulerLagrangeLoss", "MusculoError", "augment_clip", "__version__"]
+__all__ = [
+    "Model",
+    "EulerLagrangeLoss",
+    "MusculoError",
+    "augment_clip",
+    "augment_file",
+    "read_motion",
+    "__version__",
+]

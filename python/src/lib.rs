@@ -100,13 +100,16 @@ where
 struct Model {
     inner: Arc<musculo::Model>,
     muscles: OnceLock<Result<Arc<MuscleSet>, String>>,
+    /// The model's file text and its name in messages (for scaling, which edits the text).
+    xml: Arc<(String, String)>,
 }
 
 impl Model {
-    fn wrap(model: musculo::Model) -> Model {
+    fn wrap(model: musculo::Model, xml: String, source: String) -> Model {
         Model {
             inner: Arc::new(model),
             muscles: OnceLock::new(),
+            xml: Arc::new((xml, source)),
         }
     }
 
@@ -136,15 +139,25 @@ impl Model {
     /// The built-in default full-body model (21 segments, 29 degrees of freedom, 324 muscles).
     #[staticmethod]
     fn default() -> Model {
-        Model::wrap(musculo::Model::default_fullbody())
+        Model::wrap(
+            musculo::Model::default_fullbody(),
+            musculo::DEFAULT_MODEL_OSIM.to_string(),
+            "musculo_fullbody.osim".to_string(),
+        )
     }
 
     /// Reads an OpenSim 4.x model file (.osim).
     #[staticmethod]
     fn from_osim(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
-        py.detach(|| musculo::Model::from_osim_file(&path))
-            .map(Model::wrap)
-            .map_err(to_py)
+        py.detach(|| -> musculo::Result<Model> {
+            let model = musculo::Model::from_osim_file(&path)?;
+            let text = std::fs::read_to_string(&path).map_err(|e| musculo::Error::Io {
+                path: path.clone(),
+                source: e,
+            })?;
+            Ok(Model::wrap(model, text, path.display().to_string()))
+        })
+        .map_err(to_py)
     }
 
     /// Reads OpenSim 4.x model XML from a string (`source` names it in messages).
@@ -152,7 +165,7 @@ impl Model {
     #[pyo3(signature = (xml, source = "<string>"))]
     fn from_osim_string(py: Python<'_>, xml: &str, source: &str) -> PyResult<Model> {
         py.detach(|| musculo::Model::from_osim_str(xml, source))
-            .map(Model::wrap)
+            .map(|m| Model::wrap(m, xml.to_string(), source.to_string()))
             .map_err(to_py)
     }
 
@@ -473,6 +486,92 @@ impl Model {
         Ok(d)
     }
 
+    /// Inverse kinematics of a motion file onto this model, as `musculo ik` runs it: the
+    /// reader picked from the file (`format` = "humanml3d", "kit", "bvh", "c3d" or "trc"
+    /// overrides), targets mapped by `map` (a built-in skeleton map's name or a map file;
+    /// default the format's own map — HumanML3D, KIT-ML, CMU BVH — and for C3D/TRC markers
+    /// matched to the model's markers by name), `length_unit` for BVH and KIT files ("m",
+    /// "cm", "mm", "in" or metres per file unit). With `scale=True` the model is first scaled
+    /// to the clip's bone lengths and its markers placed (`musculo ik --scale auto`; needs a
+    /// skeleton map). Returns the dict of
+    /// `inverse_kinematics` plus `time` (T, s), `marker_names` (the K targets of
+    /// `marker_error`) and `model_xml` (the scaled model, None without `scale`).
+    #[pyo3(signature = (path, format = None, map = None, length_unit = None, scale = false))]
+    fn inverse_kinematics_file<'py>(
+        &self,
+        py: Python<'py>,
+        path: PathBuf,
+        format: Option<&str>,
+        map: Option<&str>,
+        length_unit: Option<&str>,
+        scale: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use musculo::solve::{ik, scale_from_clip};
+        let base = &*self.inner;
+        let xml = self.xml.clone();
+        let (solution, time, names, scaled_xml) = py
+            .detach(|| -> musculo::Result<_> {
+                let (motion, _, map) = read_clip(&path, format, map, length_unit)?;
+                let scaled = if scale {
+                    let map = map
+                        .as_ref()
+                        .ok_or_else(|| musculo::Error::InvalidArgument {
+                            argument: "scale",
+                            message: "scaling to the clip needs a skeleton map (give map=...)"
+                                .into(),
+                        })?;
+                    let (text, source) = &*xml;
+                    Some(scale_from_clip::scale_to_clip(
+                        text, source, base, map, &motion,
+                    )?)
+                } else {
+                    None
+                };
+                let m = scaled.as_ref().map_or(base, |s| &s.model);
+                let (targets, tasks) = match &map {
+                    Some(map) => map.apply(m, &motion)?,
+                    None => {
+                        let tasks = ik::tasks_by_name(m, &motion);
+                        if tasks.markers.is_empty() {
+                            return Err(musculo::Error::InvalidArgument {
+                                argument: "map",
+                                message: format!(
+                                    "no marker of {} has a model marker of the same name; give \
+                                     a skeleton map",
+                                    motion.source
+                                ),
+                            });
+                        }
+                        (motion.clone(), tasks)
+                    }
+                };
+                let names: Vec<String> = tasks
+                    .markers
+                    .iter()
+                    .map(|t| m.markers[t.marker].name.clone())
+                    .collect();
+                let solution =
+                    ik::solve_motion(m, &targets, &tasks, &ik::IkSettings::default(), &|_| {})?;
+                Ok((solution, targets.time.clone(), names, scaled.map(|s| s.xml)))
+            })
+            .map_err(to_py)?;
+        let (t, n) = (solution.n_frames(), solution.nq);
+        let k = names.len();
+        let d = PyDict::new(py);
+        d.set_item("frames_at_limit", solution.frames_at_limit())?;
+        d.set_item("q", array(py, &[t], &[n], solution.q)?)?;
+        d.set_item("rmse", array(py, &[t], &[], solution.rmse)?)?;
+        d.set_item("max_error", array(py, &[t], &[], solution.max_error)?)?;
+        d.set_item(
+            "marker_error",
+            array(py, &[t], &[k], solution.marker_error)?,
+        )?;
+        d.set_item("time", array(py, &[t], &[], time)?)?;
+        d.set_item("marker_names", names)?;
+        d.set_item("model_xml", scaled_xml)?;
+        Ok(d)
+    }
+
     /// Muscle (tendon) forces at activations a: (..., n), (..., n), (..., m) → (..., m), with
     /// each muscle's own tendon model, or rigid tendons with `rigid_tendon=True`.
     #[pyo3(signature = (q, qd, activation, rigid_tendon = false))]
@@ -722,7 +821,6 @@ fn augment_clip<'py>(
     format: &str,
     scale_to_clip: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use musculo::augment::chain::{Chain, ChainOptions};
     use musculo::augment::perturb::Variant;
     use musculo::motion::skeleton::SkeletonMap;
     let array = joints.as_array().to_owned();
@@ -730,18 +828,144 @@ fn augment_clip<'py>(
         .detach(|| -> musculo::Result<_> {
             let (motion, map_name) = motion_from_array(array.view(), format, fps)?;
             let map = SkeletonMap::builtin(map_name)?;
-            let chain = Chain::new(
-                musculo::DEFAULT_MODEL_OSIM.to_string(),
-                "musculo_fullbody.osim".to_string(),
-                ChainOptions {
-                    scale_to_clip,
-                    opensim_files: true,
-                    ..ChainOptions::default()
-                },
-            )?;
-            chain.run(&motion, Some(&map), &Variant::identity())
+            default_chain(scale_to_clip)?.run(&motion, Some(&map), &Variant::identity())
         })
         .map_err(to_py)?;
+    clip_output_dict(py, output)
+}
+
+/// A motion file read as `musculo ik` and `musculo augment` read it: the motion, its format
+/// and the skeleton map that applies (`map` given, else the format's built-in one; None for
+/// markers matched by name).
+fn read_clip(
+    path: &std::path::Path,
+    format: Option<&str>,
+    map: Option<&str>,
+    length_unit: Option<&str>,
+) -> musculo::Result<(
+    musculo::motion::Motion,
+    musculo::motion::Format,
+    Option<musculo::motion::skeleton::SkeletonMap>,
+)> {
+    use musculo::motion::skeleton::SkeletonMap;
+    use musculo::motion::{Format, LengthUnit, ReadOptions};
+    let format = match format {
+        Some(f) => Format::parse(f)?,
+        None => Format::detect(path)?,
+    };
+    let length_unit = length_unit
+        .map(|u| {
+            LengthUnit::parse(u).ok_or_else(|| musculo::Error::InvalidArgument {
+                argument: "length_unit",
+                message: format!("`{u}`: use m, cm, mm, in or a number"),
+            })
+        })
+        .transpose()?;
+    let motion = musculo::motion::read(path, Some(format), &ReadOptions { length_unit })?;
+    let map = match map {
+        Some(name) if name.ends_with(".json") || std::path::Path::new(name).exists() => {
+            Some(SkeletonMap::read(std::path::Path::new(name))?)
+        }
+        Some(name) => Some(SkeletonMap::builtin(name)?),
+        None => format.default_map().map(SkeletonMap::builtin).transpose()?,
+    };
+    Ok((motion, format, map))
+}
+
+/// Reads a motion file (HumanML3D/KIT-ML `.npy`, BVH, C3D, TRC; `format` overrides the
+/// detection from the file, `length_unit` applies to BVH and KIT files) as musculo's readers
+/// return it: a dict with `names` (K target names: joints or markers), `targets` (T × K × 3,
+/// m, in the file's axes — C3D rotated into OpenSim's y-up frame — NaN where a marker is
+/// missing), `time` (T, s), `rate_hz` and `source`.
+#[pyfunction]
+#[pyo3(signature = (path, format = None, length_unit = None))]
+fn read_motion<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    format: Option<&str>,
+    length_unit: Option<&str>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (motion, _, _) = py
+        .detach(|| read_clip(&path, format, None, length_unit))
+        .map_err(to_py)?;
+    let (t, k) = (motion.n_frames(), motion.names.len());
+    let flat: Vec<f64> = motion
+        .positions
+        .iter()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    let d = PyDict::new(py);
+    d.set_item("names", motion.names)?;
+    d.set_item("targets", array(py, &[t], &[k, 3], flat)?)?;
+    d.set_item("time", array(py, &[t], &[], motion.time)?)?;
+    d.set_item("rate_hz", motion.rate_hz)?;
+    d.set_item("source", motion.source)?;
+    Ok(d)
+}
+
+/// [`augment_clip`] on a motion file, read and mapped as `musculo augment` reads it (see
+/// `Model.inverse_kinematics_file` for `format`, `map`, `length_unit`); with
+/// `force_plates=True` a C3D file's own force platforms are the ground reactions instead of
+/// the estimate from kinematics. Returns the same dict as `augment_clip`.
+#[pyfunction]
+#[pyo3(signature = (path, format = None, map = None, length_unit = None, scale_to_clip = true, force_plates = false))]
+fn augment_file<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    format: Option<&str>,
+    map: Option<&str>,
+    length_unit: Option<&str>,
+    scale_to_clip: bool,
+    force_plates: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    use musculo::augment::chain::MeasuredLoads;
+    use musculo::motion::Format;
+    let output = py
+        .detach(|| -> musculo::Result<_> {
+            let (motion, format, map) = read_clip(&path, format, map, length_unit)?;
+            let loads = match (force_plates, format) {
+                (false, _) => None,
+                (true, Format::C3d) => Some(MeasuredLoads::ForcePlates(path.clone())),
+                (true, _) => {
+                    return Err(musculo::Error::InvalidArgument {
+                        argument: "force_plates",
+                        message: format!(
+                            "{} is not a C3D file: only C3D files carry force platforms",
+                            path.display()
+                        ),
+                    });
+                }
+            };
+            default_chain(scale_to_clip)?.run_with_loads(
+                &motion,
+                map.as_ref(),
+                &musculo::augment::perturb::Variant::identity(),
+                loads.as_ref(),
+            )
+        })
+        .map_err(to_py)?;
+    clip_output_dict(py, output)
+}
+
+/// The augmentation chain on the built-in default model.
+fn default_chain(scale_to_clip: bool) -> musculo::Result<musculo::augment::chain::Chain> {
+    use musculo::augment::chain::{Chain, ChainOptions};
+    Chain::new(
+        musculo::DEFAULT_MODEL_OSIM.to_string(),
+        "musculo_fullbody.osim".to_string(),
+        ChainOptions {
+            scale_to_clip,
+            opensim_files: true,
+            ..ChainOptions::default()
+        },
+    )
+}
+
+/// The arrays, quality figures, scaled model and warnings of one augmented clip.
+fn clip_output_dict(
+    py: Python<'_>,
+    output: musculo::augment::chain::ClipOutput,
+) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
     for a in output.arrays {
         let values = ArrayD::from_shape_vec(IxDyn(&a.shape), a.values)
@@ -761,6 +985,8 @@ fn _musculo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<EulerLagrangeLoss>()?;
     m.add_function(wrap_pyfunction!(augment_clip, m)?)?;
+    m.add_function(wrap_pyfunction!(augment_file, m)?)?;
+    m.add_function(wrap_pyfunction!(read_motion, m)?)?;
     m.add("MusculoError", m.py().get_type::<MusculoError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -139,21 +139,27 @@ def test_torch_wrapper_passes_gradcheck(model):
     assert torch.autograd.gradcheck(physics, args, eps=1e-6, atol=1e-5, rtol=1e-5)
 
 
-def test_readme_examples():
+def test_readme_examples(monkeypatch):
     readme = os.path.join(os.path.dirname(__file__), "..", "..", "README.md")
     if not os.path.exists(readme):
         pytest.skip("README.md not beside the tests")
     text = open(readme, encoding="utf-8").read()
     section = text[text.index("## Python package"):]
-    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:3]]
+    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:4]]
     namespace = {}
     exec(blocks[0], namespace)
     assert namespace["out"]["grad_q"].shape == (16, 196, namespace["model"].nq)
+    # the file examples, from the repository root as the README runs them
+    monkeypatch.chdir(os.path.join(os.path.dirname(readme)))
+    if os.path.exists(os.path.join("..", "shared", "reference", "c3d", "walking2.c3d")):
+        exec(blocks[1], namespace)
+        assert namespace["m"]["targets"].shape[2] == 3 and namespace["ik"]["model_xml"]
+        assert namespace["out"]["quality"]["reserve_share"] < 0.05
     try:
         import torch  # noqa: F401
     except ImportError:
         return
-    exec(blocks[1], namespace)
+    exec(blocks[2], namespace)
     assert namespace["q"].grad is not None
 
 
@@ -224,3 +230,87 @@ def test_inverse_kinematics_of_a_humanml3d_clip(model):
     assert scaled["frames_at_limit"] == out["quality"]["ik_frames_at_bound"]
     with pytest.raises(musculo.MusculoError, match="kit"):
         model.inverse_kinematics(joints, format="bvh")
+
+
+GAIT2392_DIR = os.path.join(REFERENCE, "opensim-models", "Pipelines", "Gait2392_Simbody")
+WALK_TRC = os.path.join(GAIT2392_DIR, "subject01_walk1.trc")
+WALK_MODEL = os.path.join(GAIT2392_DIR, "OutputReference", "subject01_simbody.osim")
+BVH = os.path.join(REFERENCE, "bvh", "131_01.bvh")
+C3D = os.path.join(REFERENCE, "c3d", "walking2.c3d")
+C3D_CSV = os.path.join(REFERENCE, "c3d", "walking2_markers.csv")
+
+
+@pytest.mark.skipif(not os.path.exists(WALK_TRC), reason="reference data not found")
+def test_read_motion_of_a_trc_file_equals_its_text():
+    m = musculo.read_motion(WALK_TRC)
+    lines = open(WALK_TRC).read().splitlines()
+    names = [n for n in lines[3].split("\t")[2:] if n]
+    rows = np.array([[float(v) for v in line.split("\t")[2:2 + 3 * len(names)]]
+                     for line in lines[5:] if line.strip()])
+    assert m["names"] == names and m["rate_hz"] == 60.0
+    assert m["targets"].shape == (rows.shape[0], len(names), 3)
+    # the file is in millimetres; read_motion gives metres
+    assert np.abs(m["targets"].reshape(rows.shape[0], -1) - rows / 1000.0).max() < 1e-12
+
+
+@pytest.mark.skipif(not os.path.exists(C3D_CSV), reason="reference data not found")
+def test_read_motion_of_a_c3d_file_matches_the_ezc3d_export():
+    m = musculo.read_motion(C3D)
+    header = open(C3D_CSV).readline().strip().split(",")
+    csv = np.genfromtxt(C3D_CSV, delimiter=",", skip_header=1)[:, 2:] / 1000.0  # mm, lab axes
+    markers = [h[:-2] for h in header[2::3]]
+    t = m["targets"].shape[0]
+    assert csv.shape[0] == t
+    for a, b in [(0, 1), (2, 5), (7, 11)]:
+        ia, ib = m["names"].index(markers[a]), m["names"].index(markers[b])
+        # a rotation into OpenSim's axes keeps distances; gaps (NaN) fall on the same samples
+        ours = np.linalg.norm(m["targets"][:, ia] - m["targets"][:, ib], axis=-1)
+        ref = np.linalg.norm(csv[:, 3 * a:3 * a + 3] - csv[:, 3 * b:3 * b + 3], axis=-1)
+        assert np.array_equal(np.isnan(ours), np.isnan(ref))
+        ok = ~np.isnan(ref)
+        assert ok.sum() > 100 and np.abs(ours[ok] - ref[ok]).max() < 1e-6
+
+
+@pytest.mark.skipif(not os.path.exists(WALK_MODEL), reason="reference data not found")
+def test_inverse_kinematics_of_marker_and_bvh_files():
+    walk = musculo.Model.from_osim(WALK_MODEL)
+    ik = walk.inverse_kinematics_file(WALK_TRC)
+    t = ik["q"].shape[0]
+    assert t == 151 and ik["time"].shape == (t,) and len(ik["marker_names"]) == ik["marker_error"].shape[1]
+    # all 41 markers matched by name, every weight 1 (19 mm median; the IK setup file, which
+    # `musculo ik --setup` reads, weights the markers and fits to about a centimetre)
+    assert 0.005 < np.median(ik["rmse"]) < 0.025, np.median(ik["rmse"])
+    model = musculo.Model.default()
+    bvh = model.inverse_kinematics_file(BVH, length_unit="0.056444")
+    assert bvh["q"].shape == (994, model.nq) and np.all(np.isfinite(bvh["q"]))
+    assert bvh["model_xml"] is None
+    # the 1.43 m subject on the unscaled 1.8 m model: about 8 cm; scaled to the clip's bones
+    # as `musculo ik --scale auto` does (README: 8.3 mm median for this clip)
+    scaled = model.inverse_kinematics_file(BVH, length_unit="0.056444", scale=True)
+    assert np.median(scaled["rmse"]) < 0.012 < 0.05 < np.median(bvh["rmse"])
+    refit = musculo.Model.from_osim_string(scaled["model_xml"]).inverse_kinematics_file(
+        BVH, length_unit="0.056444")
+    assert np.abs(refit["q"] - scaled["q"]).max() < 1e-9
+    with pytest.raises(musculo.MusculoError, match="body height"):
+        model.inverse_kinematics_file(BVH, length_unit="m")
+    with pytest.raises(musculo.MusculoError, match="same name"):
+        model.inverse_kinematics_file(WALK_TRC)
+    with pytest.raises(musculo.MusculoError, match="expected humanml3d"):
+        model.inverse_kinematics_file(BVH, format="fbx")
+
+
+@pytest.mark.skipif(not os.path.exists(C3D), reason="reference data not found")
+def test_augment_file_with_force_plates_satisfies_the_equations_of_motion():
+    out = musculo.augment_file(C3D, map="c3d_lower_body", force_plates=True)
+    t = out["q"].shape[0]
+    assert t > 400 and out["muscle_act"].shape == (t, 324)
+    assert 0.0 <= out["muscle_act"].min() and out["muscle_act"].max() <= 1.0
+    model = musculo.Model.from_osim_string(out["model_xml"], "scaled")
+    q, qd, qdd, tau, ext = (out[k].astype(np.float64) for k in ("q", "qd", "qdd", "tau", "external"))
+    tau_id = model.inverse_dynamics(q, qd, qdd)
+    relative = np.linalg.norm(tau_id - tau - ext, axis=-1) / np.linalg.norm(tau_id, axis=-1)
+    assert relative.max() < 1e-6, relative.max()
+    # the measured loads carry the body: the floating base's residual forces stay small
+    assert out["quality"]["reserve_share"] < 0.05
+    with pytest.raises(musculo.MusculoError, match="C3D"):
+        musculo.augment_file(BVH, length_unit="0.056444", force_plates=True)
