@@ -616,6 +616,48 @@ pub fn solve_motion(
     settings: &IkSettings,
     progress: &dyn Fn(usize),
 ) -> crate::Result<IkSolution> {
+    solve(model, targets, tasks, settings, None, progress)
+}
+
+/// [`solve_motion`] with every frame started from its own guess: frame f from
+/// `starts.frame(f)` (kept within bounds) instead of the previous frames' extrapolation — for
+/// solving the same frames again after a small change of the model or the targets, as
+/// marker placement does between its rounds. `starts` must have the frames of `targets`.
+pub fn solve_motion_from(
+    model: &Model,
+    targets: &Motion,
+    tasks: &IkTasks,
+    settings: &IkSettings,
+    starts: &IkSolution,
+    progress: &dyn Fn(usize),
+) -> crate::Result<IkSolution> {
+    if starts.nq != model.nq() || starts.n_frames() != targets.n_frames() {
+        return Err(Error::invalid(
+            "starts",
+            format!(
+                "has {} frames of {} coordinates; the targets have {} frames, the model {} \
+                 coordinates",
+                starts.n_frames(),
+                starts.nq,
+                targets.n_frames(),
+                model.nq()
+            ),
+        ));
+    }
+    if !starts.q.iter().all(|v| v.is_finite()) {
+        return Err(Error::invalid("starts", "holds a non-finite coordinate"));
+    }
+    solve(model, targets, tasks, settings, Some(starts), progress)
+}
+
+fn solve(
+    model: &Model,
+    targets: &Motion,
+    tasks: &IkTasks,
+    settings: &IkSettings,
+    starts: Option<&IkSolution>,
+    progress: &dyn Fn(usize),
+) -> crate::Result<IkSolution> {
     settings.validate()?;
     targets.validate()?;
     check_tasks(model, targets, tasks)?;
@@ -660,7 +702,11 @@ pub fn solve_motion(
             .iter()
             .any(|t| t.weight > 0.0 && !targets.frame(f)[t.target].x.is_nan())
             || tasks.coordinates.iter().any(|t| t.weight > 0.0);
-        if f >= 2 && has_data {
+        if let Some(starts) = starts {
+            for j in 0..n {
+                ws.q[j] = starts.frame(f)[j].clamp(ws.lo[j], ws.hi[j]);
+            }
+        } else if f >= 2 && has_data {
             let ratio = (targets.time[f] - targets.time[f - 1])
                 / (targets.time[f - 1] - targets.time[f - 2]);
             for j in 0..n {

@@ -291,7 +291,11 @@ pub fn place_markers(
     let settings = IkSettings::default();
     let mut data = Data::new(model);
     let frames = targets.n_frames();
-    let mut samples: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(frames));
+    let mut samples: Vec<[Vec<f64>; 3]> = placed
+        .iter()
+        .map(|_| std::array::from_fn(|_| Vec::with_capacity(frames)))
+        .collect();
+    let mut previous: Option<ik::IkSolution> = None;
     for round in 0..PLACEMENT_ROUNDS {
         for (k, t) in tasks.markers.iter_mut().enumerate() {
             t.weight = if round == 0 && map.targets[k].placed {
@@ -300,36 +304,40 @@ pub fn place_markers(
                 full_weights[k]
             };
         }
-        let solution = ik::solve_motion(model, &targets, &tasks, &settings, &|_| {})?;
-        for &k in &placed {
-            let marker = tasks.markers[k].marker;
-            let body = model.markers[marker].body;
-            for s in &mut samples {
-                s.clear();
+        // Later rounds solve the same frames with markers that moved a little: each frame
+        // starts from its own solution of the round before.
+        let solution = match &previous {
+            None => ik::solve_motion(model, &targets, &tasks, &settings, &|_| {})?,
+            Some(before) => {
+                ik::solve_motion_from(model, &targets, &tasks, &settings, before, &|_| {})?
             }
-            for f in 0..frames {
+        };
+        // Each placed target in its marker's body frame, R_bᵀ (x − o_b), per frame.
+        for s in samples.iter_mut().flatten() {
+            s.clear();
+        }
+        for f in 0..frames {
+            dynamics::forward_kinematics(model, &mut data, solution.frame(f))?;
+            for (&k, s) in placed.iter().zip(samples.iter_mut()) {
                 let x = targets.frame(f)[k];
                 if x.x.is_nan() {
                     continue;
                 }
-                dynamics::forward_kinematics(model, &mut data, solution.frame(f))?;
-                let (rot, origin) = data.body_pose(body);
-                // the target in the body's frame: R_bᵀ (x − o_b)
+                let (rot, origin) = data.body_pose(model.markers[tasks.markers[k].marker].body);
                 let local = rot.transpose() * (x - origin);
-                for (s, v) in samples.iter_mut().zip(local.iter()) {
+                for (s, v) in s.iter_mut().zip(local.iter()) {
                     s.push(*v);
                 }
             }
-            if samples[0].is_empty() {
+        }
+        for (&k, s) in placed.iter().zip(samples.iter_mut()) {
+            if s[0].is_empty() {
                 continue;
             }
-            let location = Vec3::new(
-                median(&mut samples[0]),
-                median(&mut samples[1]),
-                median(&mut samples[2]),
-            );
-            model.markers[marker].location_in_body = location;
+            let location = Vec3::new(median(&mut s[0]), median(&mut s[1]), median(&mut s[2]));
+            model.markers[tasks.markers[k].marker].location_in_body = location;
         }
+        previous = Some(solution);
     }
     Ok(placed
         .iter()
