@@ -7,6 +7,7 @@ use crate::model::{Model, WrapShape};
 use crate::spatial::{Mat3, Vec3};
 
 /// The outcome of wrapping one segment over one wrap object.
+#[derive(Clone, Copy)]
 pub(super) enum SegmentWrap {
     /// The segment stays straight.
     None,
@@ -72,6 +73,52 @@ pub(super) fn wrap_segment(
     }
 }
 
+/// Outcomes of [`wrap_segment`] kept while one path is wrapped: the sweeps try the same
+/// wrap on the same segment again and again (a segment between two path points does not
+/// move from sweep to sweep), and the ellipsoid's fan is costly. Keyed on the wrap and the
+/// segment's end points, bit for bit, so a hit returns exactly what the call would.
+struct WrapCache {
+    entries: [Option<(usize, Vec3, Vec3, SegmentWrap)>; WRAP_CACHE],
+    next: usize,
+}
+
+/// Entries of [`WrapCache`] (a path tries at most a few segments per wrap object).
+const WRAP_CACHE: usize = 16;
+
+impl WrapCache {
+    fn new() -> WrapCache {
+        WrapCache {
+            entries: [None; WRAP_CACHE],
+            next: 0,
+        }
+    }
+
+    /// [`wrap_segment`] of the path's wrap `wi` over a → b, from the cache when it was
+    /// computed before.
+    fn wrap(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        path: &PathGeometry,
+        wi: usize,
+        a: &Vec3,
+        b: &Vec3,
+    ) -> SegmentWrap {
+        let hit = self
+            .entries
+            .iter()
+            .flatten()
+            .find(|(w, ea, eb, _)| *w == wi && ea == a && eb == b);
+        if let Some((.., outcome)) = hit {
+            return *outcome;
+        }
+        let outcome = wrap_segment(model, data, &path.wraps[wi], a, b);
+        self.entries[self.next] = Some((wi, *a, *b, outcome));
+        self.next = (self.next + 1) % WRAP_CACHE;
+        outcome
+    }
+}
+
 /// Sweeps over a path's wrap objects when it has several (OpenSim: 8).
 const MAX_SWEEPS: usize = 100;
 /// Relative length change that ends the sweeps (OpenSim: 0.5 mm absolute).
@@ -105,6 +152,7 @@ pub(super) fn apply_wrap_objects(
     order[1] = 1.min(nw - 1);
     let mut last_length = f64::INFINITY;
     let mut first_results = [0u8; 2]; // 0 no wrap, 1 inside, 2 wrapped
+    let mut cache = WrapCache::new();
     for iteration in 0..iterations {
         for oi in 0..nw {
             let wi = if oi < 2 { order[oi] } else { oi };
@@ -136,7 +184,7 @@ pub(super) fn apply_wrap_objects(
                             continue;
                         }
                     }
-                    match wrap_segment(model, data, w, &na.ground, &nb.ground) {
+                    match cache.wrap(model, data, path, wi, &na.ground, &nb.ground) {
                         SegmentWrap::None => {}
                         SegmentWrap::Inside => result = result.max(1),
                         wrapped @ SegmentWrap::Wrapped {
@@ -206,7 +254,7 @@ pub(super) fn apply_wrap_objects(
             // usually a single pass with nothing to move, but an equal length does not
             // prove it: an object wrapped early in the last sweep against a neighbour that
             // a later object then moved is re-wrapped (or released) here.
-            settle_engaged_wraps(model, data, path, nodes);
+            settle_engaged_wraps(model, data, path, nodes, &mut cache);
             break;
         }
         last_length = length;
@@ -226,7 +274,13 @@ pub(super) fn apply_wrap_objects(
 /// Re-wraps every engaged object between its current neighbours, keeping which objects are
 /// engaged, until the tangent points stop moving (a Gauss–Seidel sweep over the objects); an
 /// object that no longer wraps its segment is released.
-fn settle_engaged_wraps(model: &Model, data: &Data, path: &PathGeometry, nodes: &mut Vec<Node>) {
+fn settle_engaged_wraps(
+    model: &Model,
+    data: &Data,
+    path: &PathGeometry,
+    nodes: &mut Vec<Node>,
+    cache: &mut WrapCache,
+) {
     for _ in 0..MAX_SWEEPS {
         let mut moved = 0.0f64;
         let mut k = 0;
@@ -236,7 +290,7 @@ fn settle_engaged_wraps(model: &Model, data: &Data, path: &PathGeometry, nodes: 
                 continue;
             };
             let (a, b) = (nodes[k - 1].ground, nodes[k + 2].ground);
-            match wrap_segment(model, data, &path.wraps[wi], &a, &b) {
+            match cache.wrap(model, data, path, wi, &a, &b) {
                 SegmentWrap::Wrapped {
                     t1,
                     t2,
