@@ -552,7 +552,8 @@ impl Model {
                     .collect();
                 let solution =
                     ik::solve_motion(m, &targets, &tasks, &ik::IkSettings::default(), &|_| {})?;
-                Ok((solution, targets.time.clone(), names, scaled.map(|s| s.xml)))
+                let scaled_xml = scaled.map(|s| s.xml()).transpose()?;
+                Ok((solution, targets.time.clone(), names, scaled_xml))
             })
             .map_err(to_py)?;
         let (t, n) = (solution.n_frames(), solution.nq);

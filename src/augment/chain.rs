@@ -206,7 +206,12 @@ impl Chain {
                     map,
                     motion,
                 )?;
-                (s.model, Some(s.xml))
+                let xml = if self.options.opensim_files {
+                    Some(s.xml()?)
+                } else {
+                    None
+                };
+                (s.model, xml)
             }
             _ => (self.model.clone(), None),
         };

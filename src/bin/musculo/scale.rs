@@ -121,7 +121,7 @@ fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
     let output = name_in_folder(&output, &format!("{}.osim", crate::tool::stem(clip_path)));
     let model_input: Vec<&Path> = args.model.iter().map(PathBuf::as_path).collect();
     let inputs = [&[clip_path][..], &model_input].concat();
-    crate::tool::write_output(&output, scaling.xml.as_bytes(), &inputs)?;
+    crate::tool::write_output(&output, scaling.xml()?.as_bytes(), &inputs)?;
     for (segment, factor) in &scaling.factors {
         println!("{segment:<18} ×{factor:.4}");
     }
