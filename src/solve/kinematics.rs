@@ -90,22 +90,22 @@ impl CoordinateTrajectory {
                     .map_err(|m| err(format!("column \"{}\"", model.coordinates[c].name), m))?;
             }
         }
-        let mut q = Vec::with_capacity(model.nq());
-        for (values, &c) in columns.into_iter().zip(&model.reduction.independent) {
-            let spline = NaturalSpline::interpolating(3, time.clone(), values)
-                .map_err(|m| err(format!("column \"{}\"", model.coordinates[c].name), m))?;
-            q.push(spline);
-        }
+        // One quintic spline per coordinate, all on the same knots (built together).
+        let q = NaturalSpline::interpolating_many(3, time.clone(), columns).map_err(|(k, m)| {
+            let c = model.reduction.independent[k];
+            err(format!("column \"{}\"", model.coordinates[c].name), m)
+        })?;
         let qd = match options.differentiation {
             Differentiation::SecondDerivative => None,
             Differentiation::SplineOfSpeeds => Some(
-                q.iter()
-                    .map(|s| {
-                        let speeds: Vec<f64> = time.iter().map(|&t| s.eval(t).1).collect();
-                        NaturalSpline::interpolating(3, time.clone(), speeds)
-                    })
-                    .collect::<Result<Vec<_>, String>>()
-                    .map_err(|m| err("table".into(), m))?,
+                NaturalSpline::interpolating_many(
+                    3,
+                    time.clone(),
+                    q.iter()
+                        .map(|s| time.iter().map(|&t| s.eval(t).1).collect())
+                        .collect(),
+                )
+                .map_err(|(_, m)| err("table".into(), m))?,
             ),
         };
         Ok(CoordinateTrajectory {

@@ -88,46 +88,71 @@ impl NaturalSpline {
     /// Accuracy is relative to the size of the spline itself; like the interpolation problem,
     /// it degrades as neighbouring spacings become very unequal (roughly ε·ρ to ε·ρ² for a
     /// spacing ratio ρ, ε = 2.2e-16).
-    #[allow(clippy::needless_range_loop)] // index arithmetic mirrors the equations
     pub fn interpolating(half_order: usize, x: Vec<f64>, y: Vec<f64>) -> Result<Self, String> {
+        let mut splines =
+            Self::interpolating_many(half_order, x, vec![y]).map_err(|(_, message)| message)?;
+        Ok(splines.remove(0))
+    }
+
+    /// [`NaturalSpline::interpolating`] of several data columns on the same knots: the
+    /// interpolation matrix, its factorization and the B-spline values at the knots depend on
+    /// the knots only, so they are computed once (each spline is exactly the one
+    /// `interpolating` builds for its column). An `Err` names the first failing column.
+    #[allow(clippy::needless_range_loop)] // index arithmetic mirrors the equations
+    pub fn interpolating_many(
+        half_order: usize,
+        x: Vec<f64>,
+        ys: Vec<Vec<f64>>,
+    ) -> Result<Vec<Self>, (usize, String)> {
         let m = half_order;
         if m == 0 || m > MAX_HALF_ORDER {
-            return Err(format!(
-                "half order must be between 1 and {MAX_HALF_ORDER} (spline degree 1, 3, 5 or 7), got {m}"
+            return Err((
+                0,
+                format!(
+                    "half order must be between 1 and {MAX_HALF_ORDER} (spline degree 1, 3, 5 or 7), got {m}"
+                ),
             ));
         }
         let n = x.len();
-        super::function::check_xy(&x, &y, m.max(1))?;
+        for (c, y) in ys.iter().enumerate() {
+            super::function::check_xy(&x, y, m.max(1)).map_err(|e| (c, e))?;
+        }
         if n == 1 {
             // Only possible for m = 1: the "interpolating polynomial of degree 0".
-            return Ok(Self {
-                half_order: m,
-                coef: Vec::new(),
-                left: vec![y[0]],
-                right: vec![y[0]],
-                x,
-            });
+            return Ok(ys
+                .iter()
+                .map(|y| Self {
+                    half_order: m,
+                    coef: Vec::new(),
+                    left: vec![y[0]],
+                    right: vec![y[0]],
+                    x: x.clone(),
+                })
+                .collect());
         }
 
         // Normalisation: u = (x − x_1)/L with L = x_n − x_1, and ỹ = y / Y with Y = max |y_i|.
         let span = x[n - 1] - x[0];
         if !span.is_finite() {
-            return Err(format!(
-                "the knot range x[{}] - x[0] = {} - {} is too large to represent",
-                n - 1,
-                x[n - 1],
-                x[0]
+            return Err((
+                0,
+                format!(
+                    "the knot range x[{}] - x[0] = {} - {} is too large to represent",
+                    n - 1,
+                    x[n - 1],
+                    x[0]
+                ),
             ));
         }
-        let y_max = y.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-        let y_scale = if y_max > 0.0 { y_max } else { 1.0 };
-        let yn: Vec<f64> = y.iter().map(|v| v / y_scale).collect();
         let u: Vec<f64> = x.iter().map(|v| (v - x[0]) / span).collect();
         if let Some(i) = (1..n).find(|&i| u[i] <= u[i - 1]) {
-            return Err(format!(
-                "knot spacing x[{i}] - x[{}] = {} is too small relative to the knot range {span}",
-                i - 1,
-                x[i] - x[i - 1]
+            return Err((
+                0,
+                format!(
+                    "knot spacing x[{i}] - x[{}] = {} is too small relative to the knot range {span}",
+                    i - 1,
+                    x[i] - x[i - 1]
+                ),
             ));
         }
 
@@ -165,7 +190,20 @@ impl NaturalSpline {
         let col_r = col_a + nb;
         let size = col_r + m + 1;
         let mut sys = BandLu::new(size, (2 * m - 1).max(m + 1));
-        let mut rhs = vec![0.0; size];
+        // Normalised data ỹ = y / Y per column, Y = max |y_i|, and the right-hand sides.
+        let y_scales: Vec<f64> = ys
+            .iter()
+            .map(|y| {
+                let y_max = y.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+                if y_max > 0.0 { y_max } else { 1.0 }
+            })
+            .collect();
+        let mut rhs: Vec<Vec<f64>> = vec![vec![0.0; size]; ys.len()];
+        let set_rhs = |rhs: &mut [Vec<f64>], row: usize, point: usize| {
+            for ((b, y), scale) in rhs.iter_mut().zip(&ys).zip(&y_scales) {
+                b[row] = y[point] / scale;
+            }
+        };
         let mut ders = [[0.0; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER];
         let blossom_weights = |j: usize, origin: f64| -> [f64; MAX_HALF_ORDER] {
             // σ_r(δ_{j,1..k−1}) / C(k−1, r), r < m, by the recurrence σ_r ← σ_r + δ σ_{r−1}.
@@ -191,17 +229,17 @@ impl NaturalSpline {
         }
         sys.set(k - 1, m, -1.0);
         sys.set(k, col_a, 1.0);
-        rhs[k] = yn[0];
+        set_rhs(&mut rhs, k, 0);
         for i in 1..n - 1 {
             basis_derivatives(&t, k, span_of(i), u[i], 0, &mut ders);
             // B_{i+k−1} starts at x_i and vanishes there.
             for q in 0..k - 1 {
                 sys.set(k + i, col_a + i + q, ders[0][q]);
             }
-            rhs[k + i] = yn[i];
+            set_rhs(&mut rhs, k + i, i);
         }
         sys.set(k + n - 1, col_a + nb - 1, 1.0);
-        rhs[k + n - 1] = yn[n - 1];
+        set_rhs(&mut rhs, k + n - 1, n - 1);
         for jj in 0..k {
             let (row, j) = (k + n + jj, nb - k + jj);
             let w = blossom_weights(j, u[n - 1]);
@@ -212,90 +250,101 @@ impl NaturalSpline {
         }
         sys.set(k + n, col_r + m, -1.0);
 
-        let z = sys.solve(rhs)?;
-        let a = &z[col_a..col_r];
-
-        // Local polynomials p_i(s) = Σ_r coef_{i,r} s^r, s = (u − u_i)/h_i ∈ [0, 1], in data units.
-        let mut coef = vec![0.0; (n - 1) * k];
-        // Interior intervals: coef_{i,r} = Y f̃^(r)(u_i⁺) h_i^r / r!, with
-        // f̃^(r)(u_i⁺) = Σ_q a_{i+q} B_{i+q}^(r)(u_i).
+        let solutions = sys.solve_many(rhs)?;
+        // The B-spline derivatives at each interior knot, shared by the columns.
+        let mut knot_ders = vec![[[0.0; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER]; n];
         for i in 1..n.saturating_sub(2) {
-            let hi = u[i + 1] - u[i];
-            basis_derivatives(&t, k, span_of(i), u[i], k - 1, &mut ders);
-            let mut factor = y_scale; // Y h^r / r!
-            for r in 0..k {
-                let fr: f64 = (0..k).map(|q| a[i + q] * ders[r][q]).sum();
-                coef[i * k + r] = fr * factor;
-                factor *= hi / (r + 1) as f64;
-            }
+            basis_derivatives(&t, k, span_of(i), u[i], k - 1, &mut knot_ders[i]);
         }
-        // Last interval (done before the first, which wins when n = 2): from the Taylor form at
-        // u_n, p(u) = Σ_q d_q σ^q with σ = (u − u_n)/h = s − 1 and d_q = c'_q h^q, so
-        // coef_r = Σ_{q≥r} d_q C(q, r) (−1)^(q−r). d_{2m−1} = e' h^{2m−1}/Π_l δ'_l with
-        // δ'_{2m−1} = −h, i.e. −e' Π_{l<2m−1} (h/δ'_l).
-        {
-            let i = n - 2;
-            let h = u[n - 1] - u[n - 2];
-            let mut d = [0.0; 2 * MAX_HALF_ORDER];
-            let mut hp = 1.0;
-            for q in 0..m {
-                d[q] = z[col_r + q] * hp;
-                hp *= h;
-            }
-            let j = nb - k;
-            d[k - 1] = -z[col_r + m]
-                * (1..k - 1)
-                    .map(|l| h / (t[j + l] - u[n - 1]))
-                    .product::<f64>();
-            for r in 0..k {
-                let cr: f64 = (r..k)
-                    .map(|q| d[q] * binomial(q, r) * if (q - r) % 2 == 0 { 1.0 } else { -1.0 })
-                    .sum();
-                coef[i * k + r] = cr * y_scale;
-            }
-        }
-        // First interval: coef_r = c_r h^r (r < m), 0 for m ≤ r ≤ 2m−2 (natural conditions,
-        // exactly), and c_{2m−1} h^{2m−1} = e Π_{l≥2} (h/δ_l) since δ_1 = h.
-        {
-            let h = u[1] - u[0];
-            let mut hp = 1.0;
-            coef[..k].fill(0.0);
-            for r in 0..m {
-                coef[r] = z[r] * hp * y_scale;
-                hp *= h;
-            }
-            coef[k - 1] =
-                z[m] * (2..k).map(|l| h / (t[k - 1 + l] - u[0])).product::<f64>() * y_scale;
-        }
-        // Extrapolation: f^(r)(x_end)/r! = Y c_r / L^r.
-        let taylor = |c: &[f64]| -> Vec<f64> {
-            c.iter()
-                .enumerate()
-                .map(|(r, v)| v * y_scale / span.powi(r as i32))
-                .collect()
-        };
-        let left = taylor(&z[0..m]);
-        let right = taylor(&z[col_r..col_r + m]);
+        let mut splines = Vec::with_capacity(ys.len());
+        for (column, (z, y_scale)) in solutions.iter().zip(&y_scales).enumerate() {
+            let y_scale = *y_scale;
+            let a = &z[col_a..col_r];
 
-        if !coef
-            .iter()
-            .chain(&left)
-            .chain(&right)
-            .all(|v| v.is_finite())
-        {
-            return Err(
+            // Local polynomials p_i(s) = Σ_r coef_{i,r} s^r, s = (u − u_i)/h_i ∈ [0, 1], in data units.
+            let mut coef = vec![0.0; (n - 1) * k];
+            // Interior intervals: coef_{i,r} = Y f̃^(r)(u_i⁺) h_i^r / r!, with
+            // f̃^(r)(u_i⁺) = Σ_q a_{i+q} B_{i+q}^(r)(u_i).
+            for i in 1..n.saturating_sub(2) {
+                let hi = u[i + 1] - u[i];
+                let ders = &knot_ders[i];
+                let mut factor = y_scale; // Y h^r / r!
+                for r in 0..k {
+                    let fr: f64 = (0..k).map(|q| a[i + q] * ders[r][q]).sum();
+                    coef[i * k + r] = fr * factor;
+                    factor *= hi / (r + 1) as f64;
+                }
+            }
+            // Last interval (done before the first, which wins when n = 2): from the Taylor form at
+            // u_n, p(u) = Σ_q d_q σ^q with σ = (u − u_n)/h = s − 1 and d_q = c'_q h^q, so
+            // coef_r = Σ_{q≥r} d_q C(q, r) (−1)^(q−r). d_{2m−1} = e' h^{2m−1}/Π_l δ'_l with
+            // δ'_{2m−1} = −h, i.e. −e' Π_{l<2m−1} (h/δ'_l).
+            {
+                let i = n - 2;
+                let h = u[n - 1] - u[n - 2];
+                let mut d = [0.0; 2 * MAX_HALF_ORDER];
+                let mut hp = 1.0;
+                for q in 0..m {
+                    d[q] = z[col_r + q] * hp;
+                    hp *= h;
+                }
+                let j = nb - k;
+                d[k - 1] = -z[col_r + m]
+                    * (1..k - 1)
+                        .map(|l| h / (t[j + l] - u[n - 1]))
+                        .product::<f64>();
+                for r in 0..k {
+                    let cr: f64 = (r..k)
+                        .map(|q| d[q] * binomial(q, r) * if (q - r) % 2 == 0 { 1.0 } else { -1.0 })
+                        .sum();
+                    coef[i * k + r] = cr * y_scale;
+                }
+            }
+            // First interval: coef_r = c_r h^r (r < m), 0 for m ≤ r ≤ 2m−2 (natural conditions,
+            // exactly), and c_{2m−1} h^{2m−1} = e Π_{l≥2} (h/δ_l) since δ_1 = h.
+            {
+                let h = u[1] - u[0];
+                let mut hp = 1.0;
+                coef[..k].fill(0.0);
+                for r in 0..m {
+                    coef[r] = z[r] * hp * y_scale;
+                    hp *= h;
+                }
+                coef[k - 1] =
+                    z[m] * (2..k).map(|l| h / (t[k - 1 + l] - u[0])).product::<f64>() * y_scale;
+            }
+            // Extrapolation: f^(r)(x_end)/r! = Y c_r / L^r.
+            let taylor = |c: &[f64]| -> Vec<f64> {
+                c.iter()
+                    .enumerate()
+                    .map(|(r, v)| v * y_scale / span.powi(r as i32))
+                    .collect()
+            };
+            let left = taylor(&z[0..m]);
+            let right = taylor(&z[col_r..col_r + m]);
+
+            if !coef
+                .iter()
+                .chain(&left)
+                .chain(&right)
+                .all(|v| v.is_finite())
+            {
+                return Err((
+                column,
                 "natural spline computation overflowed: knot spacing or data magnitude too extreme"
                     .to_string(),
-            );
-        }
+            ));
+            }
 
-        Ok(Self {
-            half_order: m,
-            x,
-            coef,
-            left,
-            right,
-        })
+            splines.push(Self {
+                half_order: m,
+                x: x.clone(),
+                coef,
+                left,
+                right,
+            });
+        }
+        Ok(splines)
     }
 
     /// The half order m (the spline has degree 2m − 1).
@@ -487,9 +536,10 @@ impl BandLu {
         self.data[i] = v;
     }
 
-    /// Solves A x = b.
+    /// Solves A x = b for every b of `bs` (the same operations on each as [`BandLu::solve`]);
+    /// an `Err` names the first b whose solution overflowed.
     #[allow(clippy::needless_range_loop)]
-    fn solve(mut self, mut b: Vec<f64>) -> Result<Vec<f64>, String> {
+    fn solve_many(mut self, mut bs: Vec<Vec<f64>>) -> Result<Vec<Vec<f64>>, (usize, String)> {
         let (n, bw) = (self.n, self.band);
         // Row equilibration: divide each row (and b) by its largest magnitude.
         for r in 0..n {
@@ -497,16 +547,19 @@ impl BandLu {
             let hi = (r + bw).min(n - 1);
             let scale = (lo..=hi).fold(0.0_f64, |acc, c| acc.max(self.get(r, c).abs()));
             if !(scale > 0.0 && scale.is_finite()) {
-                return Err(
+                return Err((
+                    0,
                     "natural spline system is singular or overflowed (knot spacing too extreme)"
                         .to_string(),
-                );
+                ));
             }
             for c in lo..=hi {
                 let v = self.get(r, c) / scale;
                 self.set(r, c, v);
             }
-            b[r] /= scale;
+            for b in bs.iter_mut() {
+                b[r] /= scale;
+            }
         }
         // Elimination. Invariant: before step c, rows ≥ c have no entries left of column c, and
         // row r ≥ c has entries only up to column r + 2·bw.
@@ -521,17 +574,20 @@ impl BandLu {
             }
             let pivot = self.get(p, c);
             if !(pivot != 0.0 && pivot.is_finite()) {
-                return Err(
+                return Err((
+                    0,
                     "natural spline system is numerically singular (knot spacing too extreme)"
                         .to_string(),
-                );
+                ));
             }
             if p != c {
                 for col in c..=last_col {
                     let (ip, ic) = (self.idx(p, col), self.idx(c, col));
                     self.data.swap(ip, ic);
                 }
-                b.swap(p, c);
+                for b in bs.iter_mut() {
+                    b.swap(p, c);
+                }
             }
             for r in c + 1..=last_row {
                 let l = self.get(r, c) / pivot;
@@ -540,23 +596,29 @@ impl BandLu {
                         let v = self.get(r, col) - l * self.get(c, col);
                         self.set(r, col, v);
                     }
-                    b[r] -= l * b[c];
+                    for b in bs.iter_mut() {
+                        b[r] -= l * b[c];
+                    }
                 }
             }
         }
         // Back substitution with the upper triangle (bandwidth 2·bw).
-        for r in (0..n).rev() {
-            let mut sum = b[r];
-            for col in r + 1..=(r + 2 * bw).min(n - 1) {
-                sum -= self.get(r, col) * b[col];
+        for (i, b) in bs.iter_mut().enumerate() {
+            for r in (0..n).rev() {
+                let mut sum = b[r];
+                for col in r + 1..=(r + 2 * bw).min(n - 1) {
+                    sum -= self.get(r, col) * b[col];
+                }
+                b[r] = sum / self.get(r, r);
             }
-            b[r] = sum / self.get(r, r);
+            if !b.iter().all(|v| v.is_finite()) {
+                return Err((
+                    i,
+                    "natural spline computation overflowed (knot spacing too extreme)".to_string(),
+                ));
+            }
         }
-        if b.iter().all(|v| v.is_finite()) {
-            Ok(b)
-        } else {
-            Err("natural spline computation overflowed (knot spacing too extreme)".to_string())
-        }
+        Ok(bs)
     }
 }
 

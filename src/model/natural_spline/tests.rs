@@ -734,3 +734,25 @@ fn rejects_bad_input_without_panicking() {
     let s = NaturalSpline::interpolating(3, ok_x, ok_y).unwrap();
     assert!(s.eval(f64::NAN).0.is_nan());
 }
+
+/// Several columns built together equal each column built alone, bit for bit; a bad column is
+/// named by its index.
+#[test]
+fn columns_built_together_equal_columns_built_alone() {
+    let x: Vec<f64> = (0..40).map(|i| 0.05 * i as f64 + 0.001 * (i as f64).sin()).collect();
+    let ys: Vec<Vec<f64>> = (0..5)
+        .map(|c| x.iter().map(|&t| (c as f64 * 1.3 * t).cos() * (c + 1) as f64).collect())
+        .collect();
+    for m in 1..=4 {
+        let together = NaturalSpline::interpolating_many(m, x.clone(), ys.clone()).unwrap();
+        for (y, s) in ys.iter().zip(&together) {
+            let alone = NaturalSpline::interpolating(m, x.clone(), y.clone()).unwrap();
+            assert_eq!(&alone, s);
+        }
+    }
+    let mut bad = ys.clone();
+    bad[3][7] = f64::NAN;
+    let (column, message) = NaturalSpline::interpolating_many(3, x, bad).unwrap_err();
+    assert_eq!(column, 3);
+    assert!(message.contains("y[7]"), "{message}");
+}
