@@ -70,8 +70,10 @@ fn spread_frames(motion: &Motion, max: usize) -> Motion {
 /// A model scaled to a clip.
 #[derive(Clone, Debug)]
 pub struct ClipScaling {
-    /// The scaled model file, before marker placement.
-    pub scaled: ScaledModel,
+    /// The scaled model file's text, before marker placement.
+    pub scaled_xml: String,
+    /// ℓ_after / ℓ_before per force whose lengths were rescaled (see [`ScaledModel`]).
+    pub length_ratios: Vec<(String, f64)>,
     /// The scaled model with its placed markers moved: the model to run IK with.
     pub model: Model,
     /// Name of the model file in messages.
@@ -87,7 +89,7 @@ impl ClipScaling {
     /// in its marker's own frame (made on request: the text edits cost a tenth of the
     /// scaling, and IK needs only `model`).
     pub fn xml(&self) -> crate::Result<String> {
-        let frames = super::scale::markers::marker_frames(&self.scaled.xml, &self.source)?;
+        let frames = super::scale::markers::marker_frames(&self.scaled_xml, &self.source)?;
         let mut locations = Vec::with_capacity(self.placed.len());
         for (name, _, in_body) in &self.placed {
             let frame = frames.iter().find(|(n, _)| n == name).ok_or_else(|| {
@@ -98,7 +100,7 @@ impl ClipScaling {
             })?;
             locations.push((name.clone(), frame.1.inverse().apply_point(in_body)));
         }
-        super::scale::markers::set_marker_locations(&self.scaled.xml, &self.source, &locations)
+        super::scale::markers::set_marker_locations(&self.scaled_xml, &self.source, &locations)
     }
 
     /// `right thigh ×1.02, …` for messages.
@@ -264,11 +266,16 @@ pub fn scale_to_clip(
         preserve_mass_distribution: true,
         ..ScaleOptions::default()
     };
-    let scaled = scale_osim(xml, source, model, &scales, &options)?;
-    let mut fitted = scaled.model.clone();
+    let ScaledModel {
+        xml: scaled_xml,
+        model: mut fitted,
+        length_ratios,
+        ..
+    } = scale_osim(xml, source, model, &scales, &options)?;
     let placed = place_markers(&mut fitted, map, clip)?;
     Ok(ClipScaling {
-        scaled,
+        scaled_xml,
+        length_ratios,
         model: fitted,
         source: source.to_string(),
         factors,
