@@ -31,6 +31,7 @@ use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::model::{CoordinateRole, Model};
 use crate::motion::Motion;
+use crate::solve::qp::linalg::dot;
 use crate::spatial::Vec3;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -450,7 +451,7 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
             } else {
                 &done[k * m..k * m + k]
             };
-            let dot: f64 = row[..k].iter().zip(lk).map(|(x, y)| x * y).sum();
+            let dot = dot(&row[..k], lk);
             if k == i {
                 let s = a + mu * a.max(floor) + 1e-12 * (1.0 + a) - dot;
                 if !(s > 0.0 && s.is_finite()) {
@@ -466,12 +467,8 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     // L y = −g,  Lᵀ δ = y (y and δ packed in `packed`)
     let y = &mut ws.packed[..m];
     for i in 0..m {
-        let dot: f64 = l[i * m..i * m + i]
-            .iter()
-            .zip(&y[..i])
-            .map(|(a, b)| a * b)
-            .sum();
-        y[i] = (-ws.gradient[ws.cols[i]] - dot) * inv[i];
+        let d = dot(&l[i * m..i * m + i], &y[..i]);
+        y[i] = (-ws.gradient[ws.cols[i]] - d) * inv[i];
     }
     for i in (0..m).rev() {
         let mut s = y[i];
@@ -569,7 +566,7 @@ fn solve_frame(
                     }
                     linear += ws.gradient[b] * db;
                     let column = &h[b * n..(b + 1) * n];
-                    let hd: f64 = column.iter().zip(&ws.step).map(|(x, y)| x * y).sum();
+                    let hd = dot(column, ws.step.as_slice());
                     quadratic += db * hd;
                 }
                 let predicted = -2.0 * (linear + 0.5 * quadratic);
