@@ -1172,3 +1172,52 @@ fn the_measurement_window_is_opensims_frame_search() {
     // past the end: the last frame
     assert_eq!(frame_range(&t, 0.2, 9.0), (0, 4));
 }
+
+/// The scaled model `scale_osim` returns (the geometry-scaled model with its rescaled length
+/// properties written in place) is exactly the model a fresh parse of its text gives: on the
+/// default model and every reference model that loads and scales, with different factors per
+/// body.
+#[test]
+fn the_returned_scaled_model_equals_a_parse_of_the_scaled_text() {
+    let mut files: Vec<(String, String)> = vec![(
+        musculo::DEFAULT_MODEL_OSIM.to_string(),
+        "default".to_string(),
+    )];
+    for path in common::reference_models() {
+        files.push((
+            std::fs::read_to_string(&path).unwrap(),
+            path.display().to_string(),
+        ));
+    }
+    let mut checked = 0;
+    let mut rescaled = 0;
+    for (xml, source) in &files {
+        let Ok(model) = Model::from_osim_str(xml, source) else {
+            continue;
+        };
+        let mut set = ScaleSet::identity(&model);
+        for (i, b) in model.bodies.iter().enumerate().skip(1) {
+            let k = i as f64;
+            set.set(
+                &b.name,
+                Vec3::new(0.9 + 0.01 * k, 1.05 - 0.007 * k, 1.0 + 0.003 * k),
+            );
+        }
+        let Ok(out) = scale_osim(xml, source, &model, &set, &ScaleOptions::default()) else {
+            continue;
+        };
+        let parsed = Model::from_osim_str(&out.xml, source).unwrap();
+        assert_eq!(
+            format!("{:?}", out.model),
+            format!("{parsed:?}"),
+            "{source}: the returned model differs from a parse of the scaled text"
+        );
+        checked += 1;
+        rescaled += out.length_ratios.len();
+    }
+    println!("{checked} models, {rescaled} rescaled forces: returned model = parsed text");
+    assert!(
+        checked >= 1 && rescaled > 300,
+        "{checked} models, {rescaled} forces"
+    );
+}

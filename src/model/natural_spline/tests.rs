@@ -739,9 +739,15 @@ fn rejects_bad_input_without_panicking() {
 /// named by its index.
 #[test]
 fn columns_built_together_equal_columns_built_alone() {
-    let x: Vec<f64> = (0..40).map(|i| 0.05 * i as f64 + 0.001 * (i as f64).sin()).collect();
+    let x: Vec<f64> = (0..40)
+        .map(|i| 0.05 * i as f64 + 0.001 * (i as f64).sin())
+        .collect();
     let ys: Vec<Vec<f64>> = (0..5)
-        .map(|c| x.iter().map(|&t| (c as f64 * 1.3 * t).cos() * (c + 1) as f64).collect())
+        .map(|c| {
+            x.iter()
+                .map(|&t| (c as f64 * 1.3 * t).cos() * (c + 1) as f64)
+                .collect()
+        })
         .collect();
     for m in 1..=4 {
         let together = NaturalSpline::interpolating_many(m, x.clone(), ys.clone()).unwrap();

@@ -104,11 +104,16 @@ impl WrapCache {
         a: &Vec3,
         b: &Vec3,
     ) -> SegmentWrap {
+        let same = |u: &Vec3, v: &Vec3| {
+            u.iter()
+                .zip(v.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        };
         let hit = self
             .entries
             .iter()
             .flatten()
-            .find(|(w, ea, eb, _)| *w == wi && ea == a && eb == b);
+            .find(|(w, ea, eb, _)| *w == wi && same(ea, a) && same(eb, b));
         if let Some((.., outcome)) = hit {
             return *outcome;
         }

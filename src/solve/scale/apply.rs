@@ -568,10 +568,12 @@ pub(super) fn scale(
     let total_mass = s.masses(&bodies)?;
     // Pass 1: geometry and masses; pass 2: lengths by the measured path-length ratio.
     let geometry = apply(xml, source, &s.edits)?;
-    let scaled = Model::from_osim_str_with(&geometry, source, &options.load)?;
+    let mut scaled = Model::from_osim_str_with(&geometry, source, &options.load)?;
     let before = path_lengths(model)?;
     let after = path_lengths(&scaled)?;
     let mut ratios = Vec::new();
+    // (force, its tags) whose lengths pass 2 rescales, for patching `scaled` in place.
+    let mut rescaled: Vec<(Node, &[&str], f64)> = Vec::new();
     for force in doc.descendants().filter(|n| {
         n.is_element()
             && n.parent_element()
@@ -594,16 +596,56 @@ pub(super) fn scale(
             for tag in *tags {
                 s.mul(child(force, tag), vec![ratio]);
             }
+            rescaled.push((force, tags, ratio));
         }
     }
     let xml = apply(xml, source, &s.edits)?;
-    let model = Model::from_osim_str_with(&xml, source, &options.load)?;
+    // Pass 2 changes only the rescaled length properties, which the parsed model keeps as
+    // the text of its force elements: write the same numbers there instead of parsing the
+    // whole file again (tests/scale_tool.rs checks the result equals a fresh parse).
+    let model = if patch_lengths(&mut scaled, &rescaled) {
+        scaled
+    } else {
+        Model::from_osim_str_with(&xml, source, &options.load)?
+    };
     Ok(ScaledModel {
         xml,
         model,
         length_ratios: ratios,
         total_mass,
     })
+}
+
+/// Multiplies, in the force elements of `model`, the text of each listed length property by
+/// its ratio, formatted as [`apply`] writes it. False (nothing or part done: parse the text
+/// instead) when a force is not found exactly once by name and class, or a value is not a
+/// number.
+fn patch_lengths(model: &mut Model, rescaled: &[(Node, &[&str], f64)]) -> bool {
+    for (force, tags, ratio) in rescaled {
+        let name = force.attribute("name").unwrap_or("");
+        let kind = force.tag_name().name();
+        let mut found = model
+            .forces
+            .iter_mut()
+            .filter(|f| f.name == name && f.kind == kind);
+        let (Some(element), None) = (found.next(), found.next()) else {
+            return false;
+        };
+        for tag in tags.iter() {
+            let Some(raw) = element.raw.children.iter_mut().find(|c| c.tag == *tag) else {
+                continue;
+            };
+            let mut values = Vec::new();
+            for token in raw.text.split_whitespace() {
+                let Ok(x) = token.parse::<f64>() else {
+                    return false;
+                };
+                values.push(format!("{}", x * ratio));
+            }
+            raw.text = values.join(" ");
+        }
+    }
+    true
 }
 
 /// The text with every edit applied (numbers written in Rust's shortest round-trip form).
