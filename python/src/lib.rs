@@ -472,18 +472,7 @@ impl Model {
                 ik::solve_motion(m, &targets, &tasks, &ik::IkSettings::default(), &|_| {})
             })
             .map_err(to_py)?;
-        let (t, n) = (solution.n_frames(), solution.nq);
-        let k = solution.marker_error.len() / t.max(1);
-        let d = PyDict::new(py);
-        d.set_item("frames_at_limit", solution.frames_at_limit())?;
-        d.set_item("q", array(py, &[t], &[n], solution.q)?)?;
-        d.set_item("rmse", array(py, &[t], &[], solution.rmse)?)?;
-        d.set_item("max_error", array(py, &[t], &[], solution.max_error)?)?;
-        d.set_item(
-            "marker_error",
-            array(py, &[t], &[k], solution.marker_error)?,
-        )?;
-        Ok(d)
+        ik_dict(py, solution)
     }
 
     /// Inverse kinematics of a motion file onto this model, as `musculo ik` runs it: the
@@ -556,17 +545,8 @@ impl Model {
                 Ok((solution, targets.time.clone(), names, scaled_xml))
             })
             .map_err(to_py)?;
-        let (t, n) = (solution.n_frames(), solution.nq);
-        let k = names.len();
-        let d = PyDict::new(py);
-        d.set_item("frames_at_limit", solution.frames_at_limit())?;
-        d.set_item("q", array(py, &[t], &[n], solution.q)?)?;
-        d.set_item("rmse", array(py, &[t], &[], solution.rmse)?)?;
-        d.set_item("max_error", array(py, &[t], &[], solution.max_error)?)?;
-        d.set_item(
-            "marker_error",
-            array(py, &[t], &[k], solution.marker_error)?,
-        )?;
+        let t = solution.n_frames();
+        let d = ik_dict(py, solution)?;
         d.set_item("time", array(py, &[t], &[], time)?)?;
         d.set_item("marker_names", names)?;
         d.set_item("model_xml", scaled_xml)?;
@@ -833,6 +813,26 @@ fn augment_clip<'py>(
         })
         .map_err(to_py)?;
     clip_output_dict(py, output)
+}
+
+/// An IK solution as a dict: `q` (T × n), `rmse`, `max_error` (T), `marker_error` (T × K),
+/// `frames_at_limit`.
+fn ik_dict(
+    py: Python<'_>,
+    solution: musculo::solve::ik::IkSolution,
+) -> PyResult<Bound<'_, PyDict>> {
+    let (t, n) = (solution.n_frames(), solution.nq);
+    let k = solution.marker_error.len() / t.max(1);
+    let d = PyDict::new(py);
+    d.set_item("frames_at_limit", solution.frames_at_limit())?;
+    d.set_item("q", array(py, &[t], &[n], solution.q)?)?;
+    d.set_item("rmse", array(py, &[t], &[], solution.rmse)?)?;
+    d.set_item("max_error", array(py, &[t], &[], solution.max_error)?)?;
+    d.set_item(
+        "marker_error",
+        array(py, &[t], &[k], solution.marker_error)?,
+    )?;
+    Ok(d)
 }
 
 /// A motion file read as `musculo ik` and `musculo augment` read it: the motion, its format
