@@ -640,3 +640,74 @@ fn inputs_with_the_same_stem_do_not_overwrite_each_other() {
         "{mots} .mot files; {err}"
     );
 }
+
+/// `ik::solve_motion_from` starts every frame from a given solution: from the solution
+/// itself it ends where it started, and starts that do not fit the clip (other frame count,
+/// a non-finite value) are errors, not panics.
+#[test]
+fn per_frame_starts_are_checked_and_a_solution_is_its_own_fixed_point() {
+    let model = Model::default_fullbody();
+    let mut data = musculo::Data::new(&model);
+    let n = model.nq();
+    let names: Vec<String> = model.markers.iter().map(|m| m.name.clone()).collect();
+    let mut positions = Vec::new();
+    let mut q = model.default_q();
+    for f in 0..6 {
+        for (j, v) in q.iter_mut().enumerate() {
+            *v = model.default_q()[j] + 0.02 * (f as f64) * ((j % 5) as f64 - 2.0) / 2.0;
+        }
+        musculo::dynamics::forward_kinematics(&model, &mut data, &q).unwrap();
+        for m in &model.markers {
+            positions.push(data.point_position(m.body, &m.location_in_body));
+        }
+    }
+    let clip = Motion::uniform("synthetic", names, 20.0, positions).unwrap();
+    let tasks = ik::tasks_by_name(&model, &clip);
+    let settings = IkSettings::default();
+    let first = ik::solve_motion(&model, &clip, &tasks, &settings, &|_| {}).unwrap();
+    let again = ik::solve_motion_from(&model, &clip, &tasks, &settings, &first, &|_| {}).unwrap();
+    let moved = first
+        .q
+        .iter()
+        .zip(&again.q)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        moved < 1e-8,
+        "restarting from the solution moved it by {moved}"
+    );
+    assert!(
+        again.iterations.iter().all(|&i| i <= 2),
+        "{:?}",
+        again.iterations
+    );
+    // frame 3 started away from its solution takes more iterations there, and only there
+    let mut off = first.clone();
+    for v in &mut off.q[3 * n..4 * n] {
+        *v += 0.05;
+    }
+    let moved_start =
+        ik::solve_motion_from(&model, &clip, &tasks, &settings, &off, &|_| {}).unwrap();
+    assert!(
+        moved_start.iterations[3] > again.iterations[3],
+        "{:?} vs {:?}",
+        moved_start.iterations,
+        again.iterations
+    );
+    assert_eq!(moved_start.iterations[4], again.iterations[4]);
+
+    let short = ik::solve_motion(
+        &model,
+        &clip.time_window(0.0, 0.1).unwrap(),
+        &tasks,
+        &settings,
+        &|_| {},
+    )
+    .unwrap();
+    let e = ik::solve_motion_from(&model, &clip, &tasks, &settings, &short, &|_| {}).unwrap_err();
+    assert!(e.to_string().contains("3 frames"), "{e}");
+    let mut bad = first.clone();
+    bad.q[n + 2] = f64::NAN;
+    let e = ik::solve_motion_from(&model, &clip, &tasks, &settings, &bad, &|_| {}).unwrap_err();
+    assert!(e.to_string().contains("non-finite"), "{e}");
+}
