@@ -277,7 +277,9 @@ fn solve_root(a2: &[f64; 3], x: &[f64; 3], axes: &[usize], guess: Option<f64>) -
 }
 
 /// The root t of G(t; x) = 0 as a function of x on `T`: one Newton step from the converged
-/// `f64` root gives value t and derivative −G_x/G_t.
+/// `f64` root gives value t and derivative −G_x/G_t. For second derivatives a second step
+/// is taken (with the same f64 slope G_t: the error after step k is O(|δx|^(k+1)), so two
+/// steps make the second-order part exact).
 fn lift_root<T: Real>(a2: &[f64; 3], x: &[T; 3], axes: &[usize], t: f64) -> T {
     if !T::HAS_GRAD {
         return T::cst(t);
@@ -294,5 +296,15 @@ fn lift_root<T: Real>(a2: &[f64; 3], x: &[T; 3], axes: &[usize], t: f64) -> T {
     if gt == 0.0 || !gt.is_finite() {
         return T::cst(t);
     }
-    -(g / gt) + t
+    let t1 = -(g / gt) + t;
+    if !T::SECOND {
+        return t1;
+    }
+    // G(t1; x) = Σ a_j² x_j² / (a_j² + t1)² − 1 on `T`.
+    let mut g1 = T::cst(-1.0);
+    for &j in axes {
+        let ax = x[j] * a2[j].sqrt() / (t1 + a2[j]);
+        g1 = g1 + ax * ax;
+    }
+    t1 - g1 / gt
 }

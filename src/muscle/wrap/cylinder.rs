@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 
 use nalgebra::Matrix3x6;
 
-use super::real::{Real, V3, join};
+use super::real::{D1, D6, Real, V3, join, second_order_of, seed2};
 use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
 use crate::spatial::{Mat3, Vec3};
 
@@ -109,6 +109,20 @@ fn wrap_outside(
         mandatory: w.mandatory,
         arc: w.arc,
     })
+}
+
+/// [`super::WrapSurface::second_order`] for the cylinder (the caller checked that it wraps).
+pub(super) fn second_order(
+    radius: f64,
+    length: f64,
+    quadrant: Quadrant,
+    p: &Vec3,
+    s: &Vec3,
+    dir: &[f64; 6],
+) -> Option<super::WrapSecondOrder> {
+    let (pd, sd) = seed2(p, s, dir);
+    let w = cylinder_core::<D6<D1>>(radius, 0.5 * length, quadrant, &pd, &sd)?;
+    Some(second_order_of(&w.length, &w.t1_t, &w.t2_t))
 }
 
 /// Values of the planar (projected) solution, for the closed-form gradient.
@@ -270,8 +284,17 @@ pub(crate) fn cylinder_core<T: Real>(
     // h − Rβ have derivative h/d with respect to d, finite on the surface.
     let dd1 = (p.x * p.x + p.y * p.y).sqrt();
     let dd2 = (s.x * s.x + s.y * s.y).sqrt();
-    let q1 = T::chain(h1 - r * h1.atan2(r), &[(h1 / d1, dd1)]);
-    let q2 = T::chain(h2 - r * h2.atan2(r), &[(h2 / d2, dd2)]);
+    // q(d) = h − R·atan(h/R): q' = h/d, q'' = R²/(h d²).
+    let q1 = T::chain(
+        h1 - r * h1.atan2(r),
+        &[(h1 / d1, dd1)],
+        &[r * r / (h1 * d1 * d1)],
+    );
+    let q2 = T::chain(
+        h2 - r * h2.atan2(r),
+        &[(h2 / d2, dd2)],
+        &[r * r / (h2 * d2 * d2)],
+    );
     let cross_t = p.x * s.y - p.y * s.x;
     let dot_t = p.x * s.x + p.y * s.y;
     // (+ 0.0 turns a −0 into +0, so that atan2 gives π, not −π, for opposite P and S.)

@@ -4,8 +4,10 @@ use std::f64::consts::PI;
 
 use super::closest::{Ellipsoid, closest, unit_to_closest_with_jacobian};
 use super::elliptic::ellipse_arc_length;
-use super::real::{D6, Real, V3, gradients, jacobian, seed};
-use super::{EllipsoidMethod, Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
+use super::real::{D1, D6, Real, V3, gradients, jacobian, second_order_of, seed, seed2};
+use super::{
+    EllipsoidMethod, Quadrant, SurfaceArc, WrapOutcome, WrapSecondOrder, Wrapped, all_finite, dsign,
+};
 use crate::spatial::{Mat3, Vec3};
 
 /// OpenSim's `MU_BLEND_MIN`: below this axis alignment, c1 comes from the fan alone (it
@@ -139,6 +141,21 @@ pub fn wrap_ellipsoid(
         mandatory: true,
         arc: w.arc,
     })
+}
+
+/// [`super::WrapSurface::second_order`] for the ellipsoid (the caller checked that it wraps).
+pub(super) fn second_order(
+    radii: &Vec3,
+    quadrant: Quadrant,
+    method: EllipsoidMethod,
+    p: &Vec3,
+    s: &Vec3,
+    dir: &[f64; 6],
+) -> Option<WrapSecondOrder> {
+    let e = Ellipsoid::new([radii.x, radii.y, radii.z]);
+    let (pd, sd) = seed2(p, s, dir);
+    let w = ellipsoid_core::<D6<D1>>(&e, quadrant, method, &pd, &sd)?;
+    Some(second_order_of(&w.length, &w.t1_t, &w.t2_t))
 }
 
 pub(crate) struct EllipsoidWrap<T> {
@@ -565,7 +582,13 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
             [Some(a), Some(b), None, _, _] => Some(2.0 * a - b),
             [a, _, _, _, _] => a,
         };
-        if let Some((u, t, du_dx)) = unit_to_closest_with_jacobian(e, &x, guess) {
+        // Second order: every sample on `T` (the f64 Jacobian sums carry no Hessian).
+        let fast = if T::SECOND {
+            None
+        } else {
+            unit_to_closest_with_jacobian(e, &x, guess)
+        };
+        if let Some((u, t, du_dx)) = fast {
             roots = [Some(t), roots[0], roots[1], roots[2], roots[3]];
             sum += u;
             if T::HAS_GRAD {
@@ -574,7 +597,8 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
                 jac_chord += du_dx * f;
             }
         } else {
-            // A sample on a coordinate plane: OpenSim's section reduction, on `T`.
+            // A sample on a coordinate plane (OpenSim's section reduction), or any sample
+            // in second order: on `T`.
             let xt = *x1 + chord.scale_f(f);
             let v = closest(e, &xt, None, None).0 - xt;
             let len = safe_norm(&v);
@@ -589,9 +613,13 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
             terms[k] = (jac_x1[(j, k)], x1.at(k));
             terms[3 + k] = (jac_chord[(j, k)], chord.at(k));
         }
-        T::chain(sum[j], &terms)
+        T::chain(sum[j], &terms, &[])
     };
-    let total = V3::new(comp(0), comp(1), comp(2)) + special;
+    let total = if T::SECOND {
+        special
+    } else {
+        V3::new(comp(0), comp(1), comp(2)) + special
+    };
     let len = safe_norm(&total);
     if len.val() > 0.0 {
         total.scale(T::cst(1.0) / len)

@@ -95,12 +95,55 @@ pub(crate) fn elliptic_e_d(phi: f64, m: f64) -> (f64, f64) {
     (e, dd)
 }
 
-/// E(φ|m) on `T`: ∂E/∂φ = √(1 − m sin²φ), ∂E/∂m = −D(φ|m)/2.
+/// E(φ|m) on `T`, with Δ = √(1 − m sin²φ), s = sin φ, c = cos φ:
+///   ∂E/∂φ = Δ,   ∂E/∂m = −D/2,
+///   ∂²E/∂φ² = −m s c/Δ,   ∂²E/∂φ∂m = −s²/(2Δ),   ∂²E/∂m² = −½ ∂D/∂m,
+/// where, from ∂F/∂m = E/(2m(1 − m)) − F/(2m) − s c/(2(1 − m)Δ) (DLMF 19.4.2 with m = k²),
+/// E_m = −D/2 and F = E + mD:
+///   ∂D/∂m = (E − s c/Δ − 2(1 − m) D) / (2m(1 − m)).
+/// That quotient cancels as m → 0; below m = 10⁻³ the series
+/// ∂D/∂m = ½ Σ_k (2k+1)!!/(2^k k!) m^k I_{2k+4}(φ), I_j = ∫₀^φ sin^j θ dθ, is used instead.
 fn elliptic_e<T: Real>(phi: T, m: T) -> T {
     let (pv, mv) = (phi.val(), m.val());
     let (e, d) = elliptic_e_d(pv, mv);
-    let sn = pv.sin();
-    T::chain(e, &[((1.0 - mv * sn * sn).sqrt(), phi), (-0.5 * d, m)])
+    let (sn, cs) = pv.sin_cos();
+    let delta = (1.0 - mv * sn * sn).sqrt();
+    let hess = if T::SECOND {
+        let e_pp = -mv * sn * cs / delta;
+        let e_pm = -sn * sn / (2.0 * delta);
+        let e_mm = -0.5 * elliptic_d_dm(pv, mv, e, d, delta);
+        [e_pp, e_pm, e_pm, e_mm]
+    } else {
+        [0.0; 4]
+    };
+    T::chain(e, &[(delta, phi), (-0.5 * d, m)], &hess)
+}
+
+/// ∂D(φ|m)/∂m (see `elliptic_e`), given E, D and Δ at (φ, m).
+pub(crate) fn elliptic_d_dm(phi: f64, m: f64, e: f64, d: f64, delta: f64) -> f64 {
+    let (s, c) = phi.sin_cos();
+    if m >= 1e-3 {
+        return (e - s * c / delta - 2.0 * (1.0 - m) * d) / (2.0 * m * (1.0 - m));
+    }
+    // I_j = −sin^{j−1}φ cos φ / j + (j − 1)/j · I_{j−2}, I_0 = φ; terms up to m⁵ (< 1e-15).
+    let mut i_prev = phi; // I_0
+    let mut sum = 0.0;
+    let mut coef = 1.0; // (2k+1)!!/(2^k k!) for k = 0
+    let mut mk = 1.0;
+    let mut j = 2;
+    let mut k = 0;
+    while k <= 5 {
+        let ij = -s.powi(j - 1) * c / j as f64 + (j - 1) as f64 / j as f64 * i_prev;
+        i_prev = ij;
+        if j >= 4 {
+            sum += coef * mk * ij;
+            k += 1;
+            coef *= (2 * k + 1) as f64 / (2 * k) as f64;
+            mk *= m;
+        }
+        j += 2;
+    }
+    0.5 * sum
 }
 
 /// √(a² + b²) with a zero derivative at the origin (where it has none).

@@ -27,8 +27,10 @@
 //! contact points with respect to (P, S), are exact derivatives of what each algorithm
 //! computes: by dual numbers through the ellipsoid and torus constructions (the same passes
 //! that give their length gradients), and in closed form for the sphere and the cylinder,
-//! whose contact points are closed forms of P and S. No function here allocates, and every
-//! iteration has a fixed bound.
+//! whose contact points are closed forms of P and S. [`WrapSurface::second_order`] gives
+//! the next order along a direction (Hessian of the length times δ, rates of the contact
+//! Jacobians) by the same constructions on `D6<D1>`, for the exact q-gradients of
+//! moment arms. No function here allocates, and every iteration has a fixed bound.
 //!
 //! Checked against OpenSim 4.6 itself (`tests/opensim_reference.txt`, random segments over
 //! every surface, method and quadrant): the sphere agrees to round-off, the cylinder to
@@ -286,6 +288,56 @@ impl WrapSurface {
                 outer_radius,
             } => wrap_torus(inner_radius, outer_radius, quadrant, p, s),
         }
+    }
+}
+
+/// Second derivatives of a wrapped segment along a direction δ = (δP, δS) of its end points
+/// (wrap frame fixed): the rates, as P and S move by ε·δ, of the length gradient and of the
+/// contact-point Jacobians. Computed by running each construction on `D6<D1>` (dual numbers
+/// whose slots carry their own rate along δ), with the implicit solves lifted by two Newton
+/// steps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WrapSecondOrder {
+    /// H·δ with H the Hessian of `Wrapped::length` in (P, S): the rate of
+    /// (`dlength_dp`, `dlength_ds`).
+    pub hessian_dir: [f64; 6],
+    /// The rates of `Wrapped::dt1` and `Wrapped::dt2`.
+    pub dt1_dir: Matrix3x6<f64>,
+    pub dt2_dir: Matrix3x6<f64>,
+}
+
+impl WrapSurface {
+    /// The second-order rates of the wrap of P → S along `dir` = (δP, δS), or `None` where
+    /// [`WrapSurface::wrap`] does not wrap (or the rates are not finite: a contact point's
+    /// derivatives are unbounded as P or S approaches the surface).
+    pub fn second_order(
+        &self,
+        quadrant: Quadrant,
+        p: &Vec3,
+        s: &Vec3,
+        dir: &[f64; 6],
+    ) -> Option<WrapSecondOrder> {
+        let w = self.wrap(quadrant, p, s).wrapped()?;
+        let out = match *self {
+            WrapSurface::Sphere { radius } => sphere::second_order(radius, quadrant, p, s, &w, dir),
+            WrapSurface::Cylinder { radius, length } => {
+                cylinder::second_order(radius, length, quadrant, p, s, dir)
+            }
+            WrapSurface::Ellipsoid { radii, method } => {
+                ellipsoid::second_order(&radii, quadrant, method, p, s, dir)
+            }
+            WrapSurface::Torus {
+                inner_radius,
+                outer_radius,
+            } => torus::second_order(inner_radius, outer_radius, quadrant, p, s, dir),
+        }?;
+        let finite = out.hessian_dir.iter().all(|v| v.is_finite())
+            && out
+                .dt1_dir
+                .iter()
+                .chain(out.dt2_dir.iter())
+                .all(|v| v.is_finite());
+        finite.then_some(out)
     }
 }
 

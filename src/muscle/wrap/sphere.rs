@@ -4,8 +4,8 @@ use std::f64::consts::PI;
 
 use nalgebra::Matrix3x6;
 
-use super::real::join;
-use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
+use super::real::{D1, D6, Real, V3, join, seed2};
+use super::{Quadrant, SurfaceArc, WrapOutcome, WrapSecondOrder, Wrapped, all_finite, dsign};
 use crate::spatial::{Mat3, Vec3};
 
 /// Wraps the segment P → S over a sphere of radius `radius` centred at the origin.
@@ -141,6 +141,47 @@ fn wrap_outside(r: f64, quadrant: Quadrant, p: &Vec3, s: &Vec3) -> Option<Wrappe
             w3: Vec3::zeros(),
             span: theta,
         },
+    })
+}
+
+/// [`super::WrapSurface::second_order`] for the sphere, given its wrap `w`: the closed forms
+/// of the gradient, g_P = (h1/d1)·P̂ − σ(R/d1)·(n × P̂), g_S = (h2/d2)·Ŝ + σ(R/d2)·(n × Ŝ),
+/// and of the contact points (see `contact_jacobians`), on `D6<D1>`, with the plane normal
+/// built as `wrap_plane_normal` built it and σ read from the wrap's arc.
+pub(super) fn second_order(
+    r: f64,
+    quadrant: Quadrant,
+    p: &Vec3,
+    s: &Vec3,
+    w: &Wrapped,
+    dir: &[f64; 6],
+) -> Option<WrapSecondOrder> {
+    let (n_val, plane) = wrap_plane_normal(p, s, p - s, quadrant);
+    let sense = if w.arc.w2.dot(&n_val.cross(&w.t1)) >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    };
+    let (pd, sd) = seed2(p, s, dir);
+    type T = D6<D1>;
+    let m: V3<T> = match plane {
+        Plane::Cross => pd.cross(&sd),
+        Plane::Line(axis) => (pd - sd).cross(&V3::cst(&Vec3::ith(axis, 1.0))),
+        Plane::Fixed => V3::cst(&Vec3::z()),
+    };
+    let n = m.scale(T::cst(1.0) / m.norm());
+    let (d1, d2) = (pd.norm(), sd.norm());
+    let (h1, h2) = ((d1 * d1 - r * r).sqrt(), (d2 * d2 - r * r).sqrt());
+    let (p_hat, s_hat) = (pd.scale(T::cst(1.0) / d1), sd.scale(T::cst(1.0) / d2));
+    let g_p = p_hat.scale(h1 / d1) - n.cross(&p_hat).scale(T::cst(sense * r) / d1);
+    let g_s = s_hat.scale(h2 / d2) + n.cross(&s_hat).scale(T::cst(sense * r) / d2);
+    let t1 = pd.scale(T::cst(r * r) / (d1 * d1)) + n.cross(&pd).scale(h1 * (sense * r) / (d1 * d1));
+    let t2 = sd.scale(T::cst(r * r) / (d2 * d2)) - n.cross(&sd).scale(h2 * (sense * r) / (d2 * d2));
+    let g = [g_p.x, g_p.y, g_p.z, g_s.x, g_s.y, g_s.z];
+    Some(WrapSecondOrder {
+        hessian_dir: std::array::from_fn(|k| g[k].v.d),
+        dt1_dir: nalgebra::Matrix3x6::from_fn(|i, k| t1.at(i).g[k].d),
+        dt2_dir: nalgebra::Matrix3x6::from_fn(|i, k| t2.at(i).g[k].d),
     })
 }
 

@@ -3,7 +3,7 @@
 //! on its side facing the torus axis.
 
 use super::cylinder::cylinder_core;
-use super::real::{D6, Real, V3, gradients, jacobian, seed};
+use super::real::{D1, D6, Real, V3, gradients, jacobian, second_order_of, seed, seed2};
 use super::{Quadrant, SurfaceArc, WrapOutcome, Wrapped, all_finite, dsign};
 use crate::spatial::Vec3;
 
@@ -91,6 +91,20 @@ pub fn wrap_torus(
     })
 }
 
+/// [`super::WrapSurface::second_order`] for the torus (the caller checked that it wraps).
+pub(super) fn second_order(
+    inner_radius: f64,
+    outer_radius: f64,
+    quadrant: Quadrant,
+    p: &Vec3,
+    s: &Vec3,
+    dir: &[f64; 6],
+) -> Option<super::WrapSecondOrder> {
+    let (pd, sd) = seed2(p, s, dir);
+    let w = torus_core::<D6<D1>>(inner_radius, outer_radius, quadrant, &pd, &sd)?;
+    Some(second_order_of(&w.length, &w.t1_t, &w.t2_t))
+}
+
 pub(crate) struct TorusWrap<T> {
     pub t1: Vec3,
     pub t2: Vec3,
@@ -151,10 +165,16 @@ fn torus_core<T: Real>(
     let e = *s - *p;
     let mut u_t = T::cst(u);
     if T::HAS_GRAD && g2 > 0.0 && g2.is_finite() {
-        let x = *p + e.scale_f(u);
-        let (xy_dot, xy_len) = (x.x * e.x + x.y * e.y, (x.x * x.x + x.y * x.y).sqrt());
-        let g1 = x.dot(&e) * 2.0 - xy_dot * (2.0 * line.k_r) / xy_len;
-        u_t = -(g1 / g2) + u;
+        // g'(u) on `T`; a second step (same f64 slope g'') makes second derivatives exact.
+        let g1 = |u: T| {
+            let x = *p + e.scale(u);
+            let (xy_dot, xy_len) = (x.x * e.x + x.y * e.y, (x.x * x.x + x.y * x.y).sqrt());
+            x.dot(&e) * 2.0 - xy_dot * (2.0 * line.k_r) / xy_len
+        };
+        u_t = -(g1(T::cst(u)) / g2) + u;
+        if T::SECOND {
+            u_t = u_t - g1(u_t) / g2;
+        }
     }
     let x = *p + e.scale(u_t);
     let rho = (x.x * x.x + x.y * x.y).sqrt();

@@ -9,6 +9,7 @@ mod contact_jacobians;
 mod ellipsoid;
 mod gradients;
 mod numerics;
+mod second_order;
 mod sphere_cylinder;
 mod torus;
 

@@ -1,7 +1,7 @@
 //! The numerical building blocks: elliptic integrals and closest points.
 
 use super::super::closest::{Ellipsoid, closest, unit_to_closest_with_jacobian};
-use super::super::elliptic::{carlson_rd, carlson_rf, elliptic_e_d};
+use super::super::elliptic::{carlson_rd, carlson_rf, elliptic_d_dm, elliptic_e_d};
 use super::super::real::V3;
 use super::Rng;
 use crate::spatial::Vec3;
@@ -178,6 +178,29 @@ fn unit_vector_to_closest_point_and_its_jacobian_match_central_differences() {
                 (fd - jac.column(k)).norm() < 1e-5 * (1.0 + fd.norm()),
                 "column {k}: {fd} vs {}",
                 jac.column(k)
+            );
+        }
+    }
+}
+
+/// ∂D(φ|m)/∂m = ½ ∫₀^φ sin⁴θ (1 − m sin²θ)^(−3/2) dθ, on both sides of the switch from the
+/// closed form to the series at m = 10⁻³.
+#[test]
+fn derivative_of_the_d_integral_in_m_matches_quadrature() {
+    for m in [0.0, 1e-9, 1e-4, 9.99e-4, 1e-3, 0.01, 0.3, 0.9, 0.99] {
+        for phi in [0.0, 0.4, -1.2, 1.57, 2.0, -3.5, 7.0] {
+            let reference = quad(
+                |t: f64| 0.5 * t.sin().powi(4) / (1.0 - m * t.sin().powi(2)).powf(1.5),
+                0.0,
+                phi,
+                4000,
+            );
+            let (e, d) = elliptic_e_d(phi, m);
+            let delta = (1.0 - m * phi.sin().powi(2)).sqrt();
+            let got = elliptic_d_dm(phi, m, e, d, delta);
+            assert!(
+                (got - reference).abs() < 1e-10 * (1.0 + reference.abs()),
+                "∂D/∂m({phi}|{m}) = {got}, quadrature {reference}"
             );
         }
     }
