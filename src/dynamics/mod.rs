@@ -6,7 +6,8 @@
 //! 2. [`crba`] (mass matrix M), [`rnea`] (inverse dynamics τ), [`nonlinear_effects`]
 //!    (bias = C q̇ + G), [`coriolis`] (C q̇), [`gravity`] (G);
 //! 3. Jacobians, centre of mass, momentum and energy, from the state left in `Data` by
-//!    forward kinematics.
+//!    forward kinematics; [`JacobianTimeVariation`] (d/dt of the motion subspace and J̇) from
+//!    the velocity stage.
 //!
 //! Equations of motion in the independent coordinates q:
 //!   M(q) q̈ + C(q, q̇) q̇ + G(q) = τ + J_c(q)ᵀ λ.
@@ -28,6 +29,7 @@ mod external_forces;
 mod forward_kinematics;
 mod gravity;
 mod jacobian;
+mod jacobian_time_variation;
 mod reduction;
 mod rnea;
 mod rnea_derivatives;
@@ -47,6 +49,7 @@ pub use jacobian::{
     body_jacobian, body_jacobian_dot_qd, body_jacobian_full, contact_jacobian,
     contact_jacobian_dot_qd, point_jacobian, point_jacobian_dot_qd,
 };
+pub use jacobian_time_variation::JacobianTimeVariation;
 pub use rnea::{coriolis, nonlinear_effects, rnea, rnea_full};
 pub use rnea_derivatives::{RneaDerivatives, rnea_derivatives, rnea_derivatives_full};
 pub use rnea_vjp::{PointForces, RneaVjp, rnea_vjp, rnea_vjp_full};
