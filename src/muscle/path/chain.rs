@@ -28,7 +28,13 @@ const MAX_ITERATIONS: usize = 200;
 const MAX_WRAPS: usize = 16;
 
 /// Fills `out` (n columns of 3) with the motion ∂x/∂q of the point of `body` at `x` (ground).
-fn body_point_derivative(model: &Model, data: &Data, body: usize, x: &Vec3, out: &mut [Vec3]) {
+pub(super) fn body_point_derivative(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    x: &Vec3,
+    out: &mut [Vec3],
+) {
     out.fill(Vec3::zeros());
     let cols = &model.reduction.columns;
     let off = x - data.reference_point();

@@ -637,5 +637,7 @@ fn lowest_common_ancestor(model: &Model, bodies: &[usize]) -> Option<usize> {
 }
 
 mod chain;
+mod rates;
 mod wrapping;
+pub use rates::MomentArmRates;
 use wrapping::apply_wrap_objects;

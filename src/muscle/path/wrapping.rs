@@ -28,6 +28,35 @@ pub(super) enum SegmentWrap {
     },
 }
 
+/// The pose in ground (rotation, origin) of the frame of the path's wrap `w`:
+/// X_GW = X_GB · X_BW.
+pub(super) fn wrap_frame(model: &Model, data: &Data, w: &WrapDef) -> (Mat3, Vec3) {
+    let obj = &model.wrap_objects[w.object];
+    let (rot, pos) = data.body_pose(obj.body);
+    let x_bw = &obj.pose_in_body;
+    (rot * x_bw.rot, rot * x_bw.pos + pos)
+}
+
+/// The surface of the path's wrap `w`, with the path's ellipsoid method.
+pub(super) fn surface_of(model: &Model, w: &WrapDef) -> crate::muscle::wrap::WrapSurface {
+    use crate::muscle::wrap::WrapSurface;
+    match model.wrap_objects[w.object].shape {
+        WrapShape::Sphere { radius } => WrapSurface::Sphere { radius },
+        WrapShape::Cylinder { radius, length } => WrapSurface::Cylinder { radius, length },
+        WrapShape::Ellipsoid { dimensions } => WrapSurface::Ellipsoid {
+            radii: dimensions,
+            method: w.method,
+        },
+        WrapShape::Torus {
+            inner_radius,
+            outer_radius,
+        } => WrapSurface::Torus {
+            inner_radius,
+            outer_radius,
+        },
+    }
+}
+
 /// Wraps the segment a → b over the path's wrap `w`, in the wrap object's frame.
 pub(super) fn wrap_segment(
     model: &Model,
@@ -38,11 +67,7 @@ pub(super) fn wrap_segment(
 ) -> SegmentWrap {
     use crate::muscle::wrap::{self, WrapOutcome};
     let obj = &model.wrap_objects[w.object];
-    let (rot, pos) = data.body_pose(obj.body);
-    // X_GW = X_GB · X_BW
-    let x_bw = &obj.pose_in_body;
-    let r_gw = rot * x_bw.rot;
-    let p_gw = rot * x_bw.pos + pos;
+    let (r_gw, p_gw) = wrap_frame(model, data, w);
     let to_wrap = |x: &Vec3| r_gw.transpose() * (x - p_gw);
     let (p, s) = (to_wrap(a), to_wrap(b));
     let outcome = match obj.shape {
