@@ -6,6 +6,10 @@
 //!   ([`crate::dynamics::rnea_derivatives`]) and of the contact forces' generalized forces
 //!   ([`crate::dynamics::contact_force_derivatives`]).
 //!
+//! - [`muscle`]: L_muscle = Σ_t Σ_j w_j (q̈ − M⁻¹ R F_max a)_tj² + β‖a‖² + a bound penalty, with
+//!   ∂L/∂q (through M and through R: the exact moment-arm rates of
+//!   [`crate::muscle::path::MomentArmRates`]), ∂L/∂q̈ and ∂L/∂a.
+//!
 //! - [`tensor_file`]: the residual of an `.npz` tensor file (`musculo loss`).
 //!
 //! Batches are flat row-major arrays of frames (B × T frames, one row of n values per frame);
@@ -13,6 +17,8 @@
 //! independent of the thread count (sums over frames are taken in frame order afterwards).
 
 pub mod euler_lagrange;
+pub mod muscle;
 pub mod tensor_file;
 
 pub use euler_lagrange::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
+pub use muscle::{MuscleBatch, MuscleLoss, MuscleLossOutput};
