@@ -15,6 +15,7 @@ True
 from ._musculo import (
     EulerLagrangeLoss,
     Model,
+    MuscleLoss,
     MusculoError,
     __version__,
     augment_clip,
@@ -25,6 +26,7 @@ from ._musculo import (
 __all__ = [
     "Model",
     "EulerLagrangeLoss",
+    "MuscleLoss",
     "MusculoError",
     "augment_clip",
     "augment_file",

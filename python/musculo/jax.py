@@ -1,5 +1,5 @@
-"""JAX wrapper of musculo's Euler–Lagrange loss (jax is optional; import this module only where
-jax is installed).
+"""JAX wrappers of musculo's Euler–Lagrange and muscle losses (jax is optional; import this
+module only where jax is installed).
 
     from musculo.jax import physics_loss
     loss_fn = physics_loss(musculo.Model.default(), contacts="model")
@@ -14,7 +14,7 @@ its arguments or higher-order derivatives.
 import jax
 import numpy as np
 
-from . import EulerLagrangeLoss
+from . import EulerLagrangeLoss, MuscleLoss
 
 
 def physics_loss(model, contacts=None, weights=None):
@@ -52,4 +52,35 @@ def physics_loss(model, contacts=None, weights=None):
     return f
 
 
-__all__ = ["physics_loss"]
+def muscle_loss(model, weights=None, beta=0.0, bound_weight=1.0):
+    """L(q, qdd, a) = Σ_t [Σ_j w_j (q̈ − M⁻¹ R F_max a)_tj² + β‖a‖² + bound penalty] with its
+    VJP; arguments as :class:`musculo.MuscleLoss`."""
+    loss = MuscleLoss(model, weights=weights, beta=beta, bound_weight=bound_weight)
+
+    def host(q, qdd, a):
+        arrays = [np.asarray(x, dtype=np.float64) for x in (q, qdd, a)]
+        out = loss(*arrays, gradients=True)
+        return (np.asarray(out["loss"], dtype=np.float64),
+                *(out[k] for k in ("grad_q", "grad_qdd", "grad_a")))
+
+    def call(q, qdd, a):
+        shapes = (jax.ShapeDtypeStruct((), q.dtype),
+                  *(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in (q, qdd, a)))
+        result = jax.pure_callback(host, shapes, q, qdd, a)
+        return result[0], result[1:]
+
+    @jax.custom_vjp
+    def f(q, qdd, a):
+        return call(q, qdd, a)[0]
+
+    def fwd(q, qdd, a):
+        return call(q, qdd, a)
+
+    def bwd(grads, g):
+        return tuple(g * d for d in grads)
+
+    f.defvjp(fwd, bwd)
+    return f
+
+
+__all__ = ["physics_loss", "muscle_loss"]

@@ -1,9 +1,11 @@
-"""PyTorch wrapper of musculo's Euler–Lagrange loss (torch is optional; import this module
-only where torch is installed).
+"""PyTorch wrappers of musculo's Euler–Lagrange and muscle losses (torch is optional; import
+this module only where torch is installed).
 
-    from musculo.torch import PhysicsLoss
+    from musculo.torch import PhysicsLoss, MuscleLoss
     physics = PhysicsLoss(musculo.Model.default(), contacts="model")
     loss = loss + weight * physics(q, qd, qdd, tau, lam)     # differentiable in every input
+    muscle = MuscleLoss(musculo.Model.default(), beta=1e-3)
+    loss = loss + weight * muscle(q, qdd, a)
 
 The forward and backward passes run in musculo (exact gradients, vector–Jacobian products of
 inverse dynamics); tensors are moved to the CPU as float64 and the gradients come back in each
@@ -13,6 +15,7 @@ input's dtype and device.
 import torch
 
 from . import EulerLagrangeLoss
+from . import MuscleLoss as _MuscleLoss
 
 
 class _EulerLagrangeFunction(torch.autograd.Function):
@@ -44,3 +47,32 @@ class PhysicsLoss(torch.nn.Module):
 
     def forward(self, q, qd, qdd, tau, lam=None):
         return _EulerLagrangeFunction.apply(self.loss, q, qd, qdd, tau, lam)
+
+
+class _MuscleFunction(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, loss, q, qdd, a):
+        def cpu(x):
+            return x.detach().to("cpu", torch.float64).numpy()
+
+        out = loss(cpu(q), cpu(qdd), cpu(a), gradients=True)
+        ctx.grads = [torch.from_numpy(out[k]).to(x.device, x.dtype)
+                     for k, x in zip(("grad_q", "grad_qdd", "grad_a"), (q, qdd, a))]
+        return q.new_tensor(out["loss"])
+
+    @staticmethod
+    def backward(ctx, grad_output):
+        return (None, *(grad_output * g for g in ctx.grads))
+
+
+class MuscleLoss(torch.nn.Module):
+    """L_muscle = Σ_t [Σ_j w_j (q̈ − M⁻¹ R F_max a)_tj² + β‖a‖² + bound penalty], summed over
+    every frame of the batch, differentiable in q, q̈ and a; arguments as
+    :class:`musculo.MuscleLoss`."""
+
+    def __init__(self, model, weights=None, beta=0.0, bound_weight=1.0):
+        super().__init__()
+        self.loss = _MuscleLoss(model, weights=weights, beta=beta, bound_weight=bound_weight)
+
+    def forward(self, q, qdd, a):
+        return _MuscleFunction.apply(self.loss, q, qdd, a)

@@ -5,7 +5,10 @@
 //! library's message for bad input.
 
 use musculo::dynamics::{self, Data, RneaDerivatives};
-use musculo::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
+use musculo::loss::{
+    EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact, MuscleBatch,
+    MuscleLoss as MuscleLossCore, MuscleLossOutput,
+};
 use musculo::muscle::{MuscleData, MuscleSet, TendonMode, compute_muscles};
 use musculo::solve::contact::ContactSet;
 use musculo::spatial::Vec3;
@@ -730,6 +733,96 @@ impl EulerLagrangeLoss {
     }
 }
 
+/// The muscle loss L = Σ_t [Σ_j w_j (q̈ − M⁻¹ R F_max a)_tj² + β‖a‖² + γ Σ_k (max(0, a_k − 1)² +
+/// max(0, −a_k)²)], R the moment arms (R_jk = −∂ℓ_k/∂q_j: a tension F ≥ 0 gives the
+/// generalized force R_jk F), with its exact gradients.
+#[pyclass(frozen, module = "musculo")]
+struct MuscleLoss {
+    model: Arc<musculo::Model>,
+    loss: MuscleLossCore,
+}
+
+#[pymethods]
+impl MuscleLoss {
+    /// `weights`: one w_j ≥ 0 per coordinate (default all 1); `beta` = β ≥ 0 (default 0);
+    /// `bound_weight` = γ ≥ 0 (default 1).
+    #[new]
+    #[pyo3(signature = (model, weights = None, beta = 0.0, bound_weight = 1.0))]
+    fn new(
+        model: &Model,
+        weights: Option<Vec<f64>>,
+        beta: f64,
+        bound_weight: f64,
+    ) -> PyResult<MuscleLoss> {
+        let mut loss = MuscleLossCore::new(&model.inner).map_err(to_py)?;
+        loss.weights = weights.unwrap_or_default();
+        loss.beta = beta;
+        loss.bound_weight = bound_weight;
+        loss.validate(&model.inner).map_err(to_py)?;
+        Ok(MuscleLoss {
+            model: model.inner.clone(),
+            loss,
+        })
+    }
+
+    /// Names of the muscles, in the order of a's last axis.
+    #[getter]
+    fn muscle_names(&self) -> Vec<String> {
+        self.loss
+            .paths
+            .paths
+            .iter()
+            .map(|p| p.name.clone())
+            .collect()
+    }
+
+    /// F_max of each muscle (N).
+    #[getter]
+    fn max_isometric_force(&self) -> Vec<f64> {
+        self.loss.max_isometric_force.clone()
+    }
+
+    /// L and its parts for q, q̈ (..., n) and a (..., m): a dict with `loss` (float),
+    /// `per_frame` (...), `residual` (..., n: q̈ − M⁻¹RFa) and, with `gradients`, `grad_q`,
+    /// `grad_qdd` (..., n) and `grad_a` (..., m).
+    #[pyo3(signature = (q, qdd, a, gradients = true))]
+    fn __call__<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qdd: Input<'py>,
+        a: Input<'py>,
+        gradients: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (model, n, m) = (&*self.model, self.model.nq(), self.loss.muscles());
+        let (q, lead) = frames("q", &q, n)?;
+        let qdd = frames_like("qdd", &qdd, n, &lead)?;
+        let a = frames_like("a", &a, m, &lead)?;
+        let t = q.len() / n.max(1);
+        let mut out = MuscleLossOutput::default();
+        py.detach(|| {
+            let batch = MuscleBatch {
+                frames: t,
+                q: &q,
+                qdd: &qdd,
+                a: &a,
+            };
+            self.loss.evaluate(model, &batch, gradients, &mut out)
+        })
+        .map_err(to_py)?;
+        let d = PyDict::new(py);
+        d.set_item("loss", out.loss)?;
+        d.set_item("per_frame", array(py, &lead, &[], out.per_frame)?)?;
+        d.set_item("residual", array(py, &lead, &[n], out.residual)?)?;
+        if gradients {
+            d.set_item("grad_q", array(py, &lead, &[n], out.grad_q)?)?;
+            d.set_item("grad_qdd", array(py, &lead, &[n], out.grad_qdd)?)?;
+            d.set_item("grad_a", array(py, &lead, &[m], out.grad_a)?)?;
+        }
+        Ok(d)
+    }
+}
+
 /// A JSON value as the Python object json.loads would give.
 fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
     use pyo3::IntoPyObjectExt;
@@ -985,6 +1078,7 @@ fn clip_output_dict(
 fn _musculo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<EulerLagrangeLoss>()?;
+    m.add_class::<MuscleLoss>()?;
     m.add_function(wrap_pyfunction!(augment_clip, m)?)?;
     m.add_function(wrap_pyfunction!(augment_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_motion, m)?)?;

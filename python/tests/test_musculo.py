@@ -96,6 +96,48 @@ def test_a_consistent_motion_has_zero_loss(model):
     np.testing.assert_allclose(loss(q, qd, qdd, tau)["per_frame"][2], 0.25, rtol=1e-9)
 
 
+def muscle_state(model, frames, seed):
+    rng = np.random.default_rng(seed)
+    q, _, qdd = state(model, frames, seed)
+    return q, qdd, rng.uniform(-0.1, 1.1, (frames, len(model.muscle_names)))
+
+
+def test_muscle_loss_gradients_equal_central_differences(model):
+    loss = musculo.MuscleLoss(model, beta=0.2, bound_weight=3.0)
+    assert loss.muscle_names == model.muscle_names and len(loss.max_isometric_force) == 324
+    q, qdd, a = muscle_state(model, 2, 12)
+    inputs = [q, qdd, a]
+    out = loss(*inputs)
+    assert out["residual"].shape == q.shape and out["grad_a"].shape == a.shape
+    np.testing.assert_allclose(out["loss"], out["per_frame"].sum(), rtol=1e-12)
+    rng = np.random.default_rng(13)
+    for k, name in enumerate(["grad_q", "grad_qdd", "grad_a"]):
+        g = out[name]
+        for _ in range(5):
+            idx = tuple(rng.integers(0, s) for s in g.shape)
+            x = [v.copy() for v in inputs]
+            # L is quadratic in q̈ (and piecewise in a): a large step there is exact and keeps
+            # round-off of the large loss out of the difference
+            h = (1e-6 if k == 0 else 1e-3) * max(1.0, abs(x[k][idx]))
+            x[k][idx] += h
+            lp = loss(*x, gradients=False)["loss"]
+            x[k][idx] -= 2 * h
+            lm = loss(*x, gradients=False)["loss"]
+            fd = (lp - lm) / (2 * h)
+            assert abs(g[idx] - fd) <= 1e-6 * np.abs(g).max(), (name, idx, g[idx], fd)
+
+
+def test_muscle_loss_residual_is_the_acceleration_the_muscles_miss(model):
+    # e = q̈ − M⁻¹ R F a: with q̈ set to the muscles' own acceleration the residual vanishes
+    loss = musculo.MuscleLoss(model)
+    q, _, a = muscle_state(model, 1, 14)
+    a = np.clip(a, 0, 1)
+    _, arms = model.muscle_paths(q[0])
+    z = np.linalg.solve(model.mass_matrix(q[0]), arms @ (np.asarray(loss.max_isometric_force) * a[0]))
+    out = loss(q, z[None, :], a)
+    assert np.abs(out["residual"]).max() <= 1e-9 * np.abs(z).max()
+
+
 def test_muscle_paths_and_forces(model):
     q = model.default_q()
     lengths, arms = model.muscle_paths(q)
@@ -137,6 +179,21 @@ def test_torch_wrapper_passes_gradcheck(model):
     lam = rng.normal(0, 1.0, (2, 8, 3))
     args = tuple(torch.tensor(x, dtype=torch.float64, requires_grad=True) for x in (q, qd, qdd, tau, lam))
     assert torch.autograd.gradcheck(physics, args, eps=1e-6, atol=1e-5, rtol=1e-5)
+
+
+def test_torch_muscle_loss_passes_gradcheck(model):
+    torch = pytest.importorskip("torch")
+    from musculo.torch import MuscleLoss
+
+    muscle = MuscleLoss(model, beta=0.1)
+    q, qdd, a = muscle_state(model, 1, 15)
+    # q̈ near the muscles' own acceleration keeps the loss small against round-off
+    _, arms = model.muscle_paths(q[0])
+    fmax = np.asarray(muscle.loss.max_isometric_force)
+    a = np.clip(a, 0.05, 0.95)
+    qdd = np.linalg.solve(model.mass_matrix(q[0]), arms @ (fmax * a[0]))[None, :] + 0.1
+    args = tuple(torch.tensor(x, dtype=torch.float64, requires_grad=True) for x in (q, qdd, a))
+    assert torch.autograd.gradcheck(muscle, args, eps=1e-7, atol=1e-4, rtol=1e-5)
 
 
 def test_readme_examples(monkeypatch):
@@ -314,3 +371,19 @@ def test_augment_file_with_force_plates_satisfies_the_equations_of_motion():
     assert out["quality"]["reserve_share"] < 0.05
     with pytest.raises(musculo.MusculoError, match="C3D"):
         musculo.augment_file(BVH, length_unit="0.056444", force_plates=True)
+
+
+def test_jax_muscle_loss_gives_the_loss_gradients(model):
+    jax = pytest.importorskip("jax")
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+
+    from musculo.jax import muscle_loss
+
+    f = muscle_loss(model, beta=0.1)
+    q, qdd, a = muscle_state(model, 2, 16)
+    value, grads = jax.value_and_grad(f, argnums=(0, 1, 2))(*(jnp.asarray(x) for x in (q, qdd, a)))
+    ref = musculo.MuscleLoss(model, beta=0.1)(q, qdd, a)
+    assert float(value) == pytest.approx(ref["loss"], rel=1e-12)
+    for g, name in zip(grads, ["grad_q", "grad_qdd", "grad_a"]):
+        np.testing.assert_allclose(np.asarray(g), ref[name], rtol=1e-12, atol=0)
