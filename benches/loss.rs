@@ -9,11 +9,22 @@
 //!   of one thread), per frame;
 //! - `Jacobians`: `dynamics::rnea_derivatives` (∂τ/∂q, ∂τ/∂q̇, ∂τ/∂q̈ as matrices).
 //!
+//! And the muscle loss, beside `muscle::path::compute_paths` (lengths and moment arms, the
+//! forward pass any use of R(q) pays) on the same states, per frame on one core:
+//! - `paths`: `compute_paths` after forward kinematics;
+//! - `L_muscle`: `loss::MuscleLoss::evaluate` without gradients;
+//! - `L_muscle+grad`: with ∂L/∂q (M by two RNEA VJPs, R by the exact moment-arm rates),
+//!   ∂L/∂q̈ and ∂L/∂a.
+//!
 //! Run: `cargo bench --bench loss` (gait2392 and Rajagopal2016 from MUSCULO_REFERENCE or
 //! ../shared/reference when present).
 
 use musculo::dynamics::{self, PointForces, RneaDerivatives, RneaVjp};
-use musculo::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
+use musculo::loss::{
+    EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact, MuscleBatch, MuscleLoss,
+    MuscleLossOutput,
+};
+use musculo::muscle::path::{PathData, compute_paths};
 use musculo::random::SplitMix64;
 use musculo::spatial::Vec3;
 use musculo::{Data, Model};
@@ -52,13 +63,18 @@ fn batch(model: &Model, contacts: usize) -> Batch {
 }
 
 /// Median, min and max per-frame time in µs of `f` run over the batch, `BATCHES` times.
-fn time(mut f: impl FnMut()) -> (f64, f64, f64) {
+fn time(f: impl FnMut()) -> (f64, f64, f64) {
+    time_n(f, BATCHES, FRAMES)
+}
+
+/// Median, min and max per-frame time in µs of `f` (one pass over `frames` frames), `runs` times.
+fn time_n(mut f: impl FnMut(), runs: usize, frames: usize) -> (f64, f64, f64) {
     f();
-    let mut t: Vec<f64> = (0..BATCHES)
+    let mut t: Vec<f64> = (0..runs)
         .map(|_| {
             let start = Instant::now();
             f();
-            start.elapsed().as_secs_f64() * 1e6 / FRAMES as f64
+            start.elapsed().as_secs_f64() * 1e6 / frames as f64
         })
         .collect();
     t.sort_by(f64::total_cmp);
@@ -186,6 +202,69 @@ fn bench(name: &str, model: &Model) {
     );
 }
 
+/// Frames and runs of the muscle-loss timing (each frame wraps every muscle path).
+const MUSCLE_FRAMES: usize = 40;
+const MUSCLE_RUNS: usize = 7;
+
+fn bench_muscle(name: &str, model: &Model) {
+    let loss = MuscleLoss::new(model).unwrap();
+    let (n, m) = (model.nq(), loss.muscles());
+    if m == 0 {
+        return;
+    }
+    let b = batch(model, 0);
+    let mut rng = SplitMix64(9);
+    let a: Vec<f64> = (0..MUSCLE_FRAMES * m)
+        .map(|_| rng.uniform(0.0, 1.0))
+        .collect();
+    let q = &b.q[..MUSCLE_FRAMES * n];
+    let qdd = &b.qdd[..MUSCLE_FRAMES * n];
+    let mut data = Data::new(model);
+    let mut paths = PathData::new(model, &loss.paths);
+    let path_time = time_n(
+        || {
+            for f in 0..MUSCLE_FRAMES {
+                dynamics::forward_kinematics(model, &mut data, &q[f * n..(f + 1) * n]).unwrap();
+                compute_paths(model, &data, &loss.paths, &mut paths).unwrap();
+                black_box(&paths.moment_arms);
+            }
+        },
+        MUSCLE_RUNS,
+        MUSCLE_FRAMES,
+    );
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let mb = MuscleBatch {
+        frames: MUSCLE_FRAMES,
+        q,
+        qdd,
+        a: &a,
+    };
+    let mut out = MuscleLossOutput::default();
+    let mut run = |gradients: bool| {
+        pool.install(|| {
+            time_n(
+                || loss.evaluate(model, &mb, gradients, &mut out).unwrap(),
+                MUSCLE_RUNS,
+                MUSCLE_FRAMES,
+            )
+        })
+    };
+    let value = run(false);
+    let grad = run(true);
+    let cell = |t: (f64, f64, f64)| format!("{:>8.1} ({:.1}–{:.1})", t.0, t.1, t.2);
+    println!(
+        "{name:<18} n={n:<3} m={m:<3} paths {}  L_muscle {} = {:.1}× paths  L_muscle+grad {} = {:.1}× paths",
+        cell(path_time),
+        cell(value),
+        value.0 / path_time.0,
+        cell(grad),
+        grad.0 / path_time.0
+    );
+}
+
 fn main() {
     println!(
         "per frame, µs, one core: median (min–max) over {BATCHES} batches of {FRAMES} random states"
@@ -203,6 +282,24 @@ fn main() {
     ] {
         if let Some(path) = musculo::reference::file(rel) {
             bench(name, &Model::from_osim_file(&path).unwrap());
+        }
+    }
+    println!(
+        "muscle loss, per frame, µs, one core: median (min–max) over {MUSCLE_RUNS} runs of {MUSCLE_FRAMES} random states"
+    );
+    bench_muscle("musculo_fullbody", &Model::default_fullbody());
+    for (name, rel) in [
+        (
+            "gait2392",
+            "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        ),
+        (
+            "Rajagopal2016",
+            "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+        ),
+    ] {
+        if let Some(path) = musculo::reference::file(rel) {
+            bench_muscle(name, &Model::from_osim_file(&path).unwrap());
         }
     }
 }
