@@ -29,12 +29,13 @@
 //! The tangent points' D and Ḋ are iterated to their fixed point, as the path itself is.
 
 use super::chain::body_point_derivative;
-use super::wrapping::{SegmentWrap, surface_of, wrap_frame, wrap_segment};
+use super::wrapping::{surface_of, wrap_frame};
 use super::{Node, NodeKind, PathSet, PointKind, active_points, apply_wrap_objects};
 use crate::dynamics::{Data, JacobianTimeVariation, Stage};
 use crate::error::Error;
 use crate::model::Model;
 use crate::spatial::{Mat3, Vec3};
+use nalgebra::Matrix3x6;
 
 /// Iterations of the tangent points' fixed points.
 const MAX_ITERATIONS: usize = 200;
@@ -44,6 +45,12 @@ const MAX_ITERATIONS: usize = 200;
 #[derive(Clone, Copy, Debug)]
 struct Engaged {
     node: usize,
+    /// The wrap's index in the path, its frame's rotation, the neighbours in its frame and
+    /// the wrap there.
+    wrap: usize,
+    rot: Mat3,
+    local: [Vec3; 2],
+    wrapped: crate::muscle::wrap::Wrapped,
     grad: [Vec3; 2],
     grad_rate: [Vec3; 2],
     /// ∂T1/∂A, ∂T1/∂B, ∂T2/∂A, ∂T2/∂B.
@@ -191,30 +198,37 @@ impl MomentArmRates {
                 );
             }
         }
-        // Each engaged wrap between its final neighbours.
+        // Each engaged wrap between its final neighbours (wrap frame).
         self.engaged.clear();
         for i in 0..m {
             if let NodeKind::Tangent(w, false) = nodes[i].kind {
-                let SegmentWrap::Wrapped {
-                    grad_p,
-                    grad_s,
-                    jac,
-                    ..
-                } = wrap_segment(
-                    model,
-                    data,
-                    &path.wraps[w],
-                    &nodes[i - 1].ground,
-                    &nodes[i + 2].ground,
-                )
+                let def = &path.wraps[w];
+                let (rot, origin) = wrap_frame(model, data, def);
+                let ya = rot.transpose() * (nodes[i - 1].ground - origin);
+                let yb = rot.transpose() * (nodes[i + 2].ground - origin);
+                let Some(wrapped) = surface_of(model, def)
+                    .wrap(def.quadrant, &ya, &yb)
+                    .wrapped()
                 else {
                     return Err(not_rewrapped(model, path, w));
                 };
+                let ground = |m: &Matrix3x6<f64>, c: usize| {
+                    rot * m.fixed_columns::<3>(c).into_owned() * rot.transpose()
+                };
                 self.engaged.push(Engaged {
                     node: i,
-                    grad: [grad_p, grad_s],
+                    wrap: w,
+                    rot,
+                    local: [ya, yb],
+                    wrapped,
+                    grad: [rot * wrapped.dlength_dp, rot * wrapped.dlength_ds],
                     grad_rate: [Vec3::zeros(); 2],
-                    jac,
+                    jac: [
+                        ground(&wrapped.dt1, 0),
+                        ground(&wrapped.dt1, 3),
+                        ground(&wrapped.dt2, 0),
+                        ground(&wrapped.dt2, 3),
+                    ],
                     jac_rate: [Mat3::zeros(); 4],
                 });
             }
@@ -237,26 +251,18 @@ impl MomentArmRates {
 
         // ---- second order ----
         for e in self.engaged.iter_mut() {
-            let (i, w) = (
-                e.node,
-                match nodes[e.node].kind {
-                    NodeKind::Tangent(w, _) => w,
-                    NodeKind::Point(_) => unreachable!("engaged wraps start at a tangent point"),
-                },
-            );
+            let (i, w, rot) = (e.node, e.wrap, e.rot);
             let def = &path.wraps[w];
-            let (rot, origin) = wrap_frame(model, data, def);
             let omega = data.body_velocity(nodes[i].body).0;
             let (a, b) = (i - 1, i + 2);
             let va = qd.apply(&self.wa[col(i)]);
             let vb = qd.apply(&self.wb[col(i)]);
-            let ya = rot.transpose() * (nodes[a].ground - origin);
-            let yb = rot.transpose() * (nodes[b].ground - origin);
             let da = rot.transpose() * (self.xdot[a] - va);
             let db = rot.transpose() * (self.xdot[b] - vb);
             let dir = [da.x, da.y, da.z, db.x, db.y, db.z];
+            let [ya, yb] = e.local;
             let so = surface_of(model, def)
-                .second_order(def.quadrant, &ya, &yb, &dir)
+                .second_order_of(def.quadrant, &ya, &yb, &e.wrapped, &dir)
                 .ok_or_else(|| not_rewrapped(model, path, w))?;
             let h = &so.hessian_dir;
             e.grad_rate = [

@@ -600,7 +600,11 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
             // A sample on a coordinate plane (OpenSim's section reduction), or any sample
             // in second order: on `T`.
             let xt = *x1 + chord.scale_f(f);
-            let v = closest(e, &xt, None, None).0 - xt;
+            let (c, root) = closest(e, &xt, None, if T::SECOND { guess } else { None });
+            if let Some(t) = root.filter(|_| T::SECOND) {
+                roots = [Some(t), roots[0], roots[1], roots[2], roots[3]];
+            }
+            let v = c - xt;
             let len = safe_norm(&v);
             if len.val() > 0.0 {
                 special = special + v.scale(T::cst(1.0) / len);

@@ -318,8 +318,21 @@ impl WrapSurface {
         dir: &[f64; 6],
     ) -> Option<WrapSecondOrder> {
         let w = self.wrap(quadrant, p, s).wrapped()?;
+        self.second_order_of(quadrant, p, s, &w, dir)
+    }
+
+    /// [`Self::second_order`] for a wrap `w` that [`Self::wrap`] returned for the same P and S
+    /// (saves computing it again).
+    pub fn second_order_of(
+        &self,
+        quadrant: Quadrant,
+        p: &Vec3,
+        s: &Vec3,
+        w: &Wrapped,
+        dir: &[f64; 6],
+    ) -> Option<WrapSecondOrder> {
         let out = match *self {
-            WrapSurface::Sphere { radius } => sphere::second_order(radius, quadrant, p, s, &w, dir),
+            WrapSurface::Sphere { radius } => sphere::second_order(radius, quadrant, p, s, w, dir),
             WrapSurface::Cylinder { radius, length } => {
                 cylinder::second_order(radius, length, quadrant, p, s, dir)
             }
