@@ -438,6 +438,7 @@ mod tests {
             let (n, m) = (model.nq(), loss.muscles());
             let mut rng = SplitMix64(11);
             let (mut checked, mut skipped) = (0, 0);
+            let mut worst = 0.0f64;
             for _ in 0..3 {
                 let frame = random_frame(&model, m, &mut rng);
                 let batch = MuscleBatch {
@@ -480,13 +481,17 @@ mod tests {
                             loss.paths.paths[i - 2 * n].name
                         )
                     };
+                    worst = worst.max((g - rich).abs() / scale);
                     assert!(
                         (g - rich).abs() <= 1e-6 * scale,
                         "{name}: {what} = {g}, central differences {rich} (scale {scale})"
                     );
                 }
             }
-            eprintln!("{name}: {checked} states checked, {skipped} not smooth over the stencil");
+            eprintln!(
+                "{name}: {checked} states checked ({n} + {n} + {m} gradient entries each), {skipped} \
+                 not smooth over the stencil; worst error {worst:.1e} of the gradient's largest entry"
+            );
             assert!(checked >= 2, "{name}: only {checked} smooth states");
         }
     }
