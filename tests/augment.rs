@@ -553,7 +553,17 @@ fn augmented_tensors_have_a_zero_euler_lagrange_residual() {
         assert!(worst < 1e-6, "{clip}: {worst:.2e}");
         assert_eq!(report["contacts"], 8);
 
+        // the muscle loss: reported, and with every activation set to 0 it is Σ q̈² exactly
+        let muscle = &report["muscle"];
+        assert!(muscle["loss"].as_f64().unwrap() > 0.0, "{report}");
+        assert_eq!(muscle["activations_out_of_bounds"], 0);
         let mut frames = TensorFrames::read(&path, &model).unwrap();
+        frames.muscle_act.fill(0.0);
+        let m = musculo::loss::tensor_file::muscle_residual_of(&model, &frames)
+            .unwrap()
+            .unwrap();
+        let sum: f64 = frames.qdd.iter().map(|v| v * v).sum();
+        assert!((m.loss - sum).abs() <= 1e-12 * sum, "{} vs {sum}", m.loss);
         let n = model.nq();
         frames.tau[7 * n + 10] += 5.0;
         let s = residual_of(&model, &frames).unwrap();

@@ -7,8 +7,17 @@
 //! loaded at its lowest point. `musculo augment` writes τ = τ_ID − J_cᵀλ (the floating-base rows
 //! carrying whatever the contacts leave unexplained), so its files have r ≈ 0 up to the
 //! float32 rounding of the stored arrays.
+//!
+//! With `muscle_act` (T × m, the model's muscles in `Model::forces` order) the file also gets the
+//! muscle loss of [`super::MuscleLoss`] (unit weights, β = 0, γ = 1): e = q̈ − M⁻¹ R F_max a per
+//! frame. It is not zero for an augmented clip — its activations balance the torques with
+//! force–length–velocity, passive forces, gravity and reserves, which FlexMotion's term leaves
+//! out — but it is what a trainer adding that term will see.
 
-use super::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput};
+use super::{
+    EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, MuscleBatch, MuscleLoss,
+    MuscleLossOutput,
+};
 use crate::model::Model;
 use crate::motion::npy::read_npz_as_f64;
 use crate::solve::contact::ContactSet;
@@ -26,6 +35,10 @@ pub struct TensorFrames {
     pub lambda: Vec<f64>,
     /// P, the contact points of `lambda`.
     pub contacts: usize,
+    /// T × m activations (`muscle_act`), empty when the file has none.
+    pub muscle_act: Vec<f64>,
+    /// m, the muscles of `muscle_act` (0 without).
+    pub muscles: usize,
 }
 
 impl TensorFrames {
@@ -69,12 +82,25 @@ impl TensorFrames {
                 (a.iter().copied().collect(), a.shape()[1])
             }
         };
+        let (muscle_act, muscles) = match find("muscle_act") {
+            None => (Vec::new(), 0),
+            Some(a) => {
+                if a.ndim() != 2 || a.shape()[0] != frames {
+                    return Err(bad(format!(
+                        "`muscle_act` has shape {:?}; expected {frames} × m",
+                        a.shape()
+                    )));
+                }
+                (a.iter().copied().collect(), a.shape()[1])
+            }
+        };
         if let Some((i, v)) = q
             .iter()
             .chain(&qd)
             .chain(&qdd)
             .chain(&tau)
             .chain(&lambda)
+            .chain(&muscle_act)
             .enumerate()
             .find(|(_, v)| !v.is_finite())
         {
@@ -88,6 +114,8 @@ impl TensorFrames {
             tau,
             lambda,
             contacts,
+            muscle_act,
+            muscles,
         })
     }
 
@@ -165,4 +193,62 @@ pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<Residu
         *v = (*v / frames.frames.max(1) as f64).sqrt();
     }
     Ok(s)
+}
+
+/// The muscle loss of a tensor file's frames (see the module documentation).
+#[derive(Clone, Debug)]
+pub struct MuscleSummary {
+    /// L_muscle over all frames.
+    pub loss: f64,
+    /// L_t and |q̈ − M⁻¹RFa| per frame.
+    pub per_frame: Vec<f64>,
+    pub residual_norm: Vec<f64>,
+    /// Activations outside [0, 1] (entries over all frames).
+    pub out_of_bounds: usize,
+}
+
+/// The muscle loss of `frames` against `model`, or `None` when the file has no `muscle_act`;
+/// an error when its width is not the model's muscle count.
+pub fn muscle_residual_of(
+    model: &Model,
+    frames: &TensorFrames,
+) -> crate::Result<Option<MuscleSummary>> {
+    if frames.muscles == 0 && frames.muscle_act.is_empty() {
+        return Ok(None);
+    }
+    let loss = MuscleLoss::new(model)?;
+    if loss.muscles() != frames.muscles {
+        return Err(crate::Error::invalid(
+            "tensor file",
+            format!(
+                "`muscle_act` has {} muscles; the model \"{}\" has {}",
+                frames.muscles,
+                model.name,
+                loss.muscles()
+            ),
+        ));
+    }
+    let batch = MuscleBatch {
+        frames: frames.frames,
+        q: &frames.q,
+        qdd: &frames.qdd,
+        a: &frames.muscle_act,
+    };
+    let mut out = MuscleLossOutput::default();
+    loss.evaluate(model, &batch, false, &mut out)?;
+    let n = model.nq();
+    Ok(Some(MuscleSummary {
+        loss: out.loss,
+        residual_norm: out
+            .residual
+            .chunks(n.max(1))
+            .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+            .collect(),
+        per_frame: out.per_frame,
+        out_of_bounds: frames
+            .muscle_act
+            .iter()
+            .filter(|a| !(0.0..=1.0).contains(*a))
+            .count(),
+    }))
 }

@@ -1,7 +1,9 @@
 //! `musculo loss`: the Euler–Lagrange residual r = M q̈ + C q̇ + G − τ − J_cᵀλ of a tensor file,
-//! summarised per coordinate and per frame.
+//! summarised per coordinate and per frame, and its muscle loss when it has activations.
 
-use musculo::loss::tensor_file::{ResidualSummary, TensorFrames, residual_of};
+use musculo::loss::tensor_file::{
+    MuscleSummary, ResidualSummary, TensorFrames, muscle_residual_of, residual_of,
+};
 use musculo::model::Model;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -33,6 +35,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     };
     let frames = TensorFrames::read(&args.file, &model)?;
     let s = residual_of(&model, &frames)?;
+    let muscle = muscle_residual_of(&model, &frames)?;
     if let Some(path) = &args.per_frame {
         let mut csv = String::from("frame,loss,residual_norm,relative_residual\n");
         for t in 0..s.frames {
@@ -60,6 +63,11 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             "coordinates": names.iter().enumerate().map(|(j, name)| serde_json::json!({
                 "name": name, "rms": s.coordinate_rms[j], "max": s.coordinate_max[j],
             })).collect::<Vec<_>>(),
+            "muscle": muscle.as_ref().map(|m| serde_json::json!({
+                "loss": m.loss,
+                "residual_norm": {"median": median(&m.residual_norm), "max": max(&m.residual_norm)},
+                "activations_out_of_bounds": m.out_of_bounds,
+            })),
         });
         println!(
             "{}",
@@ -72,6 +80,9 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             frames.contacts,
             &s,
         );
+        if let Some(m) = &muscle {
+            print_muscle(m);
+        }
     }
     Ok(())
 }
@@ -118,4 +129,14 @@ fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary) 
             names[j], s.coordinate_rms[j], s.coordinate_max[j]
         );
     }
+}
+
+fn print_muscle(m: &MuscleSummary) {
+    println!(
+        "L_muscle = Σ_t |q̈ − M⁻¹ R F_max a|² (+ bound penalty) = {:.4e}; |q̈ − M⁻¹ R F_max a| per frame: median {:.3e}, max {:.3e}; activations outside [0, 1]: {}",
+        m.loss,
+        median(&m.residual_norm),
+        max(&m.residual_norm),
+        m.out_of_bounds
+    );
 }
