@@ -14,6 +14,7 @@
 //! close warm start, plain Newton on G. The result is lifted to a dual scalar by one Newton
 //! step on `T`.
 
+use super::real::{Base, D1};
 use super::real::{Real, V3};
 use crate::spatial::{Mat3, Vec3};
 
@@ -158,6 +159,66 @@ pub(crate) fn unit_to_closest_with_jacobian(
     let mut jac = Mat3::from_diagonal(&d) + dc_dt * dt_dx.transpose();
     jac -= u * (d.component_mul(&u) + dt_dx * ua).transpose();
     Some((u, t, jac / len))
+}
+
+/// [`unit_to_closest_with_jacobian`] with the rates of u and of ∂u/∂x as x moves with ẋ:
+/// (u, root t, ∂u/∂x, d/dε ∂u/∂x (x + εẋ)), by the same closed forms on [`D1`] (the root's
+/// rate ṫ = −(∂G/∂x·ẋ)/G′(t) from one Newton step on `D1`). For the second-order fan.
+pub(crate) fn unit_to_closest_with_jacobian_rate(
+    e: &Ellipsoid,
+    x: &Vec3,
+    xdot: &Vec3,
+    guess: Option<f64>,
+) -> Option<(Vec3, f64, Mat3, Mat3)> {
+    if auto_plane(e, x).is_some() {
+        return None;
+    }
+    let t = solve_root(&e.a2, &[x.x, x.y, x.z], &[0, 1, 2], guess);
+    let xs: [D1; 3] = std::array::from_fn(|j| D1::new(x[j], xdot[j]));
+    let one = D1::cst(1.0);
+    // the root on D1: one Newton step on G(t; x) = Σ a_j² x_j² q_j² − 1 from the f64 root
+    let mut g = D1::cst(-1.0);
+    let mut gt = 0.0;
+    for j in 0..3 {
+        let q = 1.0 / (e.a2[j] + t);
+        let ax = xs[j] * (e.a2[j].sqrt() * q);
+        g = g + ax * ax;
+        gt -= 2.0 * e.a2[j] * x[j] * x[j] * q * q * q;
+    }
+    let tt = if gt != 0.0 && gt.is_finite() {
+        D1::new(t, -g.d / gt)
+    } else {
+        D1::cst(t)
+    };
+    let q: [D1; 3] = std::array::from_fn(|j| one / (tt.plus(e.a2[j])));
+    let w: [D1; 3] = std::array::from_fn(|j| q[j] * e.a2[j]);
+    let v: [D1; 3] = std::array::from_fn(|j| (w[j].plus(-1.0)) * xs[j]);
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if len.v == 0.0 {
+        return Some((Vec3::zeros(), t, Mat3::zeros(), Mat3::zeros()));
+    }
+    let u: [D1; 3] = std::array::from_fn(|j| v[j] / len);
+    let dc_dt: [D1; 3] = std::array::from_fn(|j| -(w[j] * xs[j] * q[j]));
+    let dg_dx: [D1; 3] = std::array::from_fn(|j| w[j] * xs[j] * q[j] * 2.0);
+    let dg_dt = -((0..3).fold(D1::cst(0.0), |s, j| s + w[j] * xs[j] * xs[j] * q[j] * q[j]) * 2.0);
+    let dt_dx: [D1; 3] = if dg_dt.v != 0.0 && dg_dt.v.is_finite() {
+        std::array::from_fn(|j| -(dg_dx[j] / dg_dt))
+    } else {
+        [D1::cst(0.0); 3]
+    };
+    let d: [D1; 3] = std::array::from_fn(|j| w[j].plus(-1.0));
+    let ua = (0..3).fold(D1::cst(0.0), |s, j| s + u[j] * dc_dt[j]);
+    let mut jac = Mat3::zeros();
+    let mut jac_rate = Mat3::zeros();
+    for r in 0..3 {
+        for c in 0..3 {
+            let diag = if r == c { d[r] } else { D1::cst(0.0) };
+            let entry = (diag + dc_dt[r] * dt_dx[c] - u[r] * (d[c] * u[c] + dt_dx[c] * ua)) / len;
+            jac[(r, c)] = entry.v;
+            jac_rate[(r, c)] = entry.d;
+        }
+    }
+    Some((Vec3::new(u[0].v, u[1].v, u[2].v), t, jac, jac_rate))
 }
 
 /// Closest point on the ellipse u²/A² + v²/B² = 1 (A = radii[j], B = radii[k]) to (u, v),

@@ -2,7 +2,9 @@
 
 use std::f64::consts::PI;
 
-use super::closest::{Ellipsoid, closest, unit_to_closest_with_jacobian};
+use super::closest::{
+    Ellipsoid, closest, unit_to_closest_with_jacobian, unit_to_closest_with_jacobian_rate,
+};
 use super::elliptic::ellipse_arc_length;
 use super::real::{D1, D6, Real, V3, gradients, jacobian, second_order_of, seed, seed2};
 use super::{
@@ -564,6 +566,22 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
     let mut sum = Vec3::zeros();
     let mut jac_x1 = Mat3::zeros();
     let mut jac_chord = Mat3::zeros();
+    // Second order: the rates of the two Jacobian sums along δ (each sample's Jacobian
+    // differentiated along its own rate Ẋ1 + f·ċhord, on `D1`).
+    let (x1_rate, chord_rate) = if T::SECOND {
+        (
+            Vec3::new(x1.x.value_rate(), x1.y.value_rate(), x1.z.value_rate()),
+            Vec3::new(
+                chord.x.value_rate(),
+                chord.y.value_rate(),
+                chord.z.value_rate(),
+            ),
+        )
+    } else {
+        (Vec3::zeros(), Vec3::zeros())
+    };
+    let mut jac_x1_rate = Mat3::zeros();
+    let mut jac_chord_rate = Mat3::zeros();
     let mut special = V3::<T>::zero();
     // Warm start: the roots of the previous samples, extrapolated by the quartic through the
     // last five (the root is smooth along the chord away from the medial plane, where it is
@@ -582,13 +600,13 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
             [Some(a), Some(b), None, _, _] => Some(2.0 * a - b),
             [a, _, _, _, _] => a,
         };
-        // Second order: every sample on `T` (the f64 Jacobian sums carry no Hessian).
-        let fast = if T::SECOND {
-            None
+        let sample = if T::SECOND {
+            let xdot = x1_rate + chord_rate * f;
+            unit_to_closest_with_jacobian_rate(e, &x, &xdot, guess)
         } else {
-            unit_to_closest_with_jacobian(e, &x, guess)
+            unit_to_closest_with_jacobian(e, &x, guess).map(|(u, t, j)| (u, t, j, Mat3::zeros()))
         };
-        if let Some((u, t, du_dx)) = fast {
+        if let Some((u, t, du_dx, du_dx_rate)) = sample {
             roots = [Some(t), roots[0], roots[1], roots[2], roots[3]];
             sum += u;
             if T::HAS_GRAD {
@@ -596,15 +614,14 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
                 jac_x1 += du_dx;
                 jac_chord += du_dx * f;
             }
-        } else {
-            // A sample on a coordinate plane (OpenSim's section reduction), or any sample
-            // in second order: on `T`.
-            let xt = *x1 + chord.scale_f(f);
-            let (c, root) = closest(e, &xt, None, if T::SECOND { guess } else { None });
-            if let Some(t) = root.filter(|_| T::SECOND) {
-                roots = [Some(t), roots[0], roots[1], roots[2], roots[3]];
+            if T::SECOND {
+                jac_x1_rate += du_dx_rate;
+                jac_chord_rate += du_dx_rate * f;
             }
-            let v = c - xt;
+        } else {
+            // A sample on a coordinate plane: OpenSim's section reduction, on `T`.
+            let xt = *x1 + chord.scale_f(f);
+            let v = closest(e, &xt, None, None).0 - xt;
             let len = safe_norm(&v);
             if len.val() > 0.0 {
                 special = special + v.scale(T::cst(1.0) / len);
@@ -613,17 +630,16 @@ fn fan_direction<T: Real>(e: &Ellipsoid, x1: &V3<T>, chord: &V3<T>) -> V3<T> {
     }
     let comp = |j: usize| {
         let mut terms = [(0.0, T::cst(0.0)); 6];
+        let mut rates = [0.0; 6];
         for k in 0..3 {
             terms[k] = (jac_x1[(j, k)], x1.at(k));
             terms[3 + k] = (jac_chord[(j, k)], chord.at(k));
+            rates[k] = jac_x1_rate[(j, k)];
+            rates[3 + k] = jac_chord_rate[(j, k)];
         }
-        T::chain(sum[j], &terms, &[])
+        T::chain_rates(sum[j], &terms, &rates)
     };
-    let total = if T::SECOND {
-        special
-    } else {
-        V3::new(comp(0), comp(1), comp(2)) + special
-    };
+    let total = V3::new(comp(0), comp(1), comp(2)) + special;
     let len = safe_norm(&total);
     if len.val() > 0.0 {
         total.scale(T::cst(1.0) / len)

@@ -41,6 +41,11 @@ pub(crate) trait Real:
     ///   dy = Σ_a f_a dx_a,   d²y = Σ_a f_a d²x_a + Σ_ab f_ab dx_a dx_b.
     /// First-order scalars ignore `hess`; an empty `hess` is only allowed for them.
     fn chain(value: f64, terms: &[(f64, Self)], hess: &[f64]) -> Self;
+    /// As [`Real::chain`], with the rates ḟ_a of the coefficients along δ given directly
+    /// (`coef_rates`, one per term; ignored by first-order scalars).
+    fn chain_rates(value: f64, terms: &[(f64, Self)], coef_rates: &[f64]) -> Self;
+    /// The value's rate along δ (0 for first-order scalars).
+    fn value_rate(self) -> f64;
 }
 
 impl Real for f64 {
@@ -69,6 +74,14 @@ impl Real for f64 {
     #[inline]
     fn chain(value: f64, _terms: &[(f64, Self)], _hess: &[f64]) -> Self {
         value
+    }
+    #[inline]
+    fn chain_rates(value: f64, _terms: &[(f64, Self)], _coef_rates: &[f64]) -> Self {
+        value
+    }
+    #[inline]
+    fn value_rate(self) -> f64 {
+        0.0
     }
 }
 
@@ -409,19 +422,27 @@ impl<S: Base> Real for D6<S> {
     }
     #[inline]
     fn chain(value: f64, terms: &[(f64, Self)], hess: &[f64]) -> Self {
-        // Slot k: Σ_a f_a ∂_k x_a, whose rate is Σ_a (f_a (∂_k x_a)˙ + ḟ_a ∂_k x_a) with
-        // ḟ_a = Σ_b f_ab ẋ_b; the value's rate is Σ_a f_a ẋ_a.
+        // ḟ_a = Σ_b f_ab ẋ_b
+        debug_assert!(terms.len() <= 6);
         debug_assert!(!S::SECOND || hess.len() == terms.len() * terms.len());
         let n = terms.len();
+        let mut rates = [0.0; 6];
+        if S::SECOND {
+            for (a, r) in rates.iter_mut().enumerate().take(n) {
+                *r = (0..n).map(|b| hess[a * n + b] * terms[b].1.v.rate()).sum();
+            }
+        }
+        Self::chain_rates(value, terms, &rates[..n.min(6)])
+    }
+    #[inline]
+    fn chain_rates(value: f64, terms: &[(f64, Self)], coef_rates: &[f64]) -> Self {
+        // Slot k: Σ_a f_a ∂_k x_a, whose rate is Σ_a (f_a (∂_k x_a)˙ + ḟ_a ∂_k x_a); the
+        // value's rate is Σ_a f_a ẋ_a.
         let mut g = [S::cst(0.0); 6];
         let mut rate = 0.0;
         for (a, (c, t)) in terms.iter().enumerate() {
             rate += c * t.v.rate();
-            let dc = if S::SECOND {
-                (0..n).map(|b| hess[a * n + b] * terms[b].1.v.rate()).sum()
-            } else {
-                0.0
-            };
+            let dc = if S::SECOND { coef_rates[a] } else { 0.0 };
             for (gk, tk) in g.iter_mut().zip(t.g) {
                 *gk = *gk + tk * *c + S::from_value_rate(0.0, dc * tk.val());
             }
@@ -430,6 +451,10 @@ impl<S: Base> Real for D6<S> {
             v: S::from_value_rate(value, rate),
             g,
         }
+    }
+    #[inline]
+    fn value_rate(self) -> f64 {
+        self.v.rate()
     }
 }
 
