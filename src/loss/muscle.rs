@@ -231,18 +231,7 @@ impl MuscleLoss {
                 "the mass matrix is not positive definite at this pose",
             ));
         }
-        // R: with gradients from the rates' first order (kept for the rates below), else
-        // from `compute_paths` (cheaper alone)
-        if gradients {
-            ws.rates.prepare(
-                model,
-                &ws.data,
-                &self.paths,
-                ws.paths.moment_arms.as_mut_slice(),
-            )?;
-        } else {
-            compute_paths(model, &ws.data, &self.paths, &mut ws.paths)?;
-        }
+        compute_paths(model, &ws.data, &self.paths, &mut ws.paths)?;
         for ((f, a), fmax) in ws.f.iter_mut().zip(frame.a).zip(&self.max_isometric_force) {
             *f = fmax * a;
         }
@@ -302,7 +291,7 @@ impl MuscleLoss {
         }
         forward_kinematics_velocity(model, &mut ws.data, frame.q, &ws.v)?;
         ws.rates
-            .rates(model, &ws.data, &self.paths, &ws.f, &mut ws.rate)?;
+            .compute(model, &ws.data, &self.paths, &ws.f, &mut ws.rate)?;
         for (g, d) in gq.iter_mut().zip(&ws.rate) {
             *g -= d;
         }

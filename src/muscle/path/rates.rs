@@ -77,17 +77,6 @@ pub struct MomentArmRates {
     xdot: Vec<Vec3>,
     /// ṙ of the current path (n).
     rate: Vec<f64>,
-    /// The first order of every path from [`MomentArmRates::prepare`]: nodes, engaged wraps,
-    /// D, J_W at the wrap neighbours (node-major, n columns per node), per path its node and
-    /// wrap ranges; the coordinates it was prepared at; moment arms for `compute`.
-    stored_nodes: Vec<Node>,
-    stored_engaged: Vec<Engaged>,
-    stored_d: Vec<Vec3>,
-    stored_wa: Vec<Vec3>,
-    stored_wb: Vec<Vec3>,
-    ranges: Vec<(std::ops::Range<usize>, std::ops::Range<usize>)>,
-    prepared_at: Vec<f64>,
-    arms: Vec<f64>,
 }
 
 impl MomentArmRates {
@@ -108,69 +97,13 @@ impl MomentArmRates {
             wb_rate: vec![Vec3::zeros(); m * n],
             xdot: vec![Vec3::zeros(); m],
             rate: vec![0.0; n],
-            stored_nodes: Vec::new(),
-            stored_engaged: Vec::new(),
-            stored_d: Vec::new(),
-            stored_wa: Vec::new(),
-            stored_wb: Vec::new(),
-            ranges: Vec::with_capacity(set.len()),
-            prepared_at: Vec::with_capacity(model.coordinates.len()),
-            arms: vec![0.0; n * set.len()],
         }
     }
 
-    /// The first order of every path at the state of `data` (position stage at least), kept
-    /// for [`Self::rates`] at the same coordinates, and the moment arms r = −∂ℓ/∂q from it
-    /// into `arms` (n × paths, column-major, as `PathData::moment_arms`). Allocates only
-    /// while its stores grow to their largest size.
-    pub fn prepare(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        set: &PathSet,
-        arms: &mut [f64],
-    ) -> crate::Result<()> {
-        data.require(model, Stage::Position, "MomentArmRates::prepare")?;
-        let n = model.nq();
-        if arms.len() != n * set.len() || self.rate.len() != n {
-            return Err(Error::invalid(
-                "arms",
-                format!(
-                    "needs {} values, has {} (or workspace of another model)",
-                    n * set.len(),
-                    arms.len()
-                ),
-            ));
-        }
-        self.stored_nodes.clear();
-        self.stored_engaged.clear();
-        self.stored_d.clear();
-        self.stored_wa.clear();
-        self.stored_wb.clear();
-        self.ranges.clear();
-        self.prepared_at.clear();
-        for k in 0..set.len() {
-            self.first_order(model, data, set, k)?;
-            self.arms_from_first_order(n, &mut arms[k * n..(k + 1) * n]);
-            let (nodes, engaged) = (self.stored_nodes.len(), self.stored_engaged.len());
-            let m = self.nodes.len();
-            self.stored_nodes.extend_from_slice(&self.nodes);
-            self.stored_engaged.extend_from_slice(&self.engaged);
-            self.stored_d.extend_from_slice(&self.d[..m * n]);
-            self.stored_wa.extend_from_slice(&self.wa[..m * n]);
-            self.stored_wb.extend_from_slice(&self.wb[..m * n]);
-            self.ranges
-                .push((nodes..nodes + m, engaged..engaged + self.engaged.len()));
-        }
-        self.prepared_at
-            .extend_from_slice(data.coordinate_values(model));
-        Ok(())
-    }
-
-    /// Σ_k f_k ṙ_k into `out` (n) at the state (q, q̇) of `data` (velocity stage), whose
-    /// coordinates must be those of the last [`Self::prepare`]; f = `weights`, one per path
-    /// (paths with f_k = 0 are skipped). Allocates nothing.
-    pub fn rates(
+    /// Σ_k f_k ṙ_k into `out` (n), with f = `weights` (one per path of `set`; paths with
+    /// f_k = 0 are skipped), at the state (q, q̇) of `data` (velocity stage at least).
+    /// Allocates nothing.
+    pub fn compute(
         &mut self,
         model: &Model,
         data: &Data,
@@ -178,7 +111,7 @@ impl MomentArmRates {
         weights: &[f64],
         out: &mut [f64],
     ) -> crate::Result<()> {
-        data.require(model, Stage::Velocity, "MomentArmRates::rates")?;
+        data.require(model, Stage::Velocity, "MomentArmRates::compute")?;
         let n = model.nq();
         if weights.len() != set.len() {
             return Err(Error::invalid(
@@ -195,34 +128,13 @@ impl MomentArmRates {
                 ),
             ));
         }
-        let same = |a: &[f64], b: &[f64]| {
-            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
-        };
-        if self.ranges.len() != set.len() || !same(&self.prepared_at, data.coordinate_values(model))
-        {
-            return Err(Error::invalid(
-                "data",
-                "MomentArmRates::rates needs MomentArmRates::prepare at the same coordinates first",
-            ));
-        }
         self.jtv.compute(model, data)?;
         out.fill(0.0);
         for (k, &f) in weights.iter().enumerate() {
             if f == 0.0 {
                 continue;
             }
-            let (nodes, engaged) = self.ranges[k].clone();
-            let m = nodes.len();
-            let cols = nodes.start * n..nodes.end * n;
-            self.nodes.clear();
-            self.nodes.extend_from_slice(&self.stored_nodes[nodes]);
-            self.engaged.clear();
-            self.engaged
-                .extend_from_slice(&self.stored_engaged[engaged]);
-            self.d[..m * n].copy_from_slice(&self.stored_d[cols.clone()]);
-            self.wa[..m * n].copy_from_slice(&self.stored_wa[cols.clone()]);
-            self.wb[..m * n].copy_from_slice(&self.stored_wb[cols]);
-            self.second_order(model, data, set, k)?;
+            self.path(model, data, set, k)?;
             for (o, r) in out.iter_mut().zip(&self.rate) {
                 *o += f * r;
             }
@@ -230,34 +142,8 @@ impl MomentArmRates {
         Ok(())
     }
 
-    /// Σ_k f_k ṙ_k into `out` (n), with f = `weights` (one per path of `set`; paths with
-    /// f_k = 0 are skipped), at the state (q, q̇) of `data` (velocity stage at least):
-    /// [`Self::prepare`] and [`Self::rates`] at once.
-    pub fn compute(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        set: &PathSet,
-        weights: &[f64],
-        out: &mut [f64],
-    ) -> crate::Result<()> {
-        let mut arms = std::mem::take(&mut self.arms);
-        arms.resize(model.nq() * set.len(), 0.0);
-        let prepared = self.prepare(model, data, set, &mut arms);
-        self.arms = arms;
-        prepared?;
-        self.rates(model, data, set, weights, out)
-    }
-
-    /// Path `k`'s nodes, engaged wraps and node Jacobians D (with J_W at the wrap neighbours)
-    /// into the scratch arrays, at the position stage.
-    fn first_order(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        set: &PathSet,
-        k: usize,
-    ) -> crate::Result<()> {
+    /// ṙ of path `k` into `self.rate`.
+    fn path(&mut self, model: &Model, data: &Data, set: &PathSet, k: usize) -> crate::Result<()> {
         let n = model.nq();
         let path = &set.paths[k];
         let nodes = &mut self.nodes;
@@ -267,6 +153,7 @@ impl MomentArmRates {
         }
         let m = nodes.len();
         let col = |i: usize| i * n..(i + 1) * n;
+        let qd: Vec3Speeds = Vec3Speeds { data, model };
         let c = data.coordinate_values(model);
 
         // ---- first order: J_body at every node, D of path points, J_W at wrap neighbours ----
@@ -358,52 +245,6 @@ impl MomentArmRates {
                 + ja * (d[a * n + j] - self.wa[k * n + j])
                 + jb * (d[b * n + j] - self.wb[k * n + j])
         });
-        Ok(())
-    }
-
-    /// r_k = −∇ℓ_k of the path in the scratch arrays, from D (the chain formula).
-    fn arms_from_first_order(&self, n: usize, r: &mut [f64]) {
-        let nodes = &self.nodes;
-        r.fill(0.0);
-        for e in &self.engaged {
-            let (a, b, k) = (e.node - 1, e.node + 2, e.node);
-            for (j, rj) in r.iter_mut().enumerate() {
-                *rj -= e.grad[0].dot(&(self.d[a * n + j] - self.wa[k * n + j]))
-                    + e.grad[1].dot(&(self.d[b * n + j] - self.wb[k * n + j]));
-            }
-        }
-        for i in 0..nodes.len().saturating_sub(1) {
-            let Some(sign) = segment_sign(nodes[i].kind, nodes[i + 1].kind) else {
-                continue;
-            };
-            let v = nodes[i + 1].ground - nodes[i].ground;
-            let len = v.norm();
-            if len == 0.0 {
-                continue;
-            }
-            let u = v / len;
-            for (j, rj) in r.iter_mut().enumerate() {
-                *rj -= sign * u.dot(&(self.d[(i + 1) * n + j] - self.d[i * n + j]));
-            }
-        }
-    }
-
-    /// ṙ of the path whose first order is in the scratch arrays into `self.rate`, at the
-    /// velocity stage.
-    fn second_order(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        set: &PathSet,
-        k: usize,
-    ) -> crate::Result<()> {
-        let n = model.nq();
-        let path = &set.paths[k];
-        let nodes = &self.nodes;
-        let m = nodes.len();
-        let col = |i: usize| i * n..(i + 1) * n;
-        let qd: Vec3Speeds = Vec3Speeds { data, model };
-        let c = data.coordinate_values(model);
         for i in 0..m {
             self.xdot[i] = qd.apply(&self.d[col(i)]);
         }
@@ -539,8 +380,10 @@ impl MomentArmRates {
             }
         }
         for i in 0..m.saturating_sub(1) {
-            let Some(sign) = segment_sign(nodes[i].kind, nodes[i + 1].kind) else {
-                continue;
+            let sign = match (nodes[i].kind, nodes[i + 1].kind) {
+                (NodeKind::Point(_), NodeKind::Point(_)) => 1.0,
+                (NodeKind::Tangent(x, true), NodeKind::Tangent(y, false)) if x != y => -1.0,
+                _ => continue, // part of a wrap's own length
             };
             let v = nodes[i + 1].ground - nodes[i].ground;
             let len = v.norm();
@@ -557,16 +400,6 @@ impl MomentArmRates {
             }
         }
         Ok(())
-    }
-}
-
-/// How a segment counts in ∇ℓ: +1 between two path points, −1 between two wraps (counted in
-/// both wraps' lengths), none inside a wrap's own length.
-fn segment_sign(a: NodeKind, b: NodeKind) -> Option<f64> {
-    match (a, b) {
-        (NodeKind::Point(_), NodeKind::Point(_)) => Some(1.0),
-        (NodeKind::Tangent(x, true), NodeKind::Tangent(y, false)) if x != y => Some(-1.0),
-        _ => None,
     }
 }
 
@@ -656,49 +489,6 @@ mod tests {
         let mut out = PathData::new(model, set);
         compute_paths(model, &data, set, &mut out).unwrap();
         out.moment_arms.as_slice().to_vec()
-    }
-
-    /// The moment arms `prepare` derives from the node Jacobians (the chain formula) equal
-    /// those of `compute_paths` (tensions on the bodies) on every path; `rates` at other
-    /// coordinates than the prepared ones is an error.
-    #[test]
-    fn prepared_moment_arms_equal_compute_paths() {
-        for (name, model) in models() {
-            let set = PathSet::new(&model).unwrap();
-            let n = model.nq();
-            let mut rng = SplitMix64(3);
-            let mut rates = MomentArmRates::new(&model, &set);
-            let mut arms = vec![0.0; n * set.len()];
-            let mut worst = 0.0f64;
-            for _ in 0..5 {
-                let q: Vec<f64> = model
-                    .reduction
-                    .independent
-                    .iter()
-                    .map(|&c| {
-                        let [lo, hi] = model.coordinates[c].range;
-                        rng.uniform(lo, hi)
-                    })
-                    .collect();
-                let mut data = Data::new(&model);
-                forward_kinematics(&model, &mut data, &q).unwrap();
-                rates.prepare(&model, &data, &set, &mut arms).unwrap();
-                let reference = super::tests::arms(&model, &set, &q);
-                for (a, b) in arms.iter().zip(&reference) {
-                    worst = worst.max((a - b).abs());
-                }
-                let mut moved = q.clone();
-                moved[0] += 1e-9;
-                forward_kinematics_velocity(&model, &mut data, &moved, &vec![0.1; n]).unwrap();
-                let mut out = vec![0.0; n];
-                let e = rates
-                    .rates(&model, &data, &set, &vec![1.0; set.len()], &mut out)
-                    .unwrap_err();
-                assert!(e.to_string().contains("prepare"), "{e}");
-            }
-            eprintln!("{name}: prepared moment arms within {worst:.1e} m of compute_paths");
-            assert!(worst < 1e-12, "{name}: {worst:e}");
-        }
     }
 
     /// ṙ_k of every path equals the central difference (r_k(q + h q̇) − r_k(q − h q̇))/2h at
