@@ -581,3 +581,106 @@ fn augmented_tensors_have_a_zero_euler_lagrange_residual() {
         "{err}"
     );
 }
+
+/// The per-joint layout `augment` writes maps back to its coordinates
+/// (`augment::layout_inverse`): q and the rotational rates to the float32 rounding of the
+/// stored blocks, the root translation rates to the accuracy of central differences at the
+/// clip's rate, τ on the angular coordinates exactly, and the fit leaves no rotation error.
+#[test]
+fn the_joint_layout_maps_back_to_the_coordinates() {
+    use musculo::augment::layout::JointLayout;
+    use musculo::augment::layout_inverse::{LayoutClip, coordinates_from_layout};
+    use musculo::motion::npy::read_npz_as_f64;
+    let out = temp_dir("layout-inverse");
+    let (ok, _, err) = run_musculo(&[
+        "augment".to_string(),
+        "--demo".into(),
+        "--out".into(),
+        out.display().to_string(),
+    ]);
+    assert!(ok, "{err}");
+    let model = musculo::Model::default_fullbody();
+    let n = model.nq();
+    let muscles = musculo::muscle::MuscleSet::new(&model).unwrap().len();
+    let layout = JointLayout::new(&model, muscles);
+    let translational: Vec<bool> = model
+        .reduction
+        .independent
+        .iter()
+        .map(|&c| model.coordinates[c].motion_type == musculo::model::MotionType::Translational)
+        .collect();
+    let angular: Vec<usize> = layout.angular_coordinates().collect();
+    for clip in ["squat", "march", "reach"] {
+        let arrays = read_npz_as_f64(&out.join(format!("{clip}.npz"))).unwrap();
+        let get = |name: &str| -> Vec<f64> {
+            arrays
+                .iter()
+                .find(|(k, _)| k == name)
+                .unwrap_or_else(|| panic!("{clip}: no {name}"))
+                .1
+                .iter()
+                .copied()
+                .collect()
+        };
+        let time = get("time");
+        let frames = time.len();
+        let rate = (frames - 1) as f64 / (time[frames - 1] - time[0]);
+        let (pos, rot, vel, acc, torque) = (
+            get("joint_pos"),
+            get("joint_rot"),
+            get("joint_vel"),
+            get("joint_acc"),
+            get("joint_torque"),
+        );
+        let c = coordinates_from_layout(
+            &model,
+            &layout,
+            &LayoutClip {
+                frames,
+                rate_hz: rate,
+                joint_pos: &pos,
+                joint_rot: &rot,
+                joint_vel: &vel,
+                joint_acc: &acc,
+                joint_torque: &torque,
+            },
+        )
+        .unwrap();
+        let (q, qd, qdd, tau) = (get("q"), get("qd"), get("qdd"), get("tau"));
+        let worst = |ours: &[f64], theirs: &[f64], pick: &dyn Fn(usize) -> bool| {
+            let mut err = 0.0f64;
+            let mut scale = 0.0f64;
+            for (i, (a, b)) in ours.iter().zip(theirs).enumerate() {
+                if pick(i % n) {
+                    err = err.max((a - b).abs());
+                    scale = scale.max(b.abs());
+                }
+            }
+            (err, scale)
+        };
+        let rotational = |j: usize| !translational[j];
+        let (eq, _) = worst(&c.q, &q, &|_| true);
+        let (eqd, sqd) = worst(&c.qd, &qd, &rotational);
+        let (eqdd, sqdd) = worst(&c.qdd, &qdd, &rotational);
+        let (eqd_t, sqd_t) = worst(&c.qd, &qd, &|j| translational[j]);
+        let (eqdd_t, sqdd_t) = worst(&c.qdd, &qdd, &|j| translational[j]);
+        let (etau, stau) = worst(&c.tau, &tau, &|j| angular.contains(&j));
+        let rot_err = c.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v));
+        eprintln!(
+            "{clip}: q {eq:.1e}; rotational q̇ {eqd:.1e} of {sqd:.2}, q̈ {eqdd:.1e} of {sqdd:.2}; \
+             translational q̇ {eqd_t:.1e} of {sqd_t:.2}, q̈ {eqdd_t:.1e} of {sqdd_t:.2}; \
+             τ_K {etau:.1e} of {stau:.1}; rotation error {rot_err:.1e} rad"
+        );
+        assert!(eq < 1e-5, "{clip}: q off by {eq}");
+        assert!(
+            eqd < 1e-5 * sqd.max(1.0) && eqdd < 1e-4 * sqdd.max(1.0),
+            "{clip}"
+        );
+        assert!(etau < 1e-5 * stau.max(1.0), "{clip}: τ_K off by {etau}");
+        assert!(rot_err < 1e-5, "{clip}: {rot_err}");
+        assert!(
+            eqd_t < 0.02 * sqd_t.max(0.1),
+            "{clip}: translational q̇ off by {eqd_t}"
+        );
+    }
+}

@@ -132,6 +132,12 @@ impl JointLayout {
         }
     }
 
+    /// The independent coordinates (indices into q) whose generalized forces the joint
+    /// moments carry: the angles that turn at least one hinge.
+    pub fn angular_coordinates(&self) -> impl Iterator<Item = usize> + '_ {
+        self.angular.iter().copied()
+    }
+
     pub fn n_joints(&self) -> usize {
         self.names.len()
     }

@@ -13,6 +13,7 @@
 pub mod chain;
 pub mod demo;
 pub mod layout;
+pub mod layout_inverse;
 pub mod output;
 pub mod perturb;
 pub mod runner;

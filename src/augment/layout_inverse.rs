@@ -1,0 +1,392 @@
+//! From the per-joint layout back to the model's coordinates: the inverse of
+//! [`super::layout::JointLayout::frame`], for motions that come in FlexMotion's layout only
+//! (a generated motion) and for losses or checks that need q, q̇, q̈ and τ.
+//!
+//! With the quantities of [`super::layout`] (joint j: parent frame F, child frame M,
+//! R_j(q) = R_Fᵀ R_M, A_j(q) = R_Fᵀ (J_ω,child − J_ω,parent) the Jacobian of the relative
+//! angular velocity in F axes, p_j(q) the joint centre), per frame t:
+//!
+//! - **q** (joint rotations → coordinates): Gauss–Newton on
+//!   Σ_j ‖log(exp(r_j) R_j(q)ᵀ)‖² + w_p² Σ_{root joints} ‖p_j − p_j(q)‖², each step solving
+//!   (Jᵀ J) δ = Jᵀ e with the rows A_j (rotations: a change δ turns R_j by A_j δ in F axes, so
+//!   the error log(exp(r_j) R_jᵀ) moves by −A_j δ to first order) and w_p J_p (positions),
+//!   started from the previous frame's q (the model's default pose for the first frame). The
+//!   root joints (those whose parent is ground) add their centres, which fix the translational
+//!   coordinates; every rotational coordinate is fixed by the rotations alone. A coordinate
+//!   that turns several joints (the default model's lumbar coordinates, shared by five
+//!   vertebral joints) is the least-squares fit of all of them. w_p = 10 rad/m (1 cm weighs as
+//!   0.1 rad; for a consistent layout the weights do not matter).
+//! - **q̇**: the least-squares solution of A_j q̇ = w_j (all joints) and J_p q̇ = ṗ_j (root
+//!   joints), with ṗ_j the central difference of the root centres over frames (one-sided at
+//!   the ends): the layout holds no linear velocity.
+//! - **q̈**: likewise from A_j q̈ = ẇ_j − b_j, b_j the layout's joint acceleration at q̈ = 0,
+//!   and J_p q̈ = p̈_j − J̇_p q̇ with p̈_j the second difference of the root centres.
+//! - **τ**: τ_K = Σ_j A_jᵀ m_j for the angular coordinates K (the layout's moments are the
+//!   least-norm ones with exactly these generalized forces, so this is exact); the other
+//!   coordinates' forces are not in the layout and come back as 0.
+//!
+//! For a layout written by `musculo augment` this returns its q to the float32 rounding of the
+//! stored rotations, q̇ and q̈ of the rotational coordinates likewise, the root translation rates
+//! to the accuracy of the finite differences, and τ_K. The per-frame rotation error left by
+//! the fit (the largest |log(exp(r_j) R_j(q)ᵀ)| over the joints) is reported: zero up to
+//! rounding for a consistent layout, the inconsistency of a generated one otherwise.
+
+use super::layout::{JointLayout, rotation_vector};
+use crate::dynamics::{self, Data};
+use crate::model::Model;
+use crate::solve::qp::linalg::{cholesky_in_place, cholesky_solve_in_place};
+use crate::spatial::{Mat3, Vec3};
+use nalgebra::{DMatrix, Rotation3};
+
+/// Gauss–Newton iterations per frame, and the step (max |δ|) that ends them.
+const MAX_ITERATIONS: usize = 50;
+const STEP_TOLERANCE: f64 = 1e-12;
+/// Weight of the root joint centres against the rotations (rad per m).
+const POSITION_WEIGHT: f64 = 10.0;
+
+/// A clip in the per-joint layout: every array T × J × 3, row-major, joints in
+/// `Model::joints` order, in the units and frames of [`super::layout`].
+#[derive(Clone, Copy, Debug)]
+pub struct LayoutClip<'a> {
+    pub frames: usize,
+    /// Frame rate (Hz), for the root centres' differences.
+    pub rate_hz: f64,
+    pub joint_pos: &'a [f64],
+    pub joint_rot: &'a [f64],
+    pub joint_vel: &'a [f64],
+    pub joint_acc: &'a [f64],
+    pub joint_torque: &'a [f64],
+}
+
+/// The coordinates of a layout clip (T × n each, row-major).
+#[derive(Clone, Debug, Default)]
+pub struct LayoutCoordinates {
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+    pub tau: Vec<f64>,
+    /// Per frame, the largest rotation error left by the fit (rad).
+    pub rotation_error: Vec<f64>,
+}
+
+/// The coordinates of `clip` (see the module documentation).
+pub fn coordinates_from_layout(
+    model: &Model,
+    layout: &JointLayout,
+    clip: &LayoutClip,
+) -> crate::Result<LayoutCoordinates> {
+    let (n, nj, t) = (model.nq(), layout.n_joints(), clip.frames);
+    if nj != model.joints.len() {
+        return Err(crate::Error::invalid(
+            "layout",
+            format!(
+                "the layout has {nj} joints, the model \"{}\" {}",
+                model.name,
+                model.joints.len()
+            ),
+        ));
+    }
+    for (name, a) in [
+        ("joint_pos", clip.joint_pos),
+        ("joint_rot", clip.joint_rot),
+        ("joint_vel", clip.joint_vel),
+        ("joint_acc", clip.joint_acc),
+        ("joint_torque", clip.joint_torque),
+    ] {
+        if a.len() != t * nj * 3 {
+            return Err(crate::Error::invalid(
+                name,
+                format!(
+                    "expected {t} frames × {nj} joints × 3 = {}, got {}",
+                    t * nj * 3,
+                    a.len()
+                ),
+            ));
+        }
+        if let Some(i) = a.iter().position(|v| !v.is_finite()) {
+            return Err(crate::Error::invalid(
+                name,
+                format!("frame {}, joint {}: not finite", i / (3 * nj), i / 3 % nj),
+            ));
+        }
+    }
+    if !(clip.rate_hz > 0.0 && clip.rate_hz.is_finite()) {
+        return Err(crate::Error::invalid(
+            "rate_hz",
+            format!("{} (must be positive)", clip.rate_hz),
+        ));
+    }
+    let vec3 = |a: &[f64], f: usize, j: usize| {
+        let i = (f * nj + j) * 3;
+        Vec3::new(a[i], a[i + 1], a[i + 2])
+    };
+    let roots: Vec<usize> = (0..nj)
+        .filter(|&j| model.joints[j].parent_body == 0)
+        .collect();
+    let rows = 3 * nj + 3 * roots.len();
+    let mut ws = Solver {
+        data: Data::new(model),
+        jac: DMatrix::zeros(6, n),
+        point: DMatrix::zeros(3, n),
+        a: vec![0.0; rows * n],
+        e: vec![0.0; rows],
+        normal: vec![0.0; n * n],
+        rhs: vec![0.0; n],
+        frame_rot: vec![Mat3::identity(); nj],
+    };
+    let mut out = LayoutCoordinates {
+        q: vec![0.0; t * n],
+        qd: vec![0.0; t * n],
+        qdd: vec![0.0; t * n],
+        tau: vec![0.0; t * n],
+        rotation_error: vec![0.0; t],
+    };
+    let dt = 1.0 / clip.rate_hz;
+    // root centres' first and second differences
+    let root_rates = |f: usize, r: usize| -> (Vec3, Vec3) {
+        let p = |g: usize| vec3(clip.joint_pos, g, roots[r]);
+        if t < 2 {
+            return (Vec3::zeros(), Vec3::zeros());
+        }
+        let (a, b) = if f == 0 {
+            (0, 1)
+        } else if f + 1 == t {
+            (t - 2, t - 1)
+        } else {
+            (f - 1, f + 1)
+        };
+        let v = (p(b) - p(a)) / ((b - a) as f64 * dt);
+        let acc = if t < 3 {
+            Vec3::zeros()
+        } else {
+            let c = f.clamp(1, t - 2);
+            (p(c + 1) - p(c) * 2.0 + p(c - 1)) / (dt * dt)
+        };
+        (v, acc)
+    };
+    let mut q = model.default_q();
+    for f in 0..t {
+        // ---- q: Gauss–Newton on the joint rotations and root centres ----
+        let mut error = 0.0;
+        for _ in 0..MAX_ITERATIONS {
+            dynamics::forward_kinematics(model, &mut ws.data, &q)?;
+            ws.jacobians(model, layout, &roots)?;
+            error = 0.0f64;
+            for (j, joint) in model.joints.iter().enumerate() {
+                let target = exp(&vec3(clip.joint_rot, f, j));
+                let rel = relative_rotation(&ws.data, joint);
+                let e = rotation_vector(&(target * rel.transpose()));
+                error = error.max(e.norm());
+                ws.e[3 * j..3 * j + 3].copy_from_slice(e.as_slice());
+            }
+            for (r, &j) in roots.iter().enumerate() {
+                let joint = &model.joints[j];
+                let (rc, pc) = ws.data.body_pose(joint.child_body);
+                let e = (vec3(clip.joint_pos, f, j) - (pc + rc * joint.child_offset.pos))
+                    * POSITION_WEIGHT;
+                ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(e.as_slice());
+            }
+            let step = ws.solve(n, rows)?;
+            for (qj, d) in q.iter_mut().zip(&ws.rhs) {
+                *qj += d;
+            }
+            if step <= STEP_TOLERANCE {
+                break;
+            }
+        }
+        dynamics::forward_kinematics(model, &mut ws.data, &q)?;
+        ws.jacobians(model, layout, &roots)?;
+        out.rotation_error[f] = error;
+        out.q[f * n..(f + 1) * n].copy_from_slice(&q);
+        // ---- q̇: A q̇ = w, J_p q̇ = ṗ ----
+        for j in 0..nj {
+            ws.e[3 * j..3 * j + 3].copy_from_slice(vec3(clip.joint_vel, f, j).as_slice());
+        }
+        for r in 0..roots.len() {
+            let v = root_rates(f, r).0 * POSITION_WEIGHT;
+            ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(v.as_slice());
+        }
+        ws.solve(n, rows)?;
+        let qd = ws.rhs.clone();
+        out.qd[f * n..(f + 1) * n].copy_from_slice(&qd);
+        // ---- q̈: A q̈ = ẇ − b, J_p q̈ = p̈ − J̇_p q̇ ----
+        dynamics::forward_kinematics_velocity(model, &mut ws.data, &q, &qd)?;
+        for (j, joint) in model.joints.iter().enumerate() {
+            let b = bias_joint_acceleration(model, &mut ws.data, joint, &ws.frame_rot[j])?;
+            let e = vec3(clip.joint_acc, f, j) - b;
+            ws.e[3 * j..3 * j + 3].copy_from_slice(e.as_slice());
+        }
+        for (r, &j) in roots.iter().enumerate() {
+            let joint = &model.joints[j];
+            let bias = dynamics::point_jacobian_dot_qd(
+                model,
+                &mut ws.data,
+                joint.child_body,
+                &joint.child_offset.pos,
+            )?;
+            let e = (root_rates(f, r).1 - bias) * POSITION_WEIGHT;
+            ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(e.as_slice());
+        }
+        ws.solve(n, rows)?;
+        out.qdd[f * n..(f + 1) * n].copy_from_slice(&ws.rhs);
+        // ---- τ_K = Σ_j A_jᵀ m_j ----
+        for c in layout.angular_coordinates() {
+            let mut s = 0.0;
+            for j in 0..nj {
+                let m = vec3(clip.joint_torque, f, j);
+                for k in 0..3 {
+                    s += ws.a[(3 * j + k) * n + c] * m[k];
+                }
+            }
+            out.tau[f * n + c] = s;
+        }
+    }
+    Ok(out)
+}
+
+/// exp of a rotation vector.
+fn exp(r: &Vec3) -> Mat3 {
+    Rotation3::new(*r).into_inner()
+}
+
+/// R_j = R_Fᵀ R_M of a joint at the state of `data`.
+fn relative_rotation(data: &Data, joint: &crate::model::Joint) -> Mat3 {
+    let rp = if joint.parent_body == 0 {
+        Mat3::identity()
+    } else {
+        data.body_pose(joint.parent_body).0
+    };
+    let rc = data.body_pose(joint.child_body).0;
+    (rp * joint.parent_offset.rot).transpose() * rc * joint.child_offset.rot
+}
+
+/// The layout's joint acceleration of `joint` at q̈ = 0 (velocity stage):
+/// R_Fᵀ(α_c − α_p) − R_Fᵀ(ω_p × (ω_c − ω_p)) with the bias angular accelerations.
+fn bias_joint_acceleration(
+    model: &Model,
+    data: &mut Data,
+    joint: &crate::model::Joint,
+    r_f: &Mat3,
+) -> crate::Result<Vec3> {
+    let zero = Vec3::zeros();
+    let (wp, ap) = if joint.parent_body == 0 {
+        (zero, zero)
+    } else {
+        (
+            data.body_velocity(joint.parent_body).0,
+            dynamics::body_jacobian_dot_qd(model, data, joint.parent_body)?.0,
+        )
+    };
+    let wc = data.body_velocity(joint.child_body).0;
+    let ac = dynamics::body_jacobian_dot_qd(model, data, joint.child_body)?.0;
+    Ok(r_f.transpose() * (ac - ap - wp.cross(&(wc - wp))))
+}
+
+/// The stacked Jacobian rows (A_j, then w_p J_p of the root centres), the error vector and
+/// the normal equations of one frame.
+struct Solver {
+    data: Data,
+    jac: DMatrix<f64>,
+    point: DMatrix<f64>,
+    /// rows × n, row-major.
+    a: Vec<f64>,
+    e: Vec<f64>,
+    normal: Vec<f64>,
+    rhs: Vec<f64>,
+    frame_rot: Vec<Mat3>,
+}
+
+impl Solver {
+    /// A_j = R_Fᵀ (J_ω,child − J_ω,parent) for every joint and w_p J_p for the root centres.
+    fn jacobians(
+        &mut self,
+        model: &Model,
+        layout: &JointLayout,
+        roots: &[usize],
+    ) -> crate::Result<()> {
+        let n = model.nq();
+        let nj = layout.n_joints();
+        for (j, joint) in model.joints.iter().enumerate() {
+            let rp = if joint.parent_body == 0 {
+                Mat3::identity()
+            } else {
+                self.data.body_pose(joint.parent_body).0
+            };
+            let r_f = rp * joint.parent_offset.rot;
+            self.frame_rot[j] = r_f;
+            dynamics::body_jacobian(model, &self.data, joint.child_body, &mut self.jac)?;
+            for c in 0..n {
+                let w = Vec3::new(self.jac[(0, c)], self.jac[(1, c)], self.jac[(2, c)]);
+                for k in 0..3 {
+                    self.a[(3 * j + k) * n + c] = w[k];
+                }
+            }
+            if joint.parent_body != 0 {
+                dynamics::body_jacobian(model, &self.data, joint.parent_body, &mut self.jac)?;
+                for c in 0..n {
+                    for k in 0..3 {
+                        self.a[(3 * j + k) * n + c] -= self.jac[(k, c)];
+                    }
+                }
+            }
+            for c in 0..n {
+                let w = Vec3::new(
+                    self.a[(3 * j) * n + c],
+                    self.a[(3 * j + 1) * n + c],
+                    self.a[(3 * j + 2) * n + c],
+                );
+                let wf = r_f.transpose() * w;
+                for k in 0..3 {
+                    self.a[(3 * j + k) * n + c] = wf[k];
+                }
+            }
+        }
+        for (r, &j) in roots.iter().enumerate() {
+            let joint = &model.joints[j];
+            dynamics::point_jacobian(
+                model,
+                &self.data,
+                joint.child_body,
+                &joint.child_offset.pos,
+                &mut self.point,
+            )?;
+            for k in 0..3 {
+                for c in 0..n {
+                    self.a[(3 * nj + 3 * r + k) * n + c] = POSITION_WEIGHT * self.point[(k, c)];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The least-squares solution of A x = e into `rhs` (normal equations, a relative floor
+    /// on the diagonal against coordinates that move nothing at this pose); returns max |x|.
+    fn solve(&mut self, n: usize, rows: usize) -> crate::Result<f64> {
+        self.normal.fill(0.0);
+        self.rhs.fill(0.0);
+        for r in 0..rows {
+            let row = &self.a[r * n..(r + 1) * n];
+            for a in 0..n {
+                if row[a] == 0.0 {
+                    continue;
+                }
+                self.rhs[a] += row[a] * self.e[r];
+                for b in a..n {
+                    self.normal[a * n + b] += row[a] * row[b];
+                }
+            }
+        }
+        let trace: f64 = (0..n).map(|i| self.normal[i * n + i]).sum();
+        for i in 0..n {
+            self.normal[i * n + i] += 1e-14 * trace.max(1e-300);
+        }
+        if !cholesky_in_place(&mut self.normal, n) {
+            return Err(crate::Error::invalid(
+                "layout",
+                "the joint rotations do not determine the coordinates at this pose",
+            ));
+        }
+        cholesky_solve_in_place(&self.normal, n, &mut self.rhs);
+        Ok(self.rhs.iter().fold(0.0, |m, v| m.max(v.abs())))
+    }
+}
