@@ -672,6 +672,48 @@ fn the_joint_layout_maps_back_to_the_coordinates() {
              τ_K {etau:.1e} of {stau:.1}; rotation error {rot_err:.1e} rad"
         );
         assert!(eq < 1e-5, "{clip}: q off by {eq}");
+        // `musculo loss` on the layout alone fits the same coordinates: its muscle loss equals
+        // the full file's (the root's translation rates, from differences, enter only the
+        // pelvis rows)
+        if clip == "squat" {
+            let keep = [
+                "joint_pos",
+                "joint_rot",
+                "joint_vel",
+                "joint_acc",
+                "joint_torque",
+                "muscle_act",
+                "time",
+            ];
+            let views: Vec<(&str, ndarray::ArrayViewD<'_, f64>)> = arrays
+                .iter()
+                .filter(|(k, _)| keep.contains(&k.as_str()))
+                .map(|(k, a)| (k.as_str(), a.view()))
+                .collect();
+            let layout_file = out.join("squat_layout.npz");
+            musculo::motion::npy::write_npz(&layout_file, &views, false).unwrap();
+            let report = |path: &std::path::Path| -> serde_json::Value {
+                let (ok, stdout, err) = run_musculo(&[
+                    "loss".to_string(),
+                    path.display().to_string(),
+                    "--json".into(),
+                ]);
+                assert!(ok, "{err}");
+                serde_json::from_str(&stdout).unwrap()
+            };
+            let (full, layout_only) = (report(&out.join("squat.npz")), report(&layout_file));
+            assert!(full["from_layout"].is_null());
+            let fit = layout_only["from_layout"]["rotation_error"]
+                .as_f64()
+                .unwrap();
+            assert!(fit < 1e-6, "{fit}");
+            let (a, b) = (
+                full["muscle"]["loss"].as_f64().unwrap(),
+                layout_only["muscle"]["loss"].as_f64().unwrap(),
+            );
+            eprintln!("squat: L_muscle {a:.6e} from q, {b:.6e} from the layout alone");
+            assert!((a - b).abs() <= 1e-3 * a, "{a} vs {b}");
+        }
         assert!(
             eqd < 1e-5 * sqd.max(1.0) && eqdd < 1e-4 * sqdd.max(1.0),
             "{clip}"

@@ -39,6 +39,11 @@ pub struct TensorFrames {
     pub muscle_act: Vec<f64>,
     /// m, the muscles of `muscle_act` (0 without).
     pub muscles: usize,
+    /// Set when the file holds only the per-joint layout (no `q`): the coordinates were
+    /// fitted from it ([`crate::augment::layout_inverse`]) and this is the largest rotation
+    /// error the fit left (rad). Such a file has no contact points (the layout's contact
+    /// forces carry no application point), so its L_euler shows the ground's forces.
+    pub layout_error: Option<f64>,
 }
 
 impl TensorFrames {
@@ -49,7 +54,7 @@ impl TensorFrames {
         let n = model.nq();
         let find = |name: &str| arrays.iter().find(|(k, _)| k == name).map(|(_, a)| a);
         let bad = |msg: String| crate::Error::invalid("tensor file", format!("{source}: {msg}"));
-        let mut frames = None;
+        let mut frames: Option<usize> = None;
         let mut coordinate_array = |name: &str| -> crate::Result<Vec<f64>> {
             let a = find(name).ok_or_else(|| bad(format!("has no array `{name}`")))?;
             if a.ndim() != 2 || a.shape()[1] != n {
@@ -65,10 +70,21 @@ impl TensorFrames {
             }
             Ok(a.iter().copied().collect())
         };
-        let q = coordinate_array("q")?;
-        let qd = coordinate_array("qd")?;
-        let qdd = coordinate_array("qdd")?;
-        let tau = coordinate_array("tau")?;
+        let layout_only = find("q").is_none() && find("joint_rot").is_some();
+        let mut layout_error = None;
+        let (q, qd, qdd, tau) = if layout_only {
+            let c = from_layout(model, &arrays, &bad)?;
+            frames = Some(c.rotation_error.len());
+            layout_error = Some(c.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v)));
+            (c.q, c.qd, c.qdd, c.tau)
+        } else {
+            (
+                coordinate_array("q")?,
+                coordinate_array("qd")?,
+                coordinate_array("qdd")?,
+                coordinate_array("tau")?,
+            )
+        };
         let frames = frames.unwrap_or(0);
         let (lambda, contacts) = match find("contact_point_force") {
             None => (Vec::new(), 0),
@@ -116,6 +132,7 @@ impl TensorFrames {
             contacts,
             muscle_act,
             muscles,
+            layout_error,
         })
     }
 
@@ -251,4 +268,74 @@ pub fn muscle_residual_of(
             .filter(|a| !(0.0..=1.0).contains(*a))
             .count(),
     }))
+}
+
+/// The coordinates of a file that holds only the per-joint layout: `joint_pos`, `joint_rot`,
+/// `joint_vel`, `joint_acc`, `joint_torque` (T × J × 3) and `time` (T, s) for the rate.
+fn from_layout(
+    model: &Model,
+    arrays: &[(String, ndarray::ArrayD<f64>)],
+    bad: &dyn Fn(String) -> crate::Error,
+) -> crate::Result<crate::augment::layout_inverse::LayoutCoordinates> {
+    use crate::augment::layout::JointLayout;
+    use crate::augment::layout_inverse::{LayoutClip, coordinates_from_layout};
+    let nj = model.joints.len();
+    let get = |name: &str| -> crate::Result<Vec<f64>> {
+        let a = arrays
+            .iter()
+            .find(|(k, _)| k == name)
+            .map(|(_, a)| a)
+            .ok_or_else(|| {
+                bad(format!(
+                    "has `joint_rot` but no `{name}` (the per-joint layout needs it)"
+                ))
+            })?;
+        if a.ndim() != 3 || a.shape()[1] != nj || a.shape()[2] != 3 {
+            return Err(bad(format!(
+                "`{name}` has shape {:?}; the model \"{}\" needs T × {nj} × 3",
+                a.shape(),
+                model.name
+            )));
+        }
+        Ok(a.iter().copied().collect())
+    };
+    let time: Vec<f64> = arrays
+        .iter()
+        .find(|(k, _)| k == "time")
+        .map(|(_, a)| a.iter().copied().collect())
+        .ok_or_else(|| bad("has the per-joint layout but no `time` (its rate is needed)".into()))?;
+    let frames = time.len();
+    if frames < 2 || !(time[frames - 1] > time[0]) {
+        return Err(bad(format!(
+            "`time` has {frames} samples; the layout needs ≥ 2, increasing"
+        )));
+    }
+    let rate_hz = (frames - 1) as f64 / (time[frames - 1] - time[0]);
+    let (pos, rot, vel, acc, torque) = (
+        get("joint_pos")?,
+        get("joint_rot")?,
+        get("joint_vel")?,
+        get("joint_acc")?,
+        get("joint_torque")?,
+    );
+    if pos.len() != frames * nj * 3 {
+        return Err(bad(format!(
+            "`joint_pos` has {} frames, `time` {frames}",
+            pos.len() / (3 * nj)
+        )));
+    }
+    let layout = JointLayout::new(model, 0);
+    coordinates_from_layout(
+        model,
+        &layout,
+        &LayoutClip {
+            frames,
+            rate_hz,
+            joint_pos: &pos,
+            joint_rot: &rot,
+            joint_vel: &vel,
+            joint_acc: &acc,
+            joint_torque: &torque,
+        },
+    )
 }

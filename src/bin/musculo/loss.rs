@@ -11,7 +11,9 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// Tensor file (.npz with q, qd, qdd, tau and, where there are contacts,
-    /// contact_point_force), e.g. a clip written by `musculo augment`.
+    /// contact_point_force), e.g. a clip written by `musculo augment`; or one with only the
+    /// per-joint layout (joint_pos, joint_rot, joint_vel, joint_acc, joint_torque, time), whose
+    /// coordinates are then fitted from it.
     file: PathBuf,
     /// OpenSim 4.x model file the tensors belong to (default: the built-in default model).
     /// A clip that `musculo augment` scaled to its bone lengths belongs to the scaled model,
@@ -63,6 +65,9 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             "coordinates": names.iter().enumerate().map(|(j, name)| serde_json::json!({
                 "name": name, "rms": s.coordinate_rms[j], "max": s.coordinate_max[j],
             })).collect::<Vec<_>>(),
+            "from_layout": frames.layout_error.map(|e| serde_json::json!({
+                "rotation_error": e,
+            })),
             "muscle": muscle.as_ref().map(|m| serde_json::json!({
                 "loss": m.loss,
                 "residual_norm": {"median": median(&m.residual_norm), "max": max(&m.residual_norm)},
@@ -79,7 +84,16 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             &model,
             frames.contacts,
             &s,
+            frames.layout_error.is_some(),
         );
+        if let Some(e) = frames.layout_error {
+            println!(
+                "note: the file holds the per-joint layout only; its coordinates were fitted from the \
+                 joint rotations (largest rotation error left {e:.2e} rad), the root's translation \
+                 rates from differences of its centre. The layout's contact forces have no \
+                 application point and are not used: L_euler above includes the ground's forces."
+            );
+        }
         if let Some(m) = &muscle {
             print_muscle(m);
         }
@@ -97,7 +111,7 @@ fn max(v: &[f64]) -> f64 {
     v.iter().copied().fold(0.0, f64::max)
 }
 
-fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary) {
+fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary, layout_only: bool) {
     let worst = (0..s.frames)
         .max_by(|&a, &b| s.frame_relative[a].total_cmp(&s.frame_relative[b]))
         .unwrap_or(0);
@@ -111,7 +125,7 @@ fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary) 
         median(&s.frame_relative),
         max(&s.frame_relative)
     );
-    if max(&s.frame_relative) > 1e-3 {
+    if max(&s.frame_relative) > 1e-3 && !layout_only {
         println!(
             "note: a large residual in a clip written by `musculo augment` usually means the \
              tensors belong to another model (a clip scaled to its bone lengths: run augment \
