@@ -478,6 +478,79 @@ impl Model {
         ik_dict(py, solution)
     }
 
+    /// The coordinates of a clip given in the per-joint layout (FlexMotion's; every array
+    /// T × J × 3, J = the model's joints in order, as `augment_clip` writes them) at `fps`:
+    /// q by a fit of the joint rotations and the root's centre, q̇ and q̈ from the joint rates
+    /// (the root's translation rates by differences of its centre), τ on the angular
+    /// coordinates from the joint moments (0 on the others). Returns a dict with `q`, `qd`,
+    /// `qdd`, `tau` (T × n) and `rotation_error` (T: the largest rotation the fit leaves, rad).
+    #[allow(clippy::too_many_arguments)]
+    fn coordinates_from_layout<'py>(
+        &self,
+        py: Python<'py>,
+        joint_pos: Input<'py>,
+        joint_rot: Input<'py>,
+        joint_vel: Input<'py>,
+        joint_acc: Input<'py>,
+        joint_torque: Input<'py>,
+        fps: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use musculo::augment::layout::JointLayout;
+        use musculo::augment::layout_inverse::{LayoutClip, coordinates_from_layout};
+        let m = &*self.inner;
+        let nj = m.joints.len();
+        let block = |name: &str, a: &Input| -> PyResult<(Vec<f64>, usize)> {
+            let shape = a.as_array().shape().to_vec();
+            if shape.len() != 3 || shape[1] != nj || shape[2] != 3 {
+                return Err(MusculoError::new_err(format!(
+                    "{name}: shape {shape:?}; expected T × {nj} × 3 (the model's joints)"
+                )));
+            }
+            Ok((a.as_array().iter().copied().collect(), shape[0]))
+        };
+        let (pos, t) = block("joint_pos", &joint_pos)?;
+        let mut rest = Vec::new();
+        for (name, a) in [
+            ("joint_rot", &joint_rot),
+            ("joint_vel", &joint_vel),
+            ("joint_acc", &joint_acc),
+            ("joint_torque", &joint_torque),
+        ] {
+            let (v, tt) = block(name, a)?;
+            if tt != t {
+                return Err(MusculoError::new_err(format!(
+                    "{name}: {tt} frames; joint_pos has {t}"
+                )));
+            }
+            rest.push(v);
+        }
+        let out = py
+            .detach(|| {
+                coordinates_from_layout(
+                    m,
+                    &JointLayout::new(m, 0),
+                    &LayoutClip {
+                        frames: t,
+                        rate_hz: fps,
+                        joint_pos: &pos,
+                        joint_rot: &rest[0],
+                        joint_vel: &rest[1],
+                        joint_acc: &rest[2],
+                        joint_torque: &rest[3],
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        let n = m.nq();
+        let d = PyDict::new(py);
+        d.set_item("q", array(py, &[t], &[n], out.q)?)?;
+        d.set_item("qd", array(py, &[t], &[n], out.qd)?)?;
+        d.set_item("qdd", array(py, &[t], &[n], out.qdd)?)?;
+        d.set_item("tau", array(py, &[t], &[n], out.tau)?)?;
+        d.set_item("rotation_error", array(py, &[t], &[], out.rotation_error)?)?;
+        Ok(d)
+    }
+
     /// Inverse kinematics of a motion file onto this model, as `musculo ik` runs it: the
     /// reader picked from the file (`format` = "humanml3d", "kit", "bvh", "c3d" or "trc"
     /// overrides), targets mapped by `map` (a built-in skeleton map's name or a map file;

@@ -252,6 +252,20 @@ HUMANML3D = os.path.join(REFERENCE, "humanml3d", "new_joints_012314.npy")
 
 
 @pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_the_joint_layout_maps_back_to_the_coordinates():
+    joints = np.load(HUMANML3D)
+    out = musculo.augment_clip(joints, fps=20.0)
+    scaled = musculo.Model.from_osim_string(out["model_xml"])
+    c = scaled.coordinates_from_layout(*(out[k] for k in ("joint_pos", "joint_rot", "joint_vel",
+                                                          "joint_acc", "joint_torque")), fps=20.0)
+    assert c["q"].shape == out["q"].shape and c["rotation_error"].max() < 1e-5
+    np.testing.assert_allclose(c["q"], out["q"], atol=1e-5)
+    with pytest.raises(musculo.MusculoError, match="joint_rot"):
+        scaled.coordinates_from_layout(out["joint_pos"], out["joint_rot"][:, :3], out["joint_vel"],
+                                       out["joint_acc"], out["joint_torque"], fps=20.0)
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
 def test_augment_clip_gives_tensors_that_satisfy_the_equations_of_motion():
     joints = np.load(HUMANML3D)
     out = musculo.augment_clip(joints, fps=20.0)

@@ -10,15 +10,18 @@
 //!   Σ_j ‖log(exp(r_j) R_j(q)ᵀ)‖² + w_p² Σ_{root joints} ‖p_j − p_j(q)‖², each step solving
 //!   (Jᵀ J) δ = Jᵀ e with the rows A_j (rotations: a change δ turns R_j by A_j δ in F axes, so
 //!   the error log(exp(r_j) R_jᵀ) moves by −A_j δ to first order) and w_p J_p (positions),
-//!   started from the previous frame's q (the model's default pose for the first frame). The
+//!   started from the previous frame's q (the model's default pose for the first frame),
+//!   with steps of at most 0.3 rad and q kept inside the coordinate ranges (as inverse
+//!   kinematics keeps it): a joint of several rotations has other angle sets giving the same
+//!   rotation (another Euler branch, a turn of 2π), and these keep the fit on the motion's. The
 //!   root joints (those whose parent is ground) add their centres, which fix the translational
 //!   coordinates; every rotational coordinate is fixed by the rotations alone. A coordinate
 //!   that turns several joints (the default model's lumbar coordinates, shared by five
 //!   vertebral joints) is the least-squares fit of all of them. w_p = 10 rad/m (1 cm weighs as
 //!   0.1 rad; for a consistent layout the weights do not matter).
 //! - **q̇**: the least-squares solution of A_j q̇ = w_j (all joints) and J_p q̇ = ṗ_j (root
-//!   joints), with ṗ_j the central difference of the root centres over frames (one-sided at
-//!   the ends): the layout holds no linear velocity.
+//!   joints), with ṗ_j the central difference of the root centres over frames (second-order
+//!   one-sided at the ends): the layout holds no linear velocity.
 //! - **q̈**: likewise from A_j q̈ = ẇ_j − b_j, b_j the layout's joint acceleration at q̈ = 0,
 //!   and J_p q̈ = p̈_j − J̇_p q̇ with p̈_j the second difference of the root centres.
 //! - **τ**: τ_K = Σ_j A_jᵀ m_j for the angular coordinates K (the layout's moments are the
@@ -41,6 +44,8 @@ use nalgebra::{DMatrix, Rotation3};
 /// Gauss–Newton iterations per frame, and the step (max |δ|) that ends them.
 const MAX_ITERATIONS: usize = 50;
 const STEP_TOLERANCE: f64 = 1e-12;
+/// The largest Gauss–Newton step (max |δ|, rad or m); longer steps are shortened to it.
+const MAX_STEP: f64 = 0.3;
 /// Weight of the root joint centres against the rotations (rad per m).
 const POSITION_WEIGHT: f64 = 10.0;
 
@@ -142,27 +147,40 @@ pub fn coordinates_from_layout(
         rotation_error: vec![0.0; t],
     };
     let dt = 1.0 / clip.rate_hz;
-    // root centres' first and second differences
+    // root centres' first and second differences: central inside, second-order one-sided
+    // at the ends (f′ ≈ (−3p₀ + 4p₁ − p₂)/2h, f″ ≈ (2p₀ − 5p₁ + 4p₂ − p₃)/h²)
     let root_rates = |f: usize, r: usize| -> (Vec3, Vec3) {
         let p = |g: usize| vec3(clip.joint_pos, g, roots[r]);
         if t < 2 {
             return (Vec3::zeros(), Vec3::zeros());
         }
-        let (a, b) = if f == 0 {
-            (0, 1)
+        if t < 4 {
+            let v = (p(t - 1) - p(0)) / ((t - 1) as f64 * dt);
+            let acc = if t == 3 {
+                (p(2) - p(1) * 2.0 + p(0)) / (dt * dt)
+            } else {
+                Vec3::zeros()
+            };
+            return (v, acc);
+        }
+        // (sign, i0, i1, i2, i3): the stencil read forwards from the first frame or
+        // backwards from the last
+        let end = |s: f64, i: [usize; 4]| {
+            (
+                (p(i[0]) * -3.0 + p(i[1]) * 4.0 - p(i[2])) * (s / (2.0 * dt)),
+                (p(i[0]) * 2.0 - p(i[1]) * 5.0 + p(i[2]) * 4.0 - p(i[3])) / (dt * dt),
+            )
+        };
+        if f == 0 {
+            end(1.0, [0, 1, 2, 3])
         } else if f + 1 == t {
-            (t - 2, t - 1)
+            end(-1.0, [t - 1, t - 2, t - 3, t - 4])
         } else {
-            (f - 1, f + 1)
-        };
-        let v = (p(b) - p(a)) / ((b - a) as f64 * dt);
-        let acc = if t < 3 {
-            Vec3::zeros()
-        } else {
-            let c = f.clamp(1, t - 2);
-            (p(c + 1) - p(c) * 2.0 + p(c - 1)) / (dt * dt)
-        };
-        (v, acc)
+            (
+                (p(f + 1) - p(f - 1)) / (2.0 * dt),
+                (p(f + 1) - p(f) * 2.0 + p(f - 1)) / (dt * dt),
+            )
+        }
     };
     let mut q = model.default_q();
     for f in 0..t {
@@ -187,8 +205,17 @@ pub fn coordinates_from_layout(
                 ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(e.as_slice());
             }
             let step = ws.solve(n, rows)?;
-            for (qj, d) in q.iter_mut().zip(&ws.rhs) {
-                *qj += d;
+            // steps of at most MAX_STEP, and q kept in the coordinate ranges: a joint of
+            // several rotations has other angle sets with the same rotation (another Euler
+            // branch, or a turn of 2π), and the fit must stay on the one the motion is on
+            let scale = if step > MAX_STEP {
+                MAX_STEP / step
+            } else {
+                1.0
+            };
+            for ((qj, d), &c) in q.iter_mut().zip(&ws.rhs).zip(&model.reduction.independent) {
+                let [lo, hi] = model.coordinates[c].range;
+                *qj = (*qj + d * scale).clamp(lo.min(hi), hi.max(lo));
             }
             if step <= STEP_TOLERANCE {
                 break;
