@@ -10,10 +10,12 @@
 //!   Σ_j ‖log(exp(r_j) R_j(q)ᵀ)‖² + w_p² Σ_{root joints} ‖p_j − p_j(q)‖², each step solving
 //!   (Jᵀ J) δ = Jᵀ e with the rows A_j (rotations: a change δ turns R_j by A_j δ in F axes, so
 //!   the error log(exp(r_j) R_jᵀ) moves by −A_j δ to first order) and w_p J_p (positions),
-//!   started from the previous frame's q (the model's default pose for the first frame),
-//!   with steps of at most 0.3 rad and q kept inside the coordinate ranges (as inverse
-//!   kinematics keeps it): a joint of several rotations has other angle sets giving the same
-//!   rotation (another Euler branch, a turn of 2π), and these keep the fit on the motion's. The
+//!   started from the previous frame's motion extrapolated by its rates (q + Δt q̇ + Δt²q̈/2;
+//!   the model's default pose for the first frame), with steps of at most 0.3 rad. A joint of several rotations has other angle sets giving
+//!   the same rotation (a turn of 2π of an axial rotation, another Euler branch): of the
+//!   turns of 2π of a coordinate that leave the fit's error unchanged, the one nearest the
+//!   extrapolated start brought into the coordinate's range is taken (the middle of the
+//!   range for the first frame). The
 //!   root joints (those whose parent is ground) add their centres, which fix the translational
 //!   coordinates; every rotational coordinate is fixed by the rotations alone. A coordinate
 //!   that turns several joints (the default model's lumbar coordinates, shared by five
@@ -186,39 +188,61 @@ pub fn coordinates_from_layout(
     for f in 0..t {
         // ---- q: Gauss–Newton on the joint rotations and root centres ----
         let mut error = 0.0;
+        // start from the previous frame's motion extrapolated by its rates
+        if f > 0 {
+            for j in 0..n {
+                let p = (f - 1) * n + j;
+                q[j] = out.q[p] + dt * out.qd[p] + 0.5 * dt * dt * out.qdd[p];
+            }
+        }
+        let prev = q.clone();
         for _ in 0..MAX_ITERATIONS {
             dynamics::forward_kinematics(model, &mut ws.data, &q)?;
             ws.jacobians(model, layout, &roots)?;
-            error = 0.0f64;
-            for (j, joint) in model.joints.iter().enumerate() {
-                let target = exp(&vec3(clip.joint_rot, f, j));
-                let rel = relative_rotation(&ws.data, joint);
-                let e = rotation_vector(&(target * rel.transpose()));
-                error = error.max(e.norm());
-                ws.e[3 * j..3 * j + 3].copy_from_slice(e.as_slice());
-            }
-            for (r, &j) in roots.iter().enumerate() {
-                let joint = &model.joints[j];
-                let (rc, pc) = ws.data.body_pose(joint.child_body);
-                let e = (vec3(clip.joint_pos, f, j) - (pc + rc * joint.child_offset.pos))
-                    * POSITION_WEIGHT;
-                ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(e.as_slice());
-            }
+            error = ws.errors(model, clip, f, &roots);
             let step = ws.solve(n, rows)?;
-            // steps of at most MAX_STEP, and q kept in the coordinate ranges: a joint of
-            // several rotations has other angle sets with the same rotation (another Euler
-            // branch, or a turn of 2π), and the fit must stay on the one the motion is on
+            // steps of at most MAX_STEP, so that the fit follows the motion from the
+            // previous frame's q rather than jumping to another set of angles with the same
+            // rotations
             let scale = if step > MAX_STEP {
                 MAX_STEP / step
             } else {
                 1.0
             };
-            for ((qj, d), &c) in q.iter_mut().zip(&ws.rhs).zip(&model.reduction.independent) {
-                let [lo, hi] = model.coordinates[c].range;
-                *qj = (*qj + d * scale).clamp(lo.min(hi), hi.max(lo));
+            for (qj, d) in q.iter_mut().zip(&ws.rhs) {
+                *qj += d * scale;
             }
             if step <= STEP_TOLERANCE {
                 break;
+            }
+        }
+        // A turn of 2π of a coordinate gives the same rotations when it only turns hinges by
+        // itself (a shoulder's axial rotation): take the turn nearest to the extrapolated
+        // start brought into the range (the middle of the range for the first frame), kept
+        // only where the fit's error does not grow.
+        for (j, &c) in model.reduction.independent.iter().enumerate() {
+            let coordinate = &model.coordinates[c];
+            if coordinate.motion_type == crate::model::MotionType::Translational {
+                continue;
+            }
+            let [lo, hi] = coordinate.range;
+            let target = if f == 0 {
+                0.5 * (lo + hi)
+            } else {
+                prev[j].clamp(lo.min(hi), hi.max(lo))
+            };
+            let turns = ((target - q[j]) / std::f64::consts::TAU).round();
+            if turns == 0.0 {
+                continue;
+            }
+            let before = q[j];
+            q[j] += turns * std::f64::consts::TAU;
+            dynamics::forward_kinematics(model, &mut ws.data, &q)?;
+            let e = ws.errors(model, clip, f, &roots);
+            if e <= error + 1e-9 {
+                error = error.max(e);
+            } else {
+                q[j] = before;
             }
         }
         dynamics::forward_kinematics(model, &mut ws.data, &q)?;
@@ -384,6 +408,32 @@ impl Solver {
             }
         }
         Ok(())
+    }
+
+    /// The error vector e of the fit at the state of `data` (rotations log(exp(r_j) R_jᵀ),
+    /// then the weighted root centre errors); returns the largest rotation error.
+    fn errors(&mut self, model: &Model, clip: &LayoutClip, f: usize, roots: &[usize]) -> f64 {
+        let nj = model.joints.len();
+        let vec3 = |a: &[f64], j: usize| {
+            let i = (f * nj + j) * 3;
+            Vec3::new(a[i], a[i + 1], a[i + 2])
+        };
+        let mut error = 0.0f64;
+        for (j, joint) in model.joints.iter().enumerate() {
+            let target = exp(&vec3(clip.joint_rot, j));
+            let rel = relative_rotation(&self.data, joint);
+            let e = rotation_vector(&(target * rel.transpose()));
+            error = error.max(e.norm());
+            self.e[3 * j..3 * j + 3].copy_from_slice(e.as_slice());
+        }
+        for (r, &j) in roots.iter().enumerate() {
+            let joint = &model.joints[j];
+            let (rc, pc) = self.data.body_pose(joint.child_body);
+            let e =
+                (vec3(clip.joint_pos, j) - (pc + rc * joint.child_offset.pos)) * POSITION_WEIGHT;
+            self.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(e.as_slice());
+        }
+        error
     }
 
     /// The least-squares solution of A x = e into `rhs` (normal equations, a relative floor
