@@ -11,10 +11,11 @@
 //!   (Jᵀ J) δ = Jᵀ e with the rows A_j (rotations: a change δ turns R_j by A_j δ in F axes, so
 //!   the error log(exp(r_j) R_jᵀ) moves by −A_j δ to first order) and w_p J_p (positions),
 //!   started from the previous frame's motion extrapolated by its rates (q + Δt q̇ + Δt²q̈/2;
-//!   the model's default pose for the first frame), with steps of at most 0.3 rad. A joint of several rotations has other angle sets giving
-//!   the same rotation (a turn of 2π of an axial rotation, another Euler branch): of the
-//!   turns of 2π of a coordinate that leave the fit's error unchanged, the one nearest the
-//!   extrapolated start brought into the coordinate's range is taken (the middle of the
+//!   the model's default pose for the first frame), with steps of at most 0.3 rad. A joint of
+//!   several rotations has other angle sets giving the same rotation (a turn of 2π of an
+//!   axial rotation, another Euler branch); the extrapolated start keeps the fit on the
+//!   motion's, and of the turns of 2π of a coordinate that leave the fit's error unchanged the
+//!   one nearest the start brought into the coordinate's range is taken (the middle of the
 //!   range for the first frame). The
 //!   root joints (those whose parent is ground) add their centres, which fix the translational
 //!   coordinates; every rotational coordinate is fixed by the rotations alone. A coordinate
