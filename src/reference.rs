@@ -24,3 +24,34 @@ pub fn file(relative: &str) -> Option<PathBuf> {
     let p = directory().join(relative);
     p.exists().then_some(p)
 }
+
+/// For unit tests: the embedded default model, then gait2392 and Rajagopal2016 where the
+/// reference data has them ("skipped: reference data not found" for a missing one, a failure
+/// under [`required`]).
+#[cfg(test)]
+pub(crate) fn test_models() -> Vec<(&'static str, crate::Model)> {
+    let mut out = vec![("default", crate::Model::default_fullbody())];
+    for (name, relative) in [
+        (
+            "gait2392",
+            "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim",
+        ),
+        (
+            "Rajagopal2016",
+            "opensim-models/Models/Rajagopal/Rajagopal2016.osim",
+        ),
+    ] {
+        match file(relative) {
+            Some(p) => out.push((
+                name,
+                crate::Model::from_osim_file(&p)
+                    .unwrap_or_else(|e| panic!("{relative} does not load: {e}")),
+            )),
+            None if required() => {
+                panic!("reference file {relative} not found and MUSCULO_REQUIRE_REFERENCE is set")
+            }
+            None => eprintln!("skipped: reference data not found ({relative})"),
+        }
+    }
+    out
+}

@@ -204,30 +204,8 @@ mod tests {
     use crate::random::SplitMix64;
     use nalgebra::DMatrix;
 
-    const GAIT2392: &str = "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim";
-    const RAJAGOPAL: &str = "opensim-models/Models/Rajagopal/Rajagopal2016.osim";
     const STATES: usize = 4;
     const H: f64 = 1e-6;
-
-    /// The embedded default model and the reference models that are present (with
-    /// "skipped: reference data not found" for the others).
-    fn models() -> Vec<(&'static str, Model)> {
-        let mut out = vec![("default", Model::default_fullbody())];
-        for (name, relative) in [("gait2392", GAIT2392), ("Rajagopal2016", RAJAGOPAL)] {
-            match crate::reference::file(relative) {
-                Some(p) => out.push((
-                    name,
-                    Model::from_osim_file(&p)
-                        .unwrap_or_else(|e| panic!("{relative} does not load: {e}")),
-                )),
-                None if crate::reference::required() => panic!(
-                    "reference file {relative} not found and MUSCULO_REQUIRE_REFERENCE is set"
-                ),
-                None => eprintln!("skipped: reference data not found ({relative})"),
-            }
-        }
-        out
-    }
 
     /// A random state: q inside the coordinate ranges (5 % margin, so that q ± h q̇ stays
     /// inside), q̇ uniform in [−2, 2].
@@ -284,7 +262,7 @@ mod tests {
         mut f: impl FnMut(&Model, &[f64], &[f64], &Data, &JacobianTimeVariation, &mut SplitMix64) -> f64,
     ) -> Vec<(&'static str, f64)> {
         let mut worst = Vec::new();
-        for (name, model) in models() {
+        for (name, model) in crate::reference::test_models() {
             assert!(
                 (1..model.bodies.len()).any(|b| below_knee(&model, b)),
                 "{name}: no body below the knee"

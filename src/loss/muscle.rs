@@ -344,25 +344,6 @@ mod tests {
     use super::*;
     use crate::random::SplitMix64;
 
-    const GAIT2392: &str = "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim";
-    const RAJAGOPAL: &str = "opensim-models/Models/Rajagopal/Rajagopal2016.osim";
-
-    fn models() -> Vec<(&'static str, Model)> {
-        let mut out = vec![("default", Model::default_fullbody())];
-        for (name, relative) in [("gait2392", GAIT2392), ("Rajagopal2016", RAJAGOPAL)] {
-            match crate::reference::file(relative) {
-                Some(p) => out.push((name, Model::from_osim_file(&p).unwrap())),
-                None if crate::reference::required() => {
-                    panic!(
-                        "reference file {relative} not found and MUSCULO_REQUIRE_REFERENCE is set"
-                    )
-                }
-                None => eprintln!("skipped: reference data not found ({relative})"),
-            }
-        }
-        out
-    }
-
     fn random_frame(
         model: &Model,
         m: usize,
@@ -428,7 +409,7 @@ mod tests {
     #[test]
     fn muscle_loss_gradients_match_central_differences() {
         let h = 1e-6;
-        for (name, model) in models() {
+        for (name, model) in crate::reference::test_models() {
             let mut loss = MuscleLoss::new(&model).unwrap();
             loss.beta = 0.3;
             loss.bound_weight = 2.0;

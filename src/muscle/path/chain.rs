@@ -167,10 +167,8 @@ pub(super) fn moment_arms(
         }
     }
     for k in 0..m.saturating_sub(1) {
-        let sign = match (nodes[k].kind, nodes[k + 1].kind) {
-            (NodeKind::Point(_), NodeKind::Point(_)) => 1.0,
-            (NodeKind::Tangent(x, true), NodeKind::Tangent(y, false)) if x != y => -1.0,
-            _ => continue, // part of a wrap's own length
+        let Some(sign) = segment_sign(nodes[k].kind, nodes[k + 1].kind) else {
+            continue;
         };
         let u = nodes[k + 1].ground - nodes[k].ground;
         let len = u.norm();
@@ -181,5 +179,16 @@ pub(super) fn moment_arms(
         for j in 0..n {
             r[j] -= sign * u.dot(&(d[(k + 1) * n + j] - d[k * n + j]));
         }
+    }
+}
+
+/// How a straight segment between two nodes counts in ∂ℓ/∂q when each wrap's length is taken
+/// between its neighbours: +1 between two path points, −1 between two wraps (it is counted in
+/// both wraps' lengths), none next to a wrap (part of that wrap's own length).
+pub(super) fn segment_sign(a: NodeKind, b: NodeKind) -> Option<f64> {
+    match (a, b) {
+        (NodeKind::Point(_), NodeKind::Point(_)) => Some(1.0),
+        (NodeKind::Tangent(x, true), NodeKind::Tangent(y, false)) if x != y => Some(-1.0),
+        _ => None,
     }
 }

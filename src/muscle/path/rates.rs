@@ -28,7 +28,7 @@
 //! where H δ and the rates of ∂T/∂(A, B) come from [`crate::muscle::wrap::WrapSurface::second_order`].
 //! The tangent points' D and Ḋ are iterated to their fixed point, as the path itself is.
 
-use super::chain::body_point_derivative;
+use super::chain::{body_point_derivative, segment_sign};
 use super::wrapping::{surface_of, wrap_frame};
 use super::{Node, NodeKind, PathSet, PointKind, active_points, apply_wrap_objects};
 use crate::dynamics::{Data, JacobianTimeVariation, Stage};
@@ -380,10 +380,8 @@ impl MomentArmRates {
             }
         }
         for i in 0..m.saturating_sub(1) {
-            let sign = match (nodes[i].kind, nodes[i + 1].kind) {
-                (NodeKind::Point(_), NodeKind::Point(_)) => 1.0,
-                (NodeKind::Tangent(x, true), NodeKind::Tangent(y, false)) if x != y => -1.0,
-                _ => continue, // part of a wrap's own length
+            let Some(sign) = segment_sign(nodes[i].kind, nodes[i + 1].kind) else {
+                continue;
             };
             let v = nodes[i + 1].ground - nodes[i].ground;
             let len = v.norm();
@@ -463,25 +461,6 @@ mod tests {
     use crate::muscle::path::{PathData, compute_paths, current_path};
     use crate::random::SplitMix64;
 
-    const GAIT2392: &str = "opensim-models/Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim";
-    const RAJAGOPAL: &str = "opensim-models/Models/Rajagopal/Rajagopal2016.osim";
-
-    fn models() -> Vec<(&'static str, Model)> {
-        let mut out = vec![("default", Model::default_fullbody())];
-        for (name, relative) in [("gait2392", GAIT2392), ("Rajagopal2016", RAJAGOPAL)] {
-            match crate::reference::file(relative) {
-                Some(p) => out.push((name, Model::from_osim_file(&p).unwrap())),
-                None if crate::reference::required() => {
-                    panic!(
-                        "reference file {relative} not found and MUSCULO_REQUIRE_REFERENCE is set"
-                    )
-                }
-                None => eprintln!("skipped: reference data not found ({relative})"),
-            }
-        }
-        out
-    }
-
     /// Moment arms of every path at q (n × paths, column-major).
     fn arms(model: &Model, set: &PathSet, q: &[f64]) -> Vec<f64> {
         let mut data = Data::new(model);
@@ -499,7 +478,7 @@ mod tests {
     #[test]
     fn moment_arm_rates_match_central_differences_of_the_moment_arms() {
         let h = 1e-5;
-        for (name, model) in models() {
+        for (name, model) in crate::reference::test_models() {
             let set = PathSet::new(&model).unwrap();
             let n = model.nq();
             let mut rng = SplitMix64(7);
