@@ -55,3 +55,23 @@ pub(crate) fn test_models() -> Vec<(&'static str, crate::Model)> {
     }
     out
 }
+
+/// For unit tests: independent coordinates drawn uniformly inside their ranges, a fraction
+/// `margin` of each range kept clear at both ends (so that small steps stay inside).
+#[cfg(test)]
+pub(crate) fn random_q(
+    model: &crate::Model,
+    rng: &mut crate::random::SplitMix64,
+    margin: f64,
+) -> Vec<f64> {
+    model
+        .reduction
+        .independent
+        .iter()
+        .map(|&c| {
+            let [lo, hi] = model.coordinates[c].range;
+            let m = margin * (hi - lo);
+            rng.uniform(lo + m, hi - m)
+        })
+        .collect()
+}

@@ -210,16 +210,7 @@ mod tests {
     /// A random state: q inside the coordinate ranges (5 % margin, so that q ± h q̇ stays
     /// inside), q̇ uniform in [−2, 2].
     fn random_state(model: &Model, rng: &mut SplitMix64) -> (Vec<f64>, Vec<f64>) {
-        let q = model
-            .reduction
-            .independent
-            .iter()
-            .map(|&c| {
-                let [lo, hi] = model.coordinates[c].range;
-                let m = 0.05 * (hi - lo);
-                rng.uniform(lo + m, hi - m)
-            })
-            .collect();
+        let q = crate::reference::random_q(model, rng, 0.05);
         let qd = (0..model.nq()).map(|_| rng.uniform(-2.0, 2.0)).collect();
         (q, qd)
     }

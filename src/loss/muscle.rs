@@ -349,16 +349,7 @@ mod tests {
         m: usize,
         rng: &mut SplitMix64,
     ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let q = model
-            .reduction
-            .independent
-            .iter()
-            .map(|&c| {
-                let [lo, hi] = model.coordinates[c].range;
-                let margin = 0.05 * (hi - lo);
-                rng.uniform(lo + margin, hi - margin)
-            })
-            .collect();
+        let q = crate::reference::random_q(model, rng, 0.05);
         let qdd = (0..model.nq()).map(|_| rng.uniform(-10.0, 10.0)).collect();
         let a = (0..m).map(|_| rng.uniform(-0.1, 1.1)).collect();
         (q, qdd, a)

@@ -486,16 +486,7 @@ mod tests {
             let (mut checked, mut skipped, mut several_wraps, mut wrapped) = (0, 0, 0, 0);
             let mut worst = 0.0f64;
             for _ in 0..20 {
-                let q: Vec<f64> = model
-                    .reduction
-                    .independent
-                    .iter()
-                    .map(|&c| {
-                        let [lo, hi] = model.coordinates[c].range;
-                        let m = 0.05 * (hi - lo);
-                        rng.uniform(lo + m, hi - m)
-                    })
-                    .collect();
+                let q = crate::reference::random_q(&model, &mut rng, 0.05);
                 let qd: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
                 let step =
                     |s: f64| -> Vec<f64> { q.iter().zip(&qd).map(|(a, b)| a + s * b).collect() };
