@@ -111,23 +111,7 @@ impl EulerLagrange {
     /// Errors unless the contacts and weights fit `model`.
     pub fn validate(&self, model: &Model) -> crate::Result<()> {
         let n = model.nq();
-        if !(self.weights.is_empty() || self.weights.len() == n) {
-            return Err(crate::Error::invalid(
-                "weights",
-                format!("{} weights for {n} coordinates", self.weights.len()),
-            ));
-        }
-        if let Some((j, w)) = self
-            .weights
-            .iter()
-            .enumerate()
-            .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
-        {
-            return Err(crate::Error::invalid(
-                "weights",
-                format!("weight {j} is {w} (must be finite and ≥ 0)"),
-            ));
-        }
+        super::validate_weights(&self.weights, n)?;
         for c in &self.contacts {
             if c.body == 0 || c.body >= model.bodies.len() {
                 return Err(crate::Error::invalid(

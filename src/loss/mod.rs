@@ -22,3 +22,24 @@ pub mod tensor_file;
 
 pub use euler_lagrange::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
 pub use muscle::{MuscleBatch, MuscleLoss, MuscleLossOutput};
+
+/// Per-coordinate loss weights: none (all 1) or one finite w_j ≥ 0 per coordinate.
+fn validate_weights(weights: &[f64], n: usize) -> crate::Result<()> {
+    if !(weights.is_empty() || weights.len() == n) {
+        return Err(crate::Error::invalid(
+            "weights",
+            format!("{} weights for {n} coordinates", weights.len()),
+        ));
+    }
+    if let Some((j, w)) = weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(crate::Error::invalid(
+            "weights",
+            format!("weight {j} is {w} (must be finite and ≥ 0)"),
+        ));
+    }
+    Ok(())
+}

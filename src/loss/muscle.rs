@@ -102,23 +102,7 @@ impl MuscleLoss {
     /// Errors unless the settings fit `model`.
     pub fn validate(&self, model: &Model) -> crate::Result<()> {
         let n = model.nq();
-        if !(self.weights.is_empty() || self.weights.len() == n) {
-            return Err(crate::Error::invalid(
-                "weights",
-                format!("{} weights for {n} coordinates", self.weights.len()),
-            ));
-        }
-        if let Some((j, w)) = self
-            .weights
-            .iter()
-            .enumerate()
-            .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
-        {
-            return Err(crate::Error::invalid(
-                "weights",
-                format!("weight {j} is {w} (must be finite and ≥ 0)"),
-            ));
-        }
+        super::validate_weights(&self.weights, n)?;
         for (name, v) in [("beta", self.beta), ("bound_weight", self.bound_weight)] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(crate::Error::invalid(
