@@ -229,6 +229,52 @@ fn threads_and_shards_give_identical_bytes() {
     }
 }
 
+/// Shards of one run write into one folder at once, and each begins by tidying what
+/// interrupted runs left: it must remove only temporaries of its own files whose writer has
+/// ended — never another shard's file in the middle of being written (the failure was a
+/// rename of a vanished temporary in the other shard).
+#[test]
+fn a_run_removes_only_its_own_abandoned_temporaries() {
+    let dir = temp_dir("tidy");
+    let records = output::RECORDS;
+    std::fs::create_dir_all(dir.join(records)).unwrap();
+    // a process that has ended, and one that is still running
+    let mut ended = std::process::Command::new("true").spawn().unwrap();
+    let ended_pid = ended.id();
+    ended.wait().unwrap();
+    let mut live = std::process::Command::new("sleep")
+        .arg("60")
+        .spawn()
+        .unwrap();
+    let live_pid = live.id();
+    let files = [
+        (format!(".walk.npz.tmp-{ended_pid}-0"), false),
+        (format!("{records}/.walk.json.tmp-{ended_pid}-1"), false),
+        (format!(".walk_ik.mot.tmp-{ended_pid}-2"), false),
+        // a shard of the same run still writing this file
+        (format!(".walk.npz.tmp-{live_pid}-0"), true),
+        // this very process writing it
+        (format!(".walk.npz.tmp-{}-9", std::process::id()), true),
+        // another shard's clip (whatever its writer)
+        (format!(".walk_fast.npz.tmp-{ended_pid}-3"), true),
+        (format!("{records}/.walk_fast.json.tmp-{ended_pid}-4"), true),
+        // not a temporary
+        ("walk.npz".to_string(), true),
+    ];
+    for (f, _) in &files {
+        std::fs::write(dir.join(f), b"x").unwrap();
+    }
+    let own = output::clip_files("walk", &musculo::augment::chain::OPENSIM_SUFFIXES);
+    let removed = output::remove_temporaries(&dir, |f| own.iter().any(|o| o == f)).unwrap();
+    let _ = live.kill();
+    let _ = live.wait();
+    for (f, kept) in &files {
+        assert_eq!(dir.join(f).exists(), *kept, "{f}");
+    }
+    assert_eq!(removed, 3);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
 #[test]
 fn kill_minus_9_then_resume_gives_the_bytes_of_an_uninterrupted_run() {
     let exe = env!("CARGO_BIN_EXE_musculo");

@@ -683,6 +683,10 @@ fn measured_reaction(
     }
 }
 
+/// The file suffixes of the OpenSim tables, in the order [`ClipOutput::tables`] gives them:
+/// coordinates, generalized forces, activations, ground reactions.
+pub const OPENSIM_SUFFIXES: [&str; 4] = ["_ik.mot", "_tau.sto", "_activation.sto", "_grf.mot"];
+
 /// The OpenSim tables of [`ClipOutput::tables`].
 fn opensim_tables(
     model: &Model,
@@ -757,11 +761,12 @@ fn opensim_tables(
     }
     let mut grf = Table::new("GRF", labels, time.to_vec(), values)?;
     grf.in_degrees = Some(false);
+    let [ik_suffix, tau_suffix, act_suffix, grf_suffix] = OPENSIM_SUFFIXES;
     Ok(vec![
-        ("_ik.mot", ik),
-        ("_tau.sto", tau),
-        ("_activation.sto", act),
-        ("_grf.mot", grf),
+        (ik_suffix, ik),
+        (tau_suffix, tau),
+        (act_suffix, act),
+        (grf_suffix, grf),
     ])
 }
 

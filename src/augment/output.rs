@@ -197,11 +197,29 @@ pub fn read_record(out: &Path, clip: &str) -> crate::Result<Option<ClipRecord>> 
         })
 }
 
-/// Removes the temporary files an interrupted run left in `out` (recursively).
-pub fn remove_temporaries(out: &Path) -> crate::Result<usize> {
+/// The files a clip's run may write, as paths relative to the output folder: its `.npz`, its
+/// record, and with OpenSim files its tables (`suffixes`) and model.
+pub fn clip_files(clip: &str, suffixes: &[&str]) -> Vec<String> {
+    let mut files = vec![
+        format!("{clip}.npz"),
+        format!("{RECORDS}/{clip}.json"),
+        format!("{clip}.osim"),
+    ];
+    files.extend(suffixes.iter().map(|s| format!("{clip}{s}")));
+    files
+}
+
+/// Removes the temporary files that interrupted runs left in `out` (recursively) for the
+/// targets `owns` accepts (paths relative to `out`, `/`-separated), and returns how many.
+///
+/// Only a temporary whose writing process has ended is removed
+/// ([`npy::abandoned_temporary_target`]): shards of one run write into the same folder at
+/// the same time, and each keeps to its own clips' files, so neither removes what another
+/// is writing (on a shared file system process ids of other hosts mean nothing here).
+pub fn remove_temporaries(out: &Path, owns: impl Fn(&str) -> bool) -> crate::Result<usize> {
     let mut removed = 0;
-    let mut stack = vec![out.to_path_buf()];
-    while let Some(dir) = stack.pop() {
+    let mut stack = vec![(out.to_path_buf(), String::new())];
+    while let Some((dir, relative)) = stack.pop() {
         let entries = match std::fs::read_dir(&dir) {
             Ok(e) => e,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
@@ -213,14 +231,18 @@ pub fn remove_temporaries(out: &Path) -> crate::Result<usize> {
                 source,
             })?;
             let path = entry.path();
+            let name = entry.file_name().to_string_lossy().into_owned();
             if path.is_dir() {
-                stack.push(path);
-            } else if npy::is_temporary_name(&entry.file_name().to_string_lossy()) {
-                std::fs::remove_file(&path).map_err(|source| Error::Io {
-                    path: path.clone(),
-                    source,
-                })?;
-                removed += 1;
+                stack.push((path, format!("{relative}{name}/")));
+            } else if let Some(target) = npy::abandoned_temporary_target(&name)
+                && owns(&format!("{relative}{target}"))
+            {
+                match std::fs::remove_file(&path) {
+                    Ok(()) => removed += 1,
+                    // another run tidied it first
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                    Err(source) => return Err(Error::Io { path, source }),
+                }
             }
         }
     }

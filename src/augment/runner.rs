@@ -7,7 +7,7 @@
 //! list of inputs, so any scheduler (a Slurm array, a Kubernetes Indexed Job, Dask, Ray) can
 //! run the shards anywhere and `musculo merge` puts them together.
 
-use super::chain::{Chain, ClipOutput, MeasuredLoads};
+use super::chain::{Chain, ClipOutput, MeasuredLoads, OPENSIM_SUFFIXES};
 use super::output::{
     self, ClipRecord, ClipStatus, LayoutDescription, Manifest, RunDescription, SHARDS,
 };
@@ -266,12 +266,23 @@ pub fn run(
         path: options.out.clone(),
         source,
     })?;
-    let temporaries_removed = output::remove_temporaries(&options.out)?;
     let mine = shard_clips(clips, options.shard);
     let items: Vec<(&ClipInput, usize)> = mine
         .iter()
         .flat_map(|c| (0..options.variants).map(move |v| (*c, v)))
         .collect();
+    // Stale temporaries of this run's own files only: other shards write beside it.
+    let mut own: std::collections::HashSet<String> = items
+        .iter()
+        .flat_map(|(c, v)| output::clip_files(&variant_name(&c.name, *v), &OPENSIM_SUFFIXES))
+        .collect();
+    match options.shard {
+        None => own.extend(["manifest.json".to_string(), "stats.npz".to_string()]),
+        Some((k, n)) => {
+            own.insert(format!("{SHARDS}/{k}-of-{n}.json"));
+        }
+    }
+    let temporaries_removed = output::remove_temporaries(&options.out, |f| own.contains(f))?;
     if !options.resume {
         if let Some((c, v)) = items
             .iter()

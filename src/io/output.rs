@@ -140,6 +140,21 @@ pub fn is_temporary_name(name: &str) -> bool {
     name.starts_with('.') && name.contains(TEMPORARY_MARK)
 }
 
+/// For the name of a temporary file whose writing process has certainly ended: the name of
+/// the file it was to become (`.walk.npz.tmp-77-0` → `walk.npz`). None for any other name, and
+/// for a temporary whose writer may still be running (another process writing beside us, or a
+/// system where that cannot be told): such a file must be left alone.
+pub fn abandoned_temporary_target(name: &str) -> Option<&str> {
+    if !is_temporary_name(name) || name.starts_with(JOURNAL_PREFIX) {
+        return None;
+    }
+    let pid = writer_pid(name)?;
+    if !process_has_ended(pid) {
+        return None;
+    }
+    Some(&name[1..name.rfind(TEMPORARY_MARK)?])
+}
+
 /// The process id in a temporary file's or a journal's name.
 fn writer_pid(name: &str) -> Option<u32> {
     let suffix = if let Some(rest) = name.strip_prefix(JOURNAL_PREFIX) {

@@ -20,7 +20,7 @@
 
 use crate::error::Error;
 use crate::io::output::AtomicFile;
-pub use crate::io::output::{is_temporary_name, write_file_atomic};
+pub use crate::io::output::{abandoned_temporary_target, is_temporary_name, write_file_atomic};
 use ndarray::{ArrayD, ArrayViewD, Dimension};
 use ndarray_npy::{
     NpzWriter, ReadNpyExt, ReadableElement, ViewElement, ViewNpyError, ViewNpyExt, WritableElement,
