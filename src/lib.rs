@@ -19,6 +19,7 @@ pub mod augment;
 pub mod check;
 pub mod dynamics;
 pub mod error;
+pub mod evaluate;
 pub mod io;
 pub mod loss;
 pub mod model;

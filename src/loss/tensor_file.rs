@@ -20,7 +20,6 @@ use super::{
 };
 use crate::model::Model;
 use crate::motion::npy::read_npz_as_f64;
-use crate::solve::contact::ContactSet;
 use std::path::Path;
 
 /// The frames of a tensor file, widened to f64.
@@ -39,6 +38,19 @@ pub struct TensorFrames {
     pub muscle_act: Vec<f64>,
     /// m, the muscles of `muscle_act` (0 without).
     pub muscles: usize,
+    /// T × m muscle tensions (`muscle_force`, N), empty when the file has none.
+    pub muscle_force: Vec<f64>,
+    /// The frames' times (`time`, s), empty when the file has none.
+    pub time: Vec<f64>,
+    /// T × n generalized forces of measured external loads (`external`, written by
+    /// `augment --external-loads/--force-plates`: Q = Σ Jᵀ w), empty when the file has none.
+    /// They enter the residual beside τ: r = M q̈ + C q̇ + G − τ − Q − J_cᵀλ.
+    pub external: Vec<f64>,
+    /// T × G × 3 ground reaction force per contact group (`grf`, N: the estimate's sums, or
+    /// the measured loads), empty when the file has none.
+    pub grf: Vec<f64>,
+    /// G, the contact groups of `grf` (0 without).
+    pub groups: usize,
     /// Set when the file holds only the per-joint layout (no `q`): the coordinates were
     /// fitted from it ([`crate::augment::layout_inverse`]) and this is the largest rotation
     /// error the fit left (rad). Such a file has no contact points (the layout's contact
@@ -86,30 +98,38 @@ impl TensorFrames {
             )
         };
         let frames = frames.unwrap_or(0);
-        let (lambda, contacts) = match find("contact_point_force") {
-            None => (Vec::new(), 0),
-            Some(a) => {
-                if a.ndim() != 3 || a.shape()[0] != frames || a.shape()[2] != 3 {
-                    return Err(bad(format!(
-                        "`contact_point_force` has shape {:?}; expected {frames} × P × 3",
-                        a.shape()
-                    )));
-                }
-                (a.iter().copied().collect(), a.shape()[1])
+        // an optional array of shape T × dims (None: any size), and its second dimension
+        let optional = |name: &str, dims: &[Option<usize>]| -> crate::Result<(Vec<f64>, usize)> {
+            let Some(a) = find(name) else {
+                return Ok((Vec::new(), 0));
+            };
+            let shape = a.shape();
+            let fits = shape.len() == dims.len() + 1
+                && shape[0] == frames
+                && dims
+                    .iter()
+                    .zip(&shape[1..])
+                    .all(|(d, s)| d.is_none_or(|d| d == *s));
+            if !fits {
+                let expected: Vec<String> = std::iter::once(frames.to_string())
+                    .chain(dims.iter().map(|d| d.map_or("*".into(), |d| d.to_string())))
+                    .collect();
+                return Err(bad(format!(
+                    "`{name}` has shape {shape:?}; expected {}",
+                    expected.join(" × ")
+                )));
             }
+            Ok((
+                a.iter().copied().collect(),
+                shape.get(1).copied().unwrap_or(0),
+            ))
         };
-        let (muscle_act, muscles) = match find("muscle_act") {
-            None => (Vec::new(), 0),
-            Some(a) => {
-                if a.ndim() != 2 || a.shape()[0] != frames {
-                    return Err(bad(format!(
-                        "`muscle_act` has shape {:?}; expected {frames} × m",
-                        a.shape()
-                    )));
-                }
-                (a.iter().copied().collect(), a.shape()[1])
-            }
-        };
+        let (lambda, contacts) = optional("contact_point_force", &[None, Some(3)])?;
+        let (muscle_act, muscles) = optional("muscle_act", &[None])?;
+        let (external, _) = optional("external", &[Some(n)])?;
+        let (grf, groups) = optional("grf", &[None, Some(3)])?;
+        let (muscle_force, _) = optional("muscle_force", &[None])?;
+        let (time, _) = optional("time", &[])?;
         if let Some((i, v)) = q
             .iter()
             .chain(&qd)
@@ -117,6 +137,10 @@ impl TensorFrames {
             .chain(&tau)
             .chain(&lambda)
             .chain(&muscle_act)
+            .chain(&muscle_force)
+            .chain(&time)
+            .chain(&external)
+            .chain(&grf)
             .enumerate()
             .find(|(_, v)| !v.is_finite())
         {
@@ -132,8 +156,34 @@ impl TensorFrames {
             contacts,
             muscle_act,
             muscles,
+            muscle_force,
+            time,
+            external,
+            grf,
+            groups,
             layout_error,
         })
+    }
+
+    /// The frame rate from `time` (Hz): (T − 1) / (t_last − t_first); an error without
+    /// `time`, with fewer than 2 frames or with times that do not increase.
+    pub fn rate_hz(&self) -> crate::Result<f64> {
+        let t = &self.time;
+        if t.len() < 2 || !(t[t.len() - 1] > t[0]) {
+            return Err(crate::Error::invalid(
+                "time",
+                format!(
+                    "{} sample(s){}; a rate needs ≥ 2 increasing times",
+                    t.len(),
+                    if t.is_empty() {
+                        " (the file has no `time`)"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+        Ok((t.len() - 1) as f64 / (t[t.len() - 1] - t[0]))
     }
 
     /// The frames as a loss batch.
@@ -169,7 +219,7 @@ pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<Residu
     let loss = if frames.contacts == 0 {
         EulerLagrange::new()
     } else {
-        let set = ContactSet::from_model(model)?;
+        let set = crate::augment::chain::contact_set(model)?;
         if set.points.len() != frames.contacts {
             return Err(crate::Error::invalid(
                 "tensor file",
@@ -184,7 +234,22 @@ pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<Residu
         EulerLagrange::new().with_contact_set(&set)
     };
     let mut out = EulerLagrangeOutput::default();
-    loss.evaluate(model, &frames.batch(), false, &mut out)?;
+    if frames.external.is_empty() {
+        loss.evaluate(model, &frames.batch(), false, &mut out)?;
+    } else {
+        // measured loads act beside τ: the residual sees τ + Q
+        let tau: Vec<f64> = frames
+            .tau
+            .iter()
+            .zip(&frames.external)
+            .map(|(t, q)| t + q)
+            .collect();
+        let batch = EulerLagrangeBatch {
+            tau: &tau,
+            ..frames.batch()
+        };
+        loss.evaluate(model, &batch, false, &mut out)?;
+    }
     let n = model.nq();
     let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     let mut s = ResidualSummary {

@@ -2,6 +2,7 @@
 
 mod augment;
 mod check;
+mod evaluate;
 mod export_mjcf;
 mod id;
 mod ik;
@@ -86,6 +87,11 @@ enum Command {
     /// The Euler–Lagrange residual M q̈ + C q̇ + G − τ − J_cᵀλ of a tensor file (an augmented
     /// clip or a generated motion): L_euler, per-frame and per-coordinate figures.
     Loss(loss::Args),
+    /// Physical-plausibility metrics of tensor files (augmented clips or generated motions):
+    /// foot skating, floating, penetration, contact-force and joint-actuation errors, muscle
+    /// limits, Euler–Lagrange residual and control error, per clip and for the set in the
+    /// columns of FlexMotion's tables.
+    Evaluate(evaluate::Args),
 }
 
 fn main() -> ExitCode {
@@ -106,6 +112,11 @@ fn main() -> ExitCode {
         },
         Command::Merge(args) => augment::merge(&args),
         Command::Loss(args) => loss::run(&args),
+        Command::Evaluate(args) => match evaluate::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(e) => Err(e),
+        },
         Command::Check(args) => match check::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,

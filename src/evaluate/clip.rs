@@ -1,0 +1,447 @@
+//! The metrics of one clip (definitions in the module documentation of [`super`]).
+
+use super::capacity::{CapacityCurves, capacity_at, isometric_forces};
+use super::{ClipMetrics, EvaluateOptions};
+use crate::dynamics::{self, Data};
+use crate::loss::tensor_file::{TensorFrames, residual_of};
+use crate::model::Model;
+use crate::motion::npy::read_npz_as_f64;
+use crate::muscle::MuscleSet;
+use crate::muscle::path::{PathData, compute_paths};
+use crate::solve::contact::ContactSet;
+use crate::spatial::Vec3;
+use std::path::Path;
+
+/// A control signal: targets for the joint centres at some frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Control {
+    pub frames: usize,
+    /// T × J × 3 targets (m, ground), joints in `Model::joints` order.
+    pub joint_pos: Vec<f64>,
+    /// T × J, true where the target applies.
+    pub mask: Vec<bool>,
+}
+
+impl Control {
+    /// Reads a control file (`joint_pos` T × J × 3 and `mask` T × J, nonzero = controlled)
+    /// for `model`.
+    pub fn read(path: &Path, model: &Model) -> crate::Result<Control> {
+        let source = path.display().to_string();
+        let bad = |m: String| crate::Error::invalid("control file", format!("{source}: {m}"));
+        let arrays = read_npz_as_f64(path)?;
+        let find = |name: &str| {
+            arrays
+                .iter()
+                .find(|(k, _)| k == name)
+                .map(|(_, a)| a)
+                .ok_or_else(|| bad(format!("has no array `{name}`")))
+        };
+        let (pos, mask) = (find("joint_pos")?, find("mask")?);
+        let nj = model.joints.len();
+        if pos.ndim() != 3 || pos.shape()[1] != nj || pos.shape()[2] != 3 {
+            return Err(bad(format!(
+                "`joint_pos` has shape {:?}; the model \"{}\" needs T × {nj} × 3",
+                pos.shape(),
+                model.name
+            )));
+        }
+        let frames = pos.shape()[0];
+        if mask.shape() != [frames, nj] {
+            return Err(bad(format!(
+                "`mask` has shape {:?}; expected {frames} × {nj}",
+                mask.shape()
+            )));
+        }
+        let joint_pos: Vec<f64> = pos.iter().copied().collect();
+        let mask: Vec<bool> = mask.iter().map(|&m| m != 0.0).collect();
+        if let Some(i) = (0..frames * nj)
+            .find(|&i| mask[i] && !joint_pos[3 * i..3 * i + 3].iter().all(|v| v.is_finite()))
+        {
+            return Err(bad(format!(
+                "frame {}, joint {}: a controlled target is not finite",
+                i / nj,
+                model.joints[i % nj].name
+            )));
+        }
+        Ok(Control {
+            frames,
+            joint_pos,
+            mask,
+        })
+    }
+}
+
+/// How the joint capacities are found.
+#[derive(Clone, Copy, Debug)]
+pub enum Capacity<'a> {
+    /// From the muscle paths at every frame's pose (exact; also gives the reserve share of a
+    /// clip with muscle forces). Costs a muscle-path evaluation per frame.
+    PerFrame,
+    /// From the model's joint strength curves (one lookup per coordinate and frame; no
+    /// reserve share).
+    Curves(&'a CapacityCurves),
+}
+
+/// The metrics of the clip `name` (its tensors `frames`, read for `model`), against a
+/// `reference` clip and a `control` signal when given.
+pub fn evaluate_clip(
+    model: &Model,
+    name: &str,
+    frames: &TensorFrames,
+    reference: Option<&TensorFrames>,
+    control: Option<&Control>,
+    capacity: Capacity,
+    options: &EvaluateOptions,
+) -> crate::Result<ClipMetrics> {
+    options.validate()?;
+    let bad = |m: String| crate::Error::invalid("clip", format!("{name}: {m}"));
+    let t_count = frames.frames;
+    if t_count < 2 {
+        return Err(bad(format!("{t_count} frame(s); the metrics need ≥ 2")));
+    }
+    let rate = frames.rate_hz().map_err(|e| bad(e.to_string()))?;
+    if let Some(r) = reference
+        && r.frames != t_count
+    {
+        return Err(bad(format!(
+            "has {t_count} frames, its reference {}",
+            r.frames
+        )));
+    }
+    if let Some(c) = control
+        && c.frames != t_count
+    {
+        return Err(bad(format!(
+            "has {t_count} frames, its control {}",
+            c.frames
+        )));
+    }
+    let n = model.nq();
+    // the model's contact spheres (gait2392-like feet without them get the standard points)
+    let set = crate::augment::chain::contact_set(model)?;
+    let normal = set.floor_normal;
+    let np = set.points.len();
+    let mass = model.total_mass();
+    let weight = mass * model.gravity.norm();
+    if !(weight > 0.0) {
+        return Err(bad(format!(
+            "the model \"{}\" has no weight (mass {mass} kg, gravity {})",
+            model.name,
+            model.gravity.norm()
+        )));
+    }
+    let muscles = MuscleSet::new(model)?;
+    let m = muscles.muscles.len();
+    let joints: Vec<usize> = (0..n).filter(|j| !set.floating_base.contains(j)).collect();
+    let with_forces = m > 0 && frames.muscle_force.len() == t_count * m;
+    let with_act = m > 0 && frames.muscle_act.len() == t_count * m;
+    let mut data = Data::new(model);
+    let mut paths = PathData::new(model, &muscles.paths);
+    let mut f_iso = vec![0.0; m];
+    let mut lowest = vec![Vec3::zeros(); t_count * np];
+    let mut support = vec![false; t_count];
+    let (mut excess, mut over, mut peak, mut samples) = (0.0, 0usize, 0.0f64, 0usize);
+    let (mut reserve_abs, mut tau_abs) = (0.0, 0.0);
+    let (mut control_samples, mut control_failed, mut control_sum) = (0usize, 0usize, 0.0);
+    for f in 0..t_count {
+        let r = f * n..(f + 1) * n;
+        dynamics::forward_kinematics_acceleration(
+            model,
+            &mut data,
+            &frames.q[r.clone()],
+            &frames.qd[r.clone()],
+            &frames.qdd[r.clone()],
+        )?;
+        // F = Σ m_b a_b − M g, the external force the motion needs
+        let mut force = -model.gravity * mass;
+        for (b, body) in model.bodies.iter().enumerate().skip(1) {
+            if body.mass > 0.0 {
+                force += data.point_acceleration(b, &body.com_in_body).1 * body.mass;
+            }
+        }
+        support[f] = normal.dot(&force) > options.support_threshold * weight;
+        // b_p = c_p − r_p n
+        for (p, point) in set.points.iter().enumerate() {
+            lowest[f * np + p] =
+                data.point_position(point.body, &point.location_in_body) - normal * point.radius;
+        }
+        if m > 0 && !joints.is_empty() {
+            let per_frame = matches!(capacity, Capacity::PerFrame);
+            if per_frame {
+                compute_paths(model, &data, &muscles.paths, &mut paths)?;
+                isometric_forces(&muscles, &paths, &mut f_iso);
+            }
+            let (q, tau) = (&frames.q[r.clone()], &frames.tau[r.clone()]);
+            for &j in &joints {
+                // C±_j, and beyond it max(0, |τ_j| − C^{sign τ_j}_j)
+                let (up, down) = match capacity {
+                    Capacity::PerFrame => capacity_at(&paths, &f_iso, j),
+                    Capacity::Curves(curves) => curves.at(j, q[j]).unwrap_or((0.0, 0.0)),
+                };
+                let capacity = if tau[j] >= 0.0 { up } else { down };
+                if up + down > 0.0 {
+                    samples += 1;
+                    let beyond = tau[j].abs() - capacity;
+                    if beyond > 0.0 {
+                        over += 1;
+                        excess += beyond;
+                    }
+                    if capacity > 0.0 {
+                        peak = peak.max(tau[j].abs() / capacity);
+                    }
+                }
+                if with_forces && per_frame {
+                    // reserve_j = τ_j − Σ_k r_jk F_k
+                    let forces = &frames.muscle_force[f * m..(f + 1) * m];
+                    let carried: f64 = (0..m).map(|k| paths.moment_arms[(j, k)] * forces[k]).sum();
+                    reserve_abs += (tau[j] - carried).abs();
+                    tau_abs += tau[j].abs();
+                }
+            }
+        }
+        if let Some(c) = control {
+            for (j, joint) in model.joints.iter().enumerate() {
+                let i = f * model.joints.len() + j;
+                if !c.mask[i] {
+                    continue;
+                }
+                let p = data.point_position(joint.child_body, &joint.child_offset.pos);
+                let target = Vec3::new(
+                    c.joint_pos[3 * i],
+                    c.joint_pos[3 * i + 1],
+                    c.joint_pos[3 * i + 2],
+                );
+                let e = (p - target).norm();
+                control_samples += 1;
+                control_sum += e;
+                if e > options.control_threshold {
+                    control_failed += 1;
+                }
+            }
+        }
+    }
+    // raw heights n·b_p, the lowest per frame, the clip's ground level g (the 5th percentile
+    // of the lowest heights over the supported frames, all frames without support) and the
+    // floor (given, or g)
+    let raw_min: Vec<f64> = (0..t_count)
+        .map(|f| {
+            lowest[f * np..(f + 1) * np]
+                .iter()
+                .map(|b| normal.dot(b))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    let mut levels: Vec<f64> = (0..t_count)
+        .filter(|&f| support[f])
+        .map(|f| raw_min[f])
+        .collect();
+    if levels.is_empty() {
+        levels = raw_min.clone();
+    }
+    levels.sort_by(f64::total_cmp);
+    let ground = levels[(0.05 * (levels.len() - 1) as f64).round() as usize];
+    let floor = options.floor_height.unwrap_or(ground);
+    // h_min(t) above the floor
+    let h_min: Vec<f64> = raw_min.iter().map(|h| h - floor).collect();
+    let supported = support.iter().filter(|s| **s).count();
+    let (mut float_sum, mut float_max) = (0.0, 0.0f64);
+    for f in (0..t_count).filter(|&f| support[f]) {
+        let v = h_min[f].max(0.0);
+        float_sum += v;
+        float_max = float_max.max(v);
+    }
+    let depth: Vec<f64> = h_min.iter().map(|h| (-h).max(0.0)).collect();
+    let (skate, skate_speed) = skating(&set, &lowest, ground, &support, rate, options);
+    let residual = residual_of(model, frames)?;
+    let mut metrics = ClipMetrics {
+        clip: name.to_string(),
+        frames: t_count,
+        rate_hz: rate,
+        body_mass: mass,
+        support_fraction: supported as f64 / t_count as f64,
+        skate,
+        skate_speed,
+        float: if supported > 0 {
+            float_sum / supported as f64
+        } else {
+            0.0
+        },
+        float_max,
+        penetrate: depth.iter().sum::<f64>() / t_count as f64,
+        penetrate_max: depth.iter().fold(0.0, |a, b| a.max(*b)),
+        el_residual: Some(median(&residual.frame_relative)),
+        ..ClipMetrics::default()
+    };
+    if samples > 0 {
+        metrics.actuation_excess = Some(excess / samples as f64 / mass);
+        metrics.actuation_over = Some(over as f64 / samples as f64);
+        metrics.actuation_peak = Some(peak);
+    }
+    if with_forces && tau_abs > 0.0 {
+        metrics.reserve_share = Some(reserve_abs / tau_abs);
+    }
+    if with_act {
+        let e: f64 = frames
+            .muscle_act
+            .iter()
+            .map(|a| (a - 1.0).max(0.0) + (-a).max(0.0))
+            .sum();
+        metrics.activation_excess = Some(e / frames.muscle_act.len() as f64);
+    }
+    if let Some(reference) = reference {
+        // RMS of τ_j − τ_j,ref over frames and joint coordinates, per kg
+        if !joints.is_empty() {
+            let mut s = 0.0;
+            for f in 0..t_count {
+                for &j in &joints {
+                    let d = frames.tau[f * n + j] - reference.tau[f * n + j];
+                    s += d * d;
+                }
+            }
+            metrics.actuation_error = Some((s / (t_count * joints.len()) as f64).sqrt() / mass);
+        }
+        let groups = set.groups().len();
+        if let (Some(a), Some(b)) = (group_forces(frames, &set), group_forces(reference, &set)) {
+            // mean over frames of Σ_g ‖F_g − F_g,ref‖ / body weight
+            let total: f64 = (0..t_count)
+                .map(|f| {
+                    (0..groups)
+                        .map(|g| {
+                            let i = 3 * (f * groups + g);
+                            let d = |v: &[f64]| Vec3::new(v[i], v[i + 1], v[i + 2]);
+                            (d(&a) - d(&b)).norm()
+                        })
+                        .sum::<f64>()
+                        / weight
+                })
+                .sum();
+            metrics.contact_force_error = Some(total / t_count as f64);
+        }
+    }
+    if control.is_some() {
+        metrics.trajectory_failed = Some(control_failed > 0);
+        if control_samples > 0 {
+            metrics.location_failure = Some(control_failed as f64 / control_samples as f64);
+            metrics.trajectory_error = Some(control_sum / control_samples as f64);
+        }
+    }
+    Ok(metrics)
+}
+
+/// T × G × 3 ground force per contact group of `set`: the file's `grf` when it has one for
+/// these groups (the estimate's sums or the measured loads), else the sums of its
+/// `contact_point_force` over each group's spheres; None when it has neither.
+fn group_forces(frames: &TensorFrames, set: &ContactSet) -> Option<Vec<f64>> {
+    let groups = set.groups().len();
+    if frames.groups == groups && !frames.grf.is_empty() {
+        return Some(frames.grf.clone());
+    }
+    let np = set.points.len();
+    if frames.contacts != np || frames.lambda.is_empty() {
+        return None;
+    }
+    let mut out = vec![0.0; frames.frames * groups * 3];
+    for f in 0..frames.frames {
+        for p in 0..np {
+            let g = set.group_of(p);
+            for k in 0..3 {
+                out[3 * (f * groups + g) + k] += frames.lambda[3 * (f * np + p) + k];
+            }
+        }
+    }
+    Some(out)
+}
+
+/// The skating ratio and the mean in-contact horizontal speed of the foot groups' spheres.
+fn skating(
+    set: &ContactSet,
+    lowest: &[Vec3],
+    ground: f64,
+    support: &[bool],
+    rate: f64,
+    options: &EvaluateOptions,
+) -> (f64, f64) {
+    let np = set.points.len();
+    let t_count = support.len();
+    let pairs = t_count - 1;
+    let normal = set.floor_normal;
+    let feet: Vec<usize> = (0..np)
+        .filter(|&p| set.points[p].group.starts_with("foot"))
+        .collect();
+    // v_p(t) = f ‖P(b_p(t+1) − b_p(t))‖
+    let mut speed = vec![0.0; pairs * feet.len()];
+    for t in 0..pairs {
+        for (i, &p) in feet.iter().enumerate() {
+            let d = lowest[(t + 1) * np + p] - lowest[t * np + p];
+            speed[t * feet.len() + i] = (d - normal * normal.dot(&d)).norm() * rate;
+        }
+    }
+    // contact per frame: within the band of a supported frame, and either in contact in the
+    // frame before or arriving there slowly (a foot lands; one passing at speed swings by);
+    // the first frame's spheres within the band are in contact whatever their speed
+    let within = |f: usize, p: usize| {
+        support[f] && normal.dot(&lowest[f * np + p]) - ground <= options.contact_height
+    };
+    let mut in_contact = vec![false; t_count * feet.len()];
+    for (i, &p) in feet.iter().enumerate() {
+        in_contact[i] = within(0, p);
+        for f in 1..t_count {
+            let before = in_contact[(f - 1) * feet.len() + i];
+            in_contact[f * feet.len() + i] =
+                within(f, p) && (before || speed[(f - 1) * feet.len() + i] <= options.skate_speed);
+        }
+    }
+    let contact: Vec<bool> = (0..pairs * feet.len())
+        .map(|k| in_contact[k] && in_contact[k + feet.len()])
+        .collect();
+    let half = options.skate_window / 2;
+    let (mut skating_pairs, mut speed_sum, mut speed_samples) = (0usize, 0.0, 0usize);
+    for t in 0..pairs {
+        let mut skates = false;
+        for i in 0..feet.len() {
+            if !contact[t * feet.len() + i] {
+                continue;
+            }
+            let v = speed[t * feet.len() + i];
+            speed_sum += v;
+            speed_samples += 1;
+            // the window's mean, pairs outside the clip counting as 0
+            let window: f64 = (t.saturating_sub(half)..=(t + half).min(pairs - 1))
+                .map(|s| speed[s * feet.len() + i])
+                .sum::<f64>()
+                / options.skate_window as f64;
+            if v > options.skate_speed && window > options.skate_speed {
+                skates = true;
+            }
+        }
+        if skates {
+            skating_pairs += 1;
+        }
+    }
+    let ratio = if pairs > 0 {
+        skating_pairs as f64 / pairs as f64
+    } else {
+        0.0
+    };
+    let mean = if speed_samples > 0 {
+        speed_sum / speed_samples as f64
+    } else {
+        0.0
+    };
+    (ratio, mean)
+}
+
+/// The median of `values` (0 for none).
+fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let k = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[k]
+    } else {
+        0.5 * (v[k - 1] + v[k])
+    }
+}

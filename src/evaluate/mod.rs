@@ -1,0 +1,270 @@
+//! Physical-plausibility metrics of a motion in musculo's tensor format (an augmented clip, or a
+//! generated motion written in the same format): the columns of FlexMotion's tables
+//! (`../shared/papers/flexmotion.txt` §4, A.3) computed from the physics, the same way for real
+//! and generated data.
+//!
+//! Every metric is defined here once; units are SI. Per clip of T frames at rate f (Hz), with
+//! the model's contact spheres p (centre c_p, radius r_p, floor normal n, floor height h₀):
+//!
+//! - **lowest point** of a sphere b_p = c_p − r_p n, its **height** h_p = n·b_p − h₀, and the
+//!   body's lowest height h_min(t) = min_p h_p(t).
+//! - **support**: frame t needs the ground when the external force the motion requires,
+//!   F(t) = Σ_b m_b a_b − M g (Newton's law for the whole body: a_b the acceleration of body b's
+//!   centre of mass, M the total mass), pushes up by more than `support_threshold` of body
+//!   weight: n·F > s·M‖g‖ (default s = 0.2). Free flight and a falling body need no ground.
+//! - **Float** (m): the mean over the support frames of max(0, h_min) — how far above the floor
+//!   the body's lowest contact geometry is while it must stand on it (PhysDiff's "Float",
+//!   Yuan et al. 2023, measured on the model's contact spheres instead of a mesh; support
+//!   decided by the physics instead of a height threshold). `float_max`: its largest value.
+//! - **Penetrate** (m): the mean over all frames of max(0, −h_min) — the depth of the deepest
+//!   contact geometry below the floor (PhysDiff's "Penetrate" on the contact spheres, every
+//!   body's: feet, hands, pelvis where the model has them). `penetrate_max`: its largest value.
+//! - **Skate** (ratio): the foot-skating ratio of GMD/OmniControl (Karunratanakul et al. 2023;
+//!   Xie et al. 2023), with their thresholds: a sphere of a foot group (`foot_r`, `foot_l`) is
+//!   in contact over the frame pair (t, t+1) when both frames need support and at both its
+//!   height is within `contact_height` (5 cm) of the body's lowest height h_min (not of the
+//!   floor: a motion lifted off the floor floats, it does not stop its feet's contact — that is
+//!   Float's job); its horizontal speed over the pair is v_p(t) = f‖P(b_p(t+1) − b_p(t))‖ (P
+//!   removes the normal component), and its window speed v̄_p(t) the mean of v_p over the
+//!   `skate_window` (5) pairs centred on t (pairs outside the clip count as 0, as
+//!   `scipy.ndimage.uniform_filter1d(mode="constant")` does in their code). A pair skates when
+//!   some in-contact sphere has v_p > `skate_speed` (0.5 m/s) and v̄_p > `skate_speed`;
+//!   `skate` is the number of skating pairs over T − 1. `skate_speed`: the mean v_p over the
+//!   in-contact (pair, sphere) samples (m/s), the continuous measure behind the ratio.
+//! - **Contact Force** (× body weight): with a reference clip (same name, same frames: the
+//!   measured loads or the estimate of a reference set), the mean over frames of
+//!   Σ_g ‖F_g − F_g,ref‖ / (M‖g‖), F_g the total force of contact group g (the sum of its
+//!   spheres' `contact_point_force`). Without a reference, or without contact forces in either
+//!   file: not computed.
+//! - **Joint Actuation**: against each joint's capacity, the maximum isometric moment of its
+//!   muscles in the direction of the torque, C±_j(q) = Σ_k max(0, ±r_jk(q)) F_iso,k(ℓ_k(q))
+//!   (r the moment arms, F_iso the tendon force at full activation and zero speed, as
+//!   `musculo check` and `musculo muscles` compute it) — by default from the model's joint
+//!   strength curves (C±_j as a function of q_j alone, every other coordinate at its default:
+//!   [`CapacityCurves`], computed once per model), with [`Capacity::PerFrame`] at each frame's
+//!   own pose — compared with τ_j over the
+//!   joint coordinates (every independent coordinate but the floating base's, with muscles):
+//!   `actuation_excess` the mean over frames and coordinates of max(0, |τ_j| − C^{sign τ_j}_j)
+//!   per kg of body mass (N·m/kg; 0 when no torque exceeds what the muscles can give),
+//!   `actuation_over` the share of those samples with |τ_j| > C_j, `actuation_peak` the largest
+//!   |τ_j| / C_j where C_j > 0. Against a reference clip,
+//!   `actuation_error` = the RMS of τ_j − τ_j,ref over frames and joint coordinates divided by
+//!   body mass (N·m/kg); this is the "Joint Actuation" column when a reference is given, the
+//!   excess otherwise.
+//! - **Muscle Limit**: with `muscle_act`, `activation_excess` = the mean over frames and
+//!   muscles of max(0, a − 1) + max(0, −a); with `muscle_force` (an augmented clip) and
+//!   per-frame capacities, the `reserve_share` Σ|τ_j − Σ_k r_jk F_k| / Σ|τ_j| over frames and joint coordinates — the
+//!   part of the joint torques no muscle could carry (activations that would have to exceed 1).
+//!   The column is the reserve share when there are muscle forces, the activation excess
+//!   otherwise.
+//! - **Euler–Lagrange residual**: r = M q̈ + C q̇ + G − τ − J_cᵀλ of the motion as given
+//!   ([`crate::loss::tensor_file`]); `el_residual` the median over frames of ‖r_t‖/‖τ_ID,t‖.
+//! - **Trajectory** (with a control): at the controlled samples (frame, joint) of a control
+//!   file (`joint_pos` T × J × 3 targets, `mask` T × J, nonzero = controlled), the joint
+//!   centres' errors e = ‖p_j(q_t) − target‖ (m): `trajectory_failed` when any e exceeds
+//!   `control_threshold` (0.5 m, OmniControl's), `location_failure` the share of samples above
+//!   it, `trajectory_error` the mean e. The set's column is the share of clips that failed
+//!   (FlexMotion's "ratio of unsuccessful trajectories").
+//!
+//! The set summary ([`summarize`]) weighs per-frame metrics by frames (a long clip counts by
+//! its length), takes optional metrics over the clips that have them, and the trajectory
+//! failure as the share of controlled clips that failed.
+
+mod capacity;
+mod clip;
+mod set;
+
+pub use capacity::{CapacityCurves, capacity_at, isometric_forces};
+pub use clip::{Capacity, Control, evaluate_clip};
+pub use set::{ClipFile, SetOptions, SetReport, collect, evaluate_set};
+
+use serde::{Deserialize, Serialize};
+
+/// Thresholds of the metrics (see the module documentation); defaults in [`Default`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct EvaluateOptions {
+    /// Floor height along the normal (m); None: the clip's own ground level. Default
+    /// Some(0): the frame the data is in.
+    pub floor_height: Option<f64>,
+    /// A foot sphere within this of the clip's ground level can be in contact (m).
+    /// Default 0.02.
+    pub contact_height: f64,
+    /// Skating speed threshold (m/s). Default 0.5.
+    pub skate_speed: f64,
+    /// Pairs in the moving average of the skating speed (odd). Default 5.
+    pub skate_window: usize,
+    /// Support needs an upward force above this share of body weight. Default 0.2.
+    pub support_threshold: f64,
+    /// A controlled joint farther than this from its target fails the trajectory (m).
+    /// Default 0.5.
+    pub control_threshold: f64,
+    /// Capacities from the muscle paths at every frame (and the reserve share of clips with
+    /// muscle forces) instead of the joint strength curves: exact, but a muscle-path
+    /// evaluation per frame. Default false.
+    pub muscles_per_frame: bool,
+}
+
+impl Default for EvaluateOptions {
+    fn default() -> Self {
+        EvaluateOptions {
+            floor_height: Some(0.0),
+            contact_height: 0.02,
+            skate_speed: 0.5,
+            skate_window: 5,
+            support_threshold: 0.2,
+            control_threshold: 0.5,
+            muscles_per_frame: false,
+        }
+    }
+}
+
+impl EvaluateOptions {
+    /// Errors naming the first setting out of its domain.
+    pub fn validate(&self) -> crate::Result<()> {
+        let checks = [
+            (
+                "floor_height",
+                self.floor_height.unwrap_or(0.0),
+                self.floor_height.is_none_or(f64::is_finite),
+            ),
+            (
+                "contact_height",
+                self.contact_height,
+                self.contact_height > 0.0,
+            ),
+            ("skate_speed", self.skate_speed, self.skate_speed > 0.0),
+            (
+                "support_threshold",
+                self.support_threshold,
+                self.support_threshold >= 0.0,
+            ),
+            (
+                "control_threshold",
+                self.control_threshold,
+                self.control_threshold > 0.0,
+            ),
+        ];
+        for (name, value, ok) in checks {
+            if !(ok && value.is_finite()) {
+                return Err(crate::Error::invalid(
+                    name,
+                    format!("{value} is out of range"),
+                ));
+            }
+        }
+        if self.skate_window == 0 || self.skate_window.is_multiple_of(2) {
+            return Err(crate::Error::invalid(
+                "skate_window",
+                format!("{} (must be odd, ≥ 1)", self.skate_window),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The metrics of one clip (see the module documentation for each).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ClipMetrics {
+    pub clip: String,
+    pub frames: usize,
+    pub rate_hz: f64,
+    /// Body mass of the model (kg).
+    pub body_mass: f64,
+    /// Share of frames that need the ground.
+    pub support_fraction: f64,
+    pub skate: f64,
+    pub skate_speed: f64,
+    pub float: f64,
+    pub float_max: f64,
+    pub penetrate: f64,
+    pub penetrate_max: f64,
+    pub contact_force_error: Option<f64>,
+    pub actuation_excess: Option<f64>,
+    pub actuation_over: Option<f64>,
+    pub actuation_peak: Option<f64>,
+    pub actuation_error: Option<f64>,
+    pub activation_excess: Option<f64>,
+    pub reserve_share: Option<f64>,
+    pub el_residual: Option<f64>,
+    pub trajectory_failed: Option<bool>,
+    pub location_failure: Option<f64>,
+    pub trajectory_error: Option<f64>,
+}
+
+impl ClipMetrics {
+    /// FlexMotion's "Joint Actuation" column for this clip: the error against the reference
+    /// when there is one, the capacity excess otherwise.
+    pub fn joint_actuation(&self) -> Option<f64> {
+        self.actuation_error.or(self.actuation_excess)
+    }
+
+    /// FlexMotion's "Muscle Limit" column: the reserve share with muscle forces, the
+    /// activation excess otherwise.
+    pub fn muscle_limit(&self) -> Option<f64> {
+        self.reserve_share.or(self.activation_excess)
+    }
+}
+
+/// The set's figures in the columns of FlexMotion's tables (units of [`ClipMetrics`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SetSummary {
+    pub clips: usize,
+    pub frames: usize,
+    pub skate: f64,
+    pub skate_speed: f64,
+    pub float: f64,
+    pub penetrate: f64,
+    pub contact_force: Option<f64>,
+    pub joint_actuation: Option<f64>,
+    pub muscle_limit: Option<f64>,
+    pub el_residual: Option<f64>,
+    /// Share of the controlled clips whose trajectory failed.
+    pub trajectory: Option<f64>,
+    /// Clips ordered by their Euler–Lagrange residual, worst first (at most 5).
+    pub worst_residual: Vec<(String, f64)>,
+}
+
+/// The set summary of `clips` (see the module documentation).
+pub fn summarize(clips: &[ClipMetrics]) -> SetSummary {
+    let frames: usize = clips.iter().map(|c| c.frames).sum();
+    let weighted = |f: &dyn Fn(&ClipMetrics) -> f64| {
+        let w: f64 = clips.iter().map(|c| c.frames as f64).sum();
+        if w == 0.0 {
+            0.0
+        } else {
+            clips.iter().map(|c| f(c) * c.frames as f64).sum::<f64>() / w
+        }
+    };
+    let mean_of = |f: &dyn Fn(&ClipMetrics) -> Option<f64>| {
+        let (mut s, mut w) = (0.0, 0.0);
+        for c in clips {
+            if let Some(v) = f(c) {
+                s += v * c.frames as f64;
+                w += c.frames as f64;
+            }
+        }
+        (w > 0.0).then(|| s / w)
+    };
+    let controlled: Vec<bool> = clips.iter().filter_map(|c| c.trajectory_failed).collect();
+    let mut worst: Vec<(String, f64)> = clips
+        .iter()
+        .filter_map(|c| c.el_residual.map(|r| (c.clip.clone(), r)))
+        .collect();
+    worst.sort_by(|a, b| b.1.total_cmp(&a.1));
+    worst.truncate(5);
+    SetSummary {
+        clips: clips.len(),
+        frames,
+        skate: weighted(&|c| c.skate),
+        skate_speed: weighted(&|c| c.skate_speed),
+        float: weighted(&|c| c.float),
+        penetrate: weighted(&|c| c.penetrate),
+        contact_force: mean_of(&|c| c.contact_force_error),
+        joint_actuation: mean_of(&|c| c.joint_actuation()),
+        muscle_limit: mean_of(&|c| c.muscle_limit()),
+        el_residual: mean_of(&|c| c.el_residual),
+        trajectory: (!controlled.is_empty())
+            .then(|| controlled.iter().filter(|f| **f).count() as f64 / controlled.len() as f64),
+        worst_residual: worst,
+    }
+}

@@ -1,0 +1,538 @@
+//! `evaluate`: each metric responds to the artefact it measures, by the amount the physics
+//! says, on clips written by the augmentation chain (the demo clips of the default model):
+//! lifting raises Float by the lift and nothing else, sinking raises Penetrate, sliding the
+//! stance feet raises Skate, doubling τ raises the actuation error and the residual, noise on
+//! q̈ raises the residual; the reserve share recomputed from the file's muscle forces equals
+//! the chain's own figure; the trajectory metrics see a displaced target.
+
+mod common;
+
+use common::{musculo_cli, reference_file};
+use musculo::augment::chain::{Chain, ChainOptions};
+use musculo::augment::demo;
+use musculo::augment::output;
+use musculo::augment::perturb::Variant;
+use musculo::evaluate::{
+    Capacity, CapacityCurves, ClipMetrics, Control, EvaluateOptions, evaluate_clip, summarize,
+};
+use musculo::loss::tensor_file::TensorFrames;
+use musculo::{Data, Model, dynamics};
+
+struct Clip {
+    name: String,
+    model: Model,
+    frames: TensorFrames,
+    reserve_share: f64,
+}
+
+/// The demo clips through the chain, written and read back as tensor files.
+fn clips() -> Vec<Clip> {
+    let chain = Chain::new(
+        musculo::DEFAULT_MODEL_OSIM.to_string(),
+        "models/musculo_fullbody.osim".into(),
+        ChainOptions::default(),
+    )
+    .unwrap();
+    let dir = std::env::temp_dir().join(format!("musculo-evaluate-{}", std::process::id()));
+    let mut out = Vec::new();
+    for (name, motion) in demo::clips(&chain.model).unwrap() {
+        let v = Variant::identity();
+        let run = chain.run(&motion, None, &v).unwrap();
+        let model = chain.clip_model(&motion, None, &v).unwrap();
+        output::write_clip(&dir, &name, &run.arrays).unwrap();
+        let frames = TensorFrames::read(&output::npz_path(&dir, &name), &model).unwrap();
+        out.push(Clip {
+            name,
+            model,
+            frames,
+            reserve_share: run.quality.reserve_share,
+        });
+    }
+    let _ = std::fs::remove_dir_all(dir);
+    out
+}
+
+fn coordinate(model: &Model, name: &str) -> usize {
+    model.q_names().iter().position(|n| *n == name).unwrap()
+}
+
+fn eval(
+    c: &Clip,
+    frames: &TensorFrames,
+    reference: Option<&TensorFrames>,
+    o: &EvaluateOptions,
+) -> ClipMetrics {
+    evaluate_clip(
+        &c.model,
+        &c.name,
+        frames,
+        reference,
+        None,
+        Capacity::PerFrame,
+        o,
+    )
+    .unwrap()
+}
+
+/// Every metric but those named, equal in `a` and `b` (to `tol` relative).
+fn same_except(a: &ClipMetrics, b: &ClipMetrics, except: &[&str], tol: f64) {
+    let close = |x: f64, y: f64| (x - y).abs() <= tol * (1.0 + x.abs().max(y.abs()));
+    let opt = |x: Option<f64>, y: Option<f64>| match (x, y) {
+        (Some(x), Some(y)) => close(x, y),
+        (None, None) => true,
+        _ => false,
+    };
+    let fields: [(&str, bool); 12] = [
+        ("skate", close(a.skate, b.skate)),
+        ("skate_speed", close(a.skate_speed, b.skate_speed)),
+        ("float", close(a.float, b.float)),
+        ("penetrate", close(a.penetrate, b.penetrate)),
+        (
+            "support_fraction",
+            close(a.support_fraction, b.support_fraction),
+        ),
+        (
+            "contact_force_error",
+            opt(a.contact_force_error, b.contact_force_error),
+        ),
+        (
+            "actuation_excess",
+            opt(a.actuation_excess, b.actuation_excess),
+        ),
+        ("actuation_error", opt(a.actuation_error, b.actuation_error)),
+        ("reserve_share", opt(a.reserve_share, b.reserve_share)),
+        (
+            "activation_excess",
+            opt(a.activation_excess, b.activation_excess),
+        ),
+        ("el_residual", opt(a.el_residual, b.el_residual)),
+        ("actuation_peak", opt(a.actuation_peak, b.actuation_peak)),
+    ];
+    for (name, equal) in fields {
+        if !except.contains(&name) {
+            assert!(equal, "{}: {name} changed\n{a:?}\n{b:?}", a.clip);
+        }
+    }
+}
+
+#[test]
+fn each_metric_responds_to_its_artefact_by_the_expected_amount() {
+    for c in clips() {
+        let n = c.model.nq();
+        let (ty, tx) = (
+            coordinate(&c.model, "pelvis_ty"),
+            coordinate(&c.model, "pelvis_tx"),
+        );
+        let t_count = c.frames.frames;
+        let base0 = eval(&c, &c.frames, Some(&c.frames), &EvaluateOptions::default());
+        // the floor just under the deepest sphere: the clip as given neither penetrates nor
+        // (by more than its stance heights) floats
+        let o = EvaluateOptions {
+            floor_height: Some(-base0.penetrate_max),
+            ..EvaluateOptions::default()
+        };
+        let base = eval(&c, &c.frames, Some(&c.frames), &o);
+        println!("{}: {base:?}", c.name);
+        assert_eq!(base.penetrate, 0.0);
+        assert_eq!(base.contact_force_error, Some(0.0));
+        assert_eq!(base.actuation_error, Some(0.0));
+        assert!(base.el_residual.unwrap() < 1e-5, "{}", c.name);
+        // feet flat on the floor: no skating. (Marching in place lifts each foot forward at
+        // about 1 m/s through the 5 cm band, which GMD's thresholds count as skating.)
+        if c.name != "march" {
+            assert!(base.skate < 0.05, "{}: {}", c.name, base.skate);
+        }
+
+        // lifted 5 cm: Float + 0.05 exactly, nothing else
+        let mut lifted = c.frames.clone();
+        for f in 0..t_count {
+            lifted.q[f * n + ty] += 0.05;
+        }
+        let up = eval(&c, &lifted, Some(&c.frames), &o);
+        assert!(
+            (up.float - base.float - 0.05).abs() < 1e-9,
+            "{}: float {} → {}",
+            c.name,
+            base.float,
+            up.float
+        );
+        same_except(&base, &up, &["float"], 1e-6);
+
+        // sunk 5 cm: every frame's lowest sphere goes 5 cm deeper, so (all its heights above
+        // this floor being below 5 cm) Penetrate = 0.05 − the mean height over all frames
+        let mut sunk = c.frames.clone();
+        for f in 0..t_count {
+            sunk.q[f * n + ty] -= 0.05;
+        }
+        let down = eval(&c, &sunk, Some(&c.frames), &o);
+        if base.support_fraction == 1.0 && base.float_max < 0.05 {
+            assert!(
+                (down.penetrate - (0.05 - base.float)).abs() < 1e-9,
+                "{}: penetrate {} vs {}",
+                c.name,
+                down.penetrate,
+                0.05 - base.float
+            );
+            assert_eq!(down.float, 0.0);
+        }
+        assert!(down.penetrate > 0.04, "{}: {}", c.name, down.penetrate);
+        same_except(&base, &down, &["float", "penetrate"], 1e-6);
+
+        // slid at 1 m/s along x: every in-contact speed v becomes |v + 1 x̂| ∈ [1 − v, 1 + v]
+        let mut slid = c.frames.clone();
+        for f in 0..t_count {
+            slid.q[f * n + tx] += f as f64 / base.rate_hz;
+            slid.qd[f * n + tx] += 1.0;
+        }
+        let slide = eval(&c, &slid, Some(&c.frames), &o);
+        assert!(
+            (slide.skate_speed - 1.0).abs() <= base.skate_speed + 1e-6,
+            "{}: {} (was {})",
+            c.name,
+            slide.skate_speed,
+            base.skate_speed
+        );
+        assert!(slide.skate > 0.9, "{}: skate {}", c.name, slide.skate);
+        same_except(&base, &slide, &["skate", "skate_speed"], 1e-6);
+
+        // τ × 2: the error against the reference is RMS(τ_joints)/mass, and r = −τ
+        let mut doubled = c.frames.clone();
+        doubled.tau.iter_mut().for_each(|t| *t *= 2.0);
+        let twice = eval(&c, &doubled, Some(&c.frames), &o);
+        let set = musculo::solve::contact::ContactSet::from_model(&c.model).unwrap();
+        let joints: Vec<usize> = (0..n).filter(|j| !set.floating_base.contains(j)).collect();
+        let rms = (c
+            .frames
+            .tau
+            .chunks(n)
+            .map(|t| joints.iter().map(|&j| t[j] * t[j]).sum::<f64>())
+            .sum::<f64>()
+            / (t_count * joints.len()) as f64)
+            .sqrt();
+        let expected = rms / base.body_mass;
+        let got = twice.actuation_error.unwrap();
+        assert!(
+            (got - expected).abs() < 1e-9 * expected,
+            "{got} vs {expected}"
+        );
+        assert!(twice.actuation_excess.unwrap() >= base.actuation_excess.unwrap());
+        let mut data = Data::new(&c.model);
+        let mut relative = |qdd_noise: &[f64], tau: &[f64]| -> f64 {
+            // ‖r_t‖/‖τ_ID,t‖ with r_t = τ_ID − τ − J_cᵀλ ≈ (τ_ID − τ_ID,file) + (τ_file − τ)
+            let mut v: Vec<f64> = (0..t_count)
+                .map(|f| {
+                    let r = f * n..(f + 1) * n;
+                    let qdd: Vec<f64> = c.frames.qdd[r.clone()]
+                        .iter()
+                        .zip(&qdd_noise[r.clone()])
+                        .map(|(a, b)| a + b)
+                        .collect();
+                    let id = dynamics::rnea(
+                        &c.model,
+                        &mut data,
+                        &c.frames.q[r.clone()],
+                        &c.frames.qd[r.clone()],
+                        &qdd,
+                    )
+                    .unwrap()
+                    .clone();
+                    let id0 = dynamics::rnea(
+                        &c.model,
+                        &mut data,
+                        &c.frames.q[r.clone()],
+                        &c.frames.qd[r.clone()],
+                        &c.frames.qdd[r.clone()],
+                    )
+                    .unwrap()
+                    .clone();
+                    let res: f64 = (0..n)
+                        .map(|j| {
+                            (id[j] - id0[j] + c.frames.tau[f * n + j] - tau[f * n + j]).powi(2)
+                        })
+                        .sum::<f64>()
+                        .sqrt();
+                    res / id.norm()
+                })
+                .collect();
+            v.sort_by(f64::total_cmp);
+            if v.len() % 2 == 1 {
+                v[v.len() / 2]
+            } else {
+                0.5 * (v[v.len() / 2 - 1] + v[v.len() / 2])
+            }
+        };
+        let zero = vec![0.0; t_count * n];
+        let expected = relative(&zero, &doubled.tau);
+        let got = twice.el_residual.unwrap();
+        assert!(
+            (got - expected).abs() < 1e-4 * expected,
+            "{got} vs {expected}"
+        );
+        same_except(
+            &base,
+            &twice,
+            &[
+                "actuation_excess",
+                "actuation_error",
+                "actuation_peak",
+                "el_residual",
+                "reserve_share",
+            ],
+            1e-6,
+        );
+
+        // noise on q̈ (uniform in ±0.5 rad/s² or m/s², seeded): the residual becomes ‖M δ‖ / ‖τ_ID‖
+        let mut rng = musculo::random::SplitMix64(7);
+        let noise: Vec<f64> = (0..t_count * n).map(|_| rng.uniform(-0.5, 0.5)).collect();
+        let mut noisy = c.frames.clone();
+        noisy.qdd.iter_mut().zip(&noise).for_each(|(a, b)| *a += b);
+        let shaken = eval(&c, &noisy, Some(&c.frames), &o);
+        let expected = relative(&noise, &c.frames.tau);
+        let got = shaken.el_residual.unwrap();
+        assert!(
+            (got - expected).abs() < 1e-4 * expected,
+            "{got} vs {expected}"
+        );
+        assert!(got > 100.0 * base.el_residual.unwrap());
+
+        // the reserve share from τ − R F of the file = the chain's own (from its SO reserves)
+        let share = base.reserve_share.unwrap();
+        assert!(
+            (share - c.reserve_share).abs() < 1e-3 * c.reserve_share.max(1e-3),
+            "{}: {share} vs {}",
+            c.name,
+            c.reserve_share
+        );
+        // ground forces 10 % larger: Σ_g ‖0.1 F_g‖ / BW per frame
+        let mut heavier = c.frames.clone();
+        heavier.grf.iter_mut().for_each(|v| *v *= 1.1);
+        let loaded = eval(&c, &heavier, Some(&c.frames), &o);
+        let weight = base.body_mass * c.model.gravity.norm();
+        let expected = c
+            .frames
+            .grf
+            .chunks(3)
+            .map(|f| 0.1 * (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt())
+            .sum::<f64>()
+            / weight
+            / t_count as f64;
+        let got = loaded.contact_force_error.unwrap();
+        assert!(
+            (got - expected).abs() < 1e-9 * expected.max(1e-9),
+            "{got} vs {expected}"
+        );
+    }
+}
+
+#[test]
+fn trajectory_metrics_see_a_displaced_target() {
+    let c = clips().remove(0);
+    let (n, nj, t_count) = (c.model.nq(), c.model.joints.len(), c.frames.frames);
+    // the clip's own joint centres at every 10th frame, for the right wrist's joint
+    let mut data = Data::new(&c.model);
+    let mut control = Control {
+        frames: t_count,
+        joint_pos: vec![0.0; t_count * nj * 3],
+        mask: vec![false; t_count * nj],
+    };
+    let wrist = c
+        .model
+        .joints
+        .iter()
+        .position(|j| j.name.contains("radiocarp") || j.name.contains("wrist"))
+        .unwrap_or(nj - 1);
+    for f in (0..t_count).step_by(10) {
+        dynamics::forward_kinematics(&c.model, &mut data, &c.frames.q[f * n..(f + 1) * n]).unwrap();
+        let joint = &c.model.joints[wrist];
+        let p = data.point_position(joint.child_body, &joint.child_offset.pos);
+        let i = f * nj + wrist;
+        control.mask[i] = true;
+        control.joint_pos[3 * i..3 * i + 3].copy_from_slice(p.as_slice());
+    }
+    let o = EvaluateOptions::default();
+    let m = evaluate_clip(
+        &c.model,
+        &c.name,
+        &c.frames,
+        None,
+        Some(&control),
+        Capacity::PerFrame,
+        &o,
+    )
+    .unwrap();
+    assert_eq!(m.trajectory_failed, Some(false));
+    assert!(m.trajectory_error.unwrap() < 1e-9);
+    // one target 0.6 m away: that sample fails, the clip fails
+    control.joint_pos[3 * wrist + 1] += 0.6;
+    let m = evaluate_clip(
+        &c.model,
+        &c.name,
+        &c.frames,
+        None,
+        Some(&control),
+        Capacity::PerFrame,
+        &o,
+    )
+    .unwrap();
+    let samples = control.mask.iter().filter(|m| **m).count() as f64;
+    assert_eq!(m.trajectory_failed, Some(true));
+    assert!((m.location_failure.unwrap() - 1.0 / samples).abs() < 1e-12);
+    assert!((m.trajectory_error.unwrap() - 0.6 / samples).abs() < 1e-9);
+    let s = summarize(&[
+        m.clone(),
+        ClipMetrics {
+            trajectory_failed: Some(false),
+            frames: 10,
+            ..m
+        },
+    ]);
+    assert_eq!(s.trajectory, Some(0.5));
+}
+
+#[test]
+fn bad_inputs_are_errors_naming_the_clip() {
+    let c = clips().remove(0);
+    let o = EvaluateOptions::default();
+    let mut short = c.frames.clone();
+    short.frames = 1;
+    let e = evaluate_clip(&c.model, "x", &short, None, None, Capacity::PerFrame, &o)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("x") && e.contains("frame"), "{e}");
+    let mut reference = c.frames.clone();
+    reference.frames -= 1;
+    let e = evaluate_clip(
+        &c.model,
+        "walk",
+        &c.frames,
+        Some(&reference),
+        None,
+        Capacity::PerFrame,
+        &o,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("walk") && e.contains("reference"), "{e}");
+    let bad = EvaluateOptions {
+        skate_window: 4,
+        ..o
+    };
+    assert!(
+        evaluate_clip(
+            &c.model,
+            "x",
+            &c.frames,
+            None,
+            None,
+            Capacity::PerFrame,
+            &bad
+        )
+        .is_err()
+    );
+}
+
+/// Real data through `musculo augment` and `musculo evaluate` (CLI): the C3D trials with their
+/// force plates (the measured loads enter the residual through `external`) and the HumanML3D
+/// sample. The Euler–Lagrange residual of what augment wrote is zero, as the physics says; the
+/// other figures are printed (README, "Evaluation").
+#[test]
+fn real_clips_have_a_zero_residual_and_print_their_figures() {
+    let (Some(c3d), Some(hml)) = (
+        reference_file("c3d"),
+        reference_file("humanml3d/new_joints_012314.npy"),
+    ) else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("musculo-evaluate-real-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (plates, hml_out) = (dir.join("plates"), dir.join("hml"));
+    let runs = [
+        (
+            "augment --input {} --map c3d_lower_body --force-plates --opensim-files --out {}",
+            &c3d,
+            &plates,
+        ),
+        (
+            "augment --input {} --opensim-files --out {}",
+            &hml,
+            &hml_out,
+        ),
+    ];
+    for (pattern, input, out) in runs {
+        let (ok, _, err) = musculo_cli(pattern, &[input, out]);
+        assert!(ok, "{err}");
+    }
+    for out in [&plates, &hml_out] {
+        for floor in ["0", "clip"] {
+            let json = dir.join("m.json");
+            let (ok, stdout, err) = musculo_cli(
+                &format!("evaluate --input {{}} --floor {floor} --out {{}}"),
+                &[out, &json],
+            );
+            assert!(ok, "{err}");
+            println!(
+                "{} (floor {floor}): {}",
+                out.display(),
+                stdout.lines().next().unwrap_or("")
+            );
+            let report: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+            for clip in report["clips"].as_array().unwrap() {
+                let r = clip["el_residual"].as_f64().unwrap();
+                assert!(r < 1e-6, "{}: {r:e}", clip["clip"]);
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// The joint strength curves equal the capacities computed at the same poses (the default pose
+/// with one coordinate at either end of its range, where the curves have samples), and the
+/// knee extensors' capacity is that of a human knee.
+#[test]
+fn strength_curves_equal_the_capacity_at_their_samples() {
+    use musculo::muscle::MuscleSet;
+    use musculo::muscle::path::{PathData, compute_paths};
+    let model = Model::default_fullbody();
+    let set = musculo::augment::chain::contact_set(&model).unwrap();
+    let curves = CapacityCurves::new(&model, &set.floating_base).unwrap();
+    let muscles = MuscleSet::new(&model).unwrap();
+    let mut paths = PathData::new(&model, &muscles.paths);
+    let mut data = Data::new(&model);
+    let mut f_iso = vec![0.0; muscles.muscles.len()];
+    let mut checked = 0;
+    for (j, &c) in model.reduction.independent.iter().enumerate() {
+        if set.floating_base.contains(&j) {
+            assert!(curves.at(j, 0.0).is_none());
+            continue;
+        }
+        let [lo, hi] = model.coordinates[c].range;
+        for v in [lo, hi] {
+            let Some((up, down)) = curves.at(j, v) else {
+                continue;
+            };
+            let mut q = model.default_q();
+            q[j] = v;
+            dynamics::forward_kinematics(&model, &mut data, &q).unwrap();
+            compute_paths(&model, &data, &muscles.paths, &mut paths).unwrap();
+            musculo::evaluate::isometric_forces(&muscles, &paths, &mut f_iso);
+            let (u, d) = musculo::evaluate::capacity_at(&paths, &f_iso, j);
+            assert!((up - u).abs() <= 1e-9 * (1.0 + u) && (down - d).abs() <= 1e-9 * (1.0 + d));
+            checked += 1;
+        }
+    }
+    assert!(checked >= 40, "{checked}");
+    // at 60° of knee flexion (knee_angle_r = −60°; a positive moment extends): human maximum
+    // isometric knee-extension moments are 150–300 N·m, flexion moments about half of that
+    let knee = model
+        .q_names()
+        .iter()
+        .position(|n| *n == "knee_angle_r")
+        .unwrap();
+    let (ext, flex) = curves.at(knee, -60f64.to_radians()).unwrap();
+    println!("knee_angle_r at −60°: extension {ext:.0} N·m, flexion {flex:.0} N·m");
+    assert!(
+        (150.0..=300.0).contains(&ext) && (50.0..=200.0).contains(&flex),
+        "{ext} {flex}"
+    );
+}
