@@ -29,6 +29,7 @@ pub mod mujoco;
 pub mod muscle;
 pub mod random;
 pub mod reference;
+pub mod report;
 pub mod solve;
 pub mod spatial;
 

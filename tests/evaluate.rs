@@ -33,7 +33,10 @@ fn clips() -> Vec<Clip> {
         ChainOptions::default(),
     )
     .unwrap();
-    let dir = std::env::temp_dir().join(format!("musculo-evaluate-{}", std::process::id()));
+    // one folder per call: the tests run in parallel
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("musculo-evaluate-{}-{call}", std::process::id()));
     let mut out = Vec::new();
     for (name, motion) in demo::clips(&chain.model).unwrap() {
         let v = Variant::identity();

@@ -76,7 +76,7 @@ mod set;
 
 pub use capacity::{CapacityCurves, capacity_at, isometric_forces};
 pub use clip::{Capacity, Control, evaluate_clip};
-pub use set::{ClipFile, SetOptions, SetReport, collect, evaluate_set};
+pub use set::{ClipFile, SetOptions, SetReport, collect, evaluate_set, model_of};
 
 use serde::{Deserialize, Serialize};
 
@@ -222,6 +222,33 @@ pub struct SetSummary {
     pub trajectory: Option<f64>,
     /// Clips ordered by their Euler–Lagrange residual, worst first (at most 5).
     pub worst_residual: Vec<(String, f64)>,
+}
+
+impl SetSummary {
+    /// The summary as (column, value with its unit) in FlexMotion's order, "–" where a
+    /// metric was not computed: what the CLI prints and the dataset page shows.
+    pub fn columns(&self) -> Vec<(&'static str, String)> {
+        let o = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map_or("–".to_string(), f);
+        vec![
+            ("clips", self.clips.to_string()),
+            ("frames", self.frames.to_string()),
+            ("Skate", format!("{:.3}", self.skate)),
+            ("skate speed", format!("{:.3} m/s", self.skate_speed)),
+            ("Float", format!("{:.1} mm", 1e3 * self.float)),
+            ("Penetrate", format!("{:.1} mm", 1e3 * self.penetrate)),
+            (
+                "Contact force",
+                o(self.contact_force, &|v| format!("{v:.3} BW")),
+            ),
+            (
+                "Joint actuation",
+                o(self.joint_actuation, &|v| format!("{v:.3} N·m/kg")),
+            ),
+            ("Muscle limit", o(self.muscle_limit, &|v| format!("{v:.3}"))),
+            ("EL residual", o(self.el_residual, &|v| format!("{v:.1e}"))),
+            ("Trajectory", o(self.trajectory, &|v| format!("{v:.3}"))),
+        ]
+    }
 }
 
 /// The set summary of `clips` (see the module documentation).

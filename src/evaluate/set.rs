@@ -162,6 +162,17 @@ pub fn evaluate_set(
     Ok(report)
 }
 
+/// The model of `clip`: `model` when given, else `<clip>.osim` beside the clip's file when
+/// there is one, else the built-in default model.
+pub fn model_of(clip: &ClipFile, model: Option<&Path>) -> crate::Result<Model> {
+    let beside = clip.path.with_extension("osim");
+    match model {
+        Some(p) => Model::from_osim_file(p),
+        None if beside.is_file() => Model::from_osim_file(&beside),
+        None => Ok(Model::default_fullbody()),
+    }
+}
+
 /// The joint strength curves of `model` (skipping its floating base).
 fn curves_of(model: &Model) -> crate::Result<CapacityCurves> {
     let set = crate::augment::chain::contact_set(model)?;

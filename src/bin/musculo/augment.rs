@@ -77,6 +77,11 @@ pub struct Args {
     /// `_grf.mot` and the scaled model `<clip>.osim`, so a clip opens in OpenSim's GUI.
     #[arg(long)]
     opensim_files: bool,
+    /// At the end, evaluate the output (as `musculo evaluate` does) and write the dataset
+    /// page OUT/report/index.html. Implies --opensim-files, so that each clip is judged on
+    /// its own scaled model.
+    #[arg(long)]
+    report: bool,
 }
 
 #[derive(clap::Args)]
@@ -137,7 +142,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     let options = ChainOptions {
         lowpass_hz: (args.lowpass > 0.0).then_some(args.lowpass),
         scale_to_clip: !args.no_scale,
-        opensim_files: args.opensim_files,
+        opensim_files: args.opensim_files || args.report,
         ..ChainOptions::default()
     };
     let mut options = options;
@@ -272,6 +277,10 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             args.out.display()
         ),
         None => eprintln!("wrote {}", args.out.join("manifest.json").display()),
+    }
+    if args.report && shard.is_none() && report.records.len() > failed.len() {
+        let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
+        eprintln!("wrote {}", page.display());
     }
     Ok(failed.is_empty())
 }

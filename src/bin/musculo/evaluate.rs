@@ -100,29 +100,13 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     };
     let inputs: Vec<&std::path::Path> = clips.iter().map(|c| c.path.as_path()).collect();
     crate::tool::write_output(&args.out, bytes.as_bytes(), &inputs)?;
-    let s = &report.summary;
-    let opt = |v: Option<f64>, unit: &str| {
-        v.map(|x| format!("{x:.3}{unit}"))
-            .unwrap_or_else(|| "–".into())
-    };
-    println!(
-        "{} clip(s), {} frames: skate {:.3} (in-contact speed {:.3} m/s), float {:.1} mm, \
-         penetrate {:.1} mm, contact force {}, joint actuation {}, muscle limit {}, \
-         EL residual {}, trajectory {}",
-        s.clips,
-        s.frames,
-        s.skate,
-        s.skate_speed,
-        1e3 * s.float,
-        1e3 * s.penetrate,
-        opt(s.contact_force, " BW"),
-        opt(s.joint_actuation, " N·m/kg"),
-        opt(s.muscle_limit, ""),
-        s.el_residual
-            .map(|x| format!("{x:.1e}"))
-            .unwrap_or_else(|| "–".into()),
-        opt(s.trajectory, ""),
-    );
+    let line: Vec<String> = report
+        .summary
+        .columns()
+        .iter()
+        .map(|(name, value)| format!("{name} {value}"))
+        .collect();
+    println!("{}", line.join(", "));
     for (clip, reason) in &report.failed {
         eprintln!("failed: {clip}: {reason}");
     }

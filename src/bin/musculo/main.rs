@@ -10,6 +10,7 @@ mod inspect;
 mod loss;
 mod model;
 mod muscles;
+mod report;
 mod scale;
 mod so;
 mod tool;
@@ -92,6 +93,10 @@ enum Command {
     /// limits, Euler–Lagrange residual and control error, per clip and for the set in the
     /// columns of FlexMotion's tables.
     Evaluate(evaluate::Args),
+    /// HTML pages of tensor files: per clip its joint angles, torques, ground reactions,
+    /// contacts, muscle activations and reserves; a dataset page with the metrics'
+    /// distributions and the worst clips.
+    Report(report::Args),
 }
 
 fn main() -> ExitCode {
@@ -112,6 +117,11 @@ fn main() -> ExitCode {
         },
         Command::Merge(args) => augment::merge(&args),
         Command::Loss(args) => loss::run(&args),
+        Command::Report(args) => match report::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(e) => Err(e),
+        },
         Command::Evaluate(args) => match evaluate::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,
