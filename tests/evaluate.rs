@@ -539,3 +539,61 @@ fn strength_curves_equal_the_capacity_at_their_samples() {
         "{ext} {flex}"
     );
 }
+
+/// A generated motion often comes in the per-joint layout only: its coordinates are fitted
+/// from the joint rotations, and its kinematic metrics equal those of the full file; its
+/// residual is not formed (the layout's contact forces have no application point).
+#[test]
+fn a_layout_only_file_gives_the_kinematic_metrics_of_the_full_file() {
+    let chain = Chain::new(
+        musculo::DEFAULT_MODEL_OSIM.to_string(),
+        "models/musculo_fullbody.osim".into(),
+        ChainOptions::default(),
+    )
+    .unwrap();
+    let (name, motion) = demo::clips(&chain.model).unwrap().remove(1);
+    let v = Variant::identity();
+    let run = chain.run(&motion, None, &v).unwrap();
+    let model = chain.clip_model(&motion, None, &v).unwrap();
+    let dir = std::env::temp_dir().join(format!("musculo-evaluate-layout-{}", std::process::id()));
+    output::write_clip(&dir, &name, &run.arrays).unwrap();
+    let keep = [
+        "joint_pos",
+        "joint_rot",
+        "joint_vel",
+        "joint_acc",
+        "joint_torque",
+        "muscle_act",
+        "time",
+    ];
+    let layout: Vec<_> = run
+        .arrays
+        .iter()
+        .filter(|a| keep.contains(&a.name))
+        .cloned()
+        .collect();
+    output::write_clip(&dir, "layout", &layout).unwrap();
+    let o = EvaluateOptions::default();
+    let read = |clip: &str| TensorFrames::read(&output::npz_path(&dir, clip), &model).unwrap();
+    let (full, only) = (read(&name), read("layout"));
+    let a = evaluate_clip(&model, "full", &full, None, None, Capacity::PerFrame, &o).unwrap();
+    let b = evaluate_clip(&model, "layout", &only, None, None, Capacity::PerFrame, &o).unwrap();
+    println!("full: {a:?}\nlayout only: {b:?}");
+    assert!(a.el_residual.is_some() && b.el_residual.is_none());
+    assert!(
+        b.layout_fit_error.unwrap() < 1e-5,
+        "{:?}",
+        b.layout_fit_error
+    );
+    for (x, y, what) in [
+        (a.float, b.float, "float"),
+        (a.penetrate, b.penetrate, "penetrate"),
+        (a.skate, b.skate, "skate"),
+        (a.skate_speed, b.skate_speed, "skate speed"),
+        (a.support_fraction, b.support_fraction, "support"),
+    ] {
+        assert!((x - y).abs() < 1e-4 * (1.0 + x.abs()), "{what}: {x} vs {y}");
+    }
+    assert!((a.actuation_peak.unwrap() - b.actuation_peak.unwrap()).abs() < 1e-3);
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -252,7 +252,11 @@ pub fn evaluate_clip(
     }
     let depth: Vec<f64> = h_min.iter().map(|h| (-h).max(0.0)).collect();
     let (skate, skate_speed) = skating(&set, &lowest, ground, &support, rate, options);
-    let residual = residual_of(model, frames)?;
+    // a layout-only file has no application points for its contact forces: no residual
+    let el_residual = match frames.layout_error {
+        Some(_) => None,
+        None => Some(median(&residual_of(model, frames)?.frame_relative)),
+    };
     let mut metrics = ClipMetrics {
         clip: name.to_string(),
         frames: t_count,
@@ -269,7 +273,8 @@ pub fn evaluate_clip(
         float_max,
         penetrate: depth.iter().sum::<f64>() / t_count as f64,
         penetrate_max: depth.iter().fold(0.0, |a, b| a.max(*b)),
-        el_residual: Some(median(&residual.frame_relative)),
+        el_residual,
+        layout_fit_error: frames.layout_error,
         ..ClipMetrics::default()
     };
     if samples > 0 {

@@ -59,6 +59,10 @@
 //!   otherwise.
 //! - **Euler–Lagrange residual**: r = M q̈ + C q̇ + G − τ − J_cᵀλ of the motion as given
 //!   ([`crate::loss::tensor_file`]); `el_residual` the median over frames of ‖r_t‖/‖τ_ID,t‖.
+//!   A file holding only the per-joint layout has its coordinates fitted from the joint
+//!   rotations (`layout_fit_error`: the largest rotation the fit leaves, rad — zero for a
+//!   consistent layout, the inconsistency of a generated one otherwise); its contact forces
+//!   carry no application point, so J_cᵀλ and the residual cannot be formed (None).
 //! - **Trajectory** (with a control): at the controlled samples (frame, joint) of a control
 //!   file (`joint_pos` T × J × 3 targets, `mask` T × J, nonzero = controlled), the joint
 //!   centres' errors e = ‖p_j(q_t) − target‖ (m): `trajectory_failed` when any e exceeds
@@ -186,6 +190,8 @@ pub struct ClipMetrics {
     pub activation_excess: Option<f64>,
     pub reserve_share: Option<f64>,
     pub el_residual: Option<f64>,
+    /// For a layout-only file: the largest joint-rotation error of the coordinate fit (rad).
+    pub layout_fit_error: Option<f64>,
     pub trajectory_failed: Option<bool>,
     pub location_failure: Option<f64>,
     pub trajectory_error: Option<f64>,

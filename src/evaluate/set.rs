@@ -244,7 +244,7 @@ fn evaluate_file(
 const CSV_COLUMNS: &str = "clip,frames,rate_hz,body_mass,support_fraction,skate,skate_speed,\
 float,float_max,penetrate,penetrate_max,contact_force,joint_actuation,muscle_limit,el_residual,\
 trajectory,location_failure,trajectory_error,actuation_excess,actuation_over,actuation_peak,\
-actuation_error,activation_excess,reserve_share";
+actuation_error,activation_excess,reserve_share,layout_fit_error";
 
 impl SetReport {
     /// One row per evaluated clip, then a row `(set)` with the summary in FlexMotion's columns
@@ -280,6 +280,7 @@ impl SetReport {
                 o(c.actuation_error),
                 o(c.activation_excess),
                 o(c.reserve_share),
+                o(c.layout_fit_error),
             ];
             s.push_str(&cells.join(","));
             s.push('\n');
