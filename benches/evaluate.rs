@@ -79,7 +79,7 @@ fn main() {
         .filter_map(|r| r.quality.as_ref())
         .map(|q| q.frames)
         .sum();
-    let files = evaluate::collect(std::slice::from_ref(&out)).expect("clips");
+    let files = evaluate::collect(std::slice::from_ref(&out), None).expect("clips");
     let run = |files: &[evaluate::ClipFile], per_frame: bool| {
         let options = SetOptions {
             metrics: EvaluateOptions {

@@ -465,6 +465,35 @@ fn real_clips_have_a_zero_residual_and_print_their_figures() {
         let (ok, _, err) = musculo_cli(pattern, &[input, out]);
         assert!(ok, "{err}");
     }
+    // the motion file itself (through the chain without muscles) gives the figures of its
+    // augmented tensors
+    let (raw, tensors) = (dir.join("raw.json"), dir.join("tensors.json"));
+    for (input, json) in [(&hml, &raw), (&hml_out, &tensors)] {
+        let (ok, _, err) = musculo_cli("evaluate --input {} --out {}", &[input, json]);
+        assert!(ok, "{err}");
+    }
+    let clip = |p: &std::path::PathBuf| -> serde_json::Value {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+        v["clips"][0].clone()
+    };
+    let (a, b) = (clip(&raw), clip(&tensors));
+    // (not the capacities: per frame for a motion file, the strength curves for tensors)
+    for key in [
+        "frames",
+        "skate",
+        "skate_speed",
+        "float",
+        "penetrate",
+        "support_fraction",
+        "el_residual",
+    ] {
+        let (x, y) = (a[key].as_f64().unwrap(), b[key].as_f64().unwrap());
+        assert!(
+            (x - y).abs() <= 1e-6 * (1.0 + x.abs()),
+            "{key}: motion file {x}, tensors {y}"
+        );
+    }
     for out in [&plates, &hml_out] {
         for floor in ["0", "clip"] {
             let json = dir.join("m.json");
@@ -596,4 +625,53 @@ fn a_layout_only_file_gives_the_kinematic_metrics_of_the_full_file() {
     }
     assert!((a.actuation_peak.unwrap() - b.actuation_peak.unwrap()).abs() < 1e-3);
     let _ = std::fs::remove_dir_all(dir);
+}
+
+/// Without muscles the chain computes the same kinematics, torques and contacts, and leaves
+/// the muscle arrays out.
+#[test]
+fn the_chain_without_muscles_gives_the_same_dynamics() {
+    let with = Chain::new(
+        musculo::DEFAULT_MODEL_OSIM.to_string(),
+        "models/musculo_fullbody.osim".into(),
+        ChainOptions::default(),
+    )
+    .unwrap();
+    let without = Chain::new(
+        with.xml.clone(),
+        with.source.clone(),
+        ChainOptions {
+            muscles: false,
+            ..ChainOptions::default()
+        },
+    )
+    .unwrap();
+    let (_, motion) = demo::clips(&with.model).unwrap().remove(0);
+    let v = Variant::identity();
+    let (a, b) = (
+        with.run(&motion, None, &v).unwrap(),
+        without.run(&motion, None, &v).unwrap(),
+    );
+    for name in [
+        "q",
+        "qd",
+        "qdd",
+        "tau",
+        "contact_point_force",
+        "grf",
+        "joint_torque",
+        "time",
+    ] {
+        let get = |o: &musculo::augment::chain::ClipOutput| {
+            o.arrays
+                .iter()
+                .find(|x| x.name == name)
+                .map(|x| x.values.clone())
+        };
+        assert_eq!(get(&a), get(&b), "{name}");
+        assert!(get(&b).is_some(), "{name}");
+    }
+    for name in ["muscle_act", "muscle_force", "excitation", "x"] {
+        assert!(b.arrays.iter().all(|x| x.name != name), "{name}");
+    }
 }

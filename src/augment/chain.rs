@@ -61,6 +61,11 @@ pub struct ChainOptions {
     pub opensim_files: bool,
     /// Static optimization's options (OpenSim's defaults: exponent 2, force–length–velocity).
     pub static_optimization: StaticOptimizationOptions,
+    /// Run static optimization and activation dynamics. Default true. Without them (what
+    /// `musculo evaluate` needs of a motion file: kinematics, torques, contacts) the muscle
+    /// arrays (`muscle_act`, `muscle_force`, fibre states, `excitation`) are left out of the
+    /// output and the quality figures of static optimization are zero.
+    pub muscles: bool,
 }
 
 impl Default for ChainOptions {
@@ -73,6 +78,7 @@ impl Default for ChainOptions {
             reserve_optimal_force: 1.0,
             opensim_files: false,
             static_optimization: StaticOptimizationOptions::default(),
+            muscles: true,
         }
     }
 }
@@ -395,8 +401,10 @@ impl Chain {
                     );
                 }
             }
-            so.solve_frame(&model, &data, &tau, &mut so_ws, &mut so_frame)
-                .map_err(|e| at_frame(&motion.source, f, e))?;
+            if self.options.muscles {
+                so.solve_frame(&model, &data, &tau, &mut so_ws, &mut so_frame)
+                    .map_err(|e| at_frame(&motion.source, f, e))?;
+            }
             // body accelerations without gravity, for the joint accelerations
             dynamics::forward_kinematics_acceleration(
                 &model,
@@ -432,7 +440,12 @@ impl Chain {
         let m = so.muscles.muscles.len();
         let mut excitation = vec![0.0f32; frames * m];
         let mut series = vec![0.0; frames];
-        for (k, muscle) in so.muscles.muscles.iter().enumerate() {
+        let muscles = if self.options.muscles {
+            so.muscles.muscles.as_slice()
+        } else {
+            &[]
+        };
+        for (k, muscle) in muscles.iter().enumerate() {
             let force = &model.forces[so.muscles.paths.paths[k].force];
             let dynamics = ActivationDynamics::from_muscle(force, force.file_or(&model.source))?;
             let (lo, hi) = dynamics.range();
@@ -451,7 +464,12 @@ impl Chain {
                 excitation[f * m + k] = estimate.excitation[f] as f32;
             }
         }
-        let quality = per_frame.quality(&model, &solution, frames, targets.rate_hz, clamped);
+        let mut quality = per_frame.quality(&model, &solution, frames, targets.rate_hz, clamped);
+        if !self.options.muscles {
+            quality.so_unsolved_frames = 0;
+            quality.reserve_share = 0.0;
+            quality.reserve_by_coordinate.clear();
+        }
         if quality.so_unsolved_frames > 0 {
             warnings.push(format!(
                 "{}: static optimization left {} frame(s) unbalanced",
@@ -478,6 +496,20 @@ impl Chain {
             shape: vec![frames],
             values: times.iter().map(|&t| t as f32).collect(),
         });
+        if !self.options.muscles {
+            // nothing computed there (and `x` would carry its zeros)
+            arrays.retain(|a| {
+                !matches!(
+                    a.name,
+                    "x" | "muscle_act"
+                        | "muscle_force"
+                        | "muscle_length"
+                        | "fiber_length"
+                        | "fiber_velocity"
+                        | "excitation"
+                )
+            });
+        }
         Ok(ClipOutput {
             arrays,
             quality,

@@ -5,26 +5,55 @@ use super::{
     Capacity, CapacityCurves, ClipMetrics, Control, EvaluateOptions, SetSummary, evaluate_clip,
     summarize,
 };
+use crate::augment::chain::{Chain, ChainOptions};
+use crate::augment::perturb::Variant;
 use crate::error::Error;
 use crate::loss::tensor_file::TensorFrames;
 use crate::model::Model;
+use crate::motion::skeleton::SkeletonMap;
+use crate::motion::{Format, ReadOptions};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// One clip of the set: its name (the path below the folder given, without `.npz`; the file
-/// stem for a file given directly) and its file.
+/// One clip of the set: its name (the path below the folder given, without its extension;
+/// the file stem for a file given directly), its file, and for a motion file (not a tensor
+/// file) its format.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ClipFile {
     pub name: String,
     pub path: PathBuf,
+    /// None for a tensor file (`.npz`); the motion format of any other file.
+    pub format: Option<Format>,
 }
 
-/// The clips of `inputs`: `.npz` files as given, and every `.npz` below a folder (hidden
-/// entries such as an augmentation's `.musculo/` and the folder's own `stats.npz` left out),
-/// sorted by name. An input that does not exist, a file that is not `.npz` or a set without
-/// clips is an error; so are two clips of one name.
-pub fn collect(inputs: &[PathBuf]) -> crate::Result<Vec<ClipFile>> {
+/// The motion extensions a folder is searched for besides `.npz`.
+const MOTION_EXTENSIONS: [&str; 4] = ["npy", "bvh", "c3d", "trc"];
+
+/// The clip of file `path` named `name`: a tensor file for `.npz`, else a motion file of
+/// `format` (or the format its extension and contents say).
+fn clip_of(name: String, path: PathBuf, format: Option<Format>) -> crate::Result<ClipFile> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let format = if ext == "npz" {
+        None
+    } else {
+        Some(match format {
+            Some(f) => f,
+            None => Format::detect(&path)?,
+        })
+    };
+    Ok(ClipFile { name, path, format })
+}
+
+/// The clips of `inputs`: files as given, and below a folder every tensor file (`.npz`) and
+/// motion file (`.npy`, `.bvh`, `.c3d`, `.trc`; hidden entries such as an augmentation's
+/// `.musculo/` and the folder's own `stats.npz` left out), sorted by name. Motion files are
+/// read as `format`, or as their extension and contents say. An input that does not exist or
+/// a set without clips is an error; so are two clips of one name.
+pub fn collect(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<Vec<ClipFile>> {
     let mut clips = Vec::new();
     for input in inputs {
         if input.is_dir() {
@@ -46,8 +75,12 @@ pub fn collect(inputs: &[PathBuf]) -> crate::Result<Vec<ClipFile>> {
                     }
                     if path.is_dir() {
                         stack.push(path);
-                    } else if let Some(stem) = file_name.strip_suffix(".npz") {
-                        if dir == *input && stem == "stats" {
+                    } else if let Some((stem, ext)) = file_name.rsplit_once('.') {
+                        let ext = ext.to_ascii_lowercase();
+                        if ext != "npz" && !MOTION_EXTENSIONS.contains(&ext.as_str()) {
+                            continue;
+                        }
+                        if dir == *input && stem == "stats" && ext == "npz" {
                             continue;
                         }
                         let relative = path.strip_prefix(input).unwrap_or(&path);
@@ -55,28 +88,16 @@ pub fn collect(inputs: &[PathBuf]) -> crate::Result<Vec<ClipFile>> {
                             .with_extension("")
                             .to_string_lossy()
                             .replace('\\', "/");
-                        clips.push(ClipFile { name, path });
+                        clips.push(clip_of(name, path, format)?);
                     }
                 }
             }
         } else if input.is_file() {
-            if input.extension().is_none_or(|e| e != "npz") {
-                return Err(Error::invalid(
-                    "--input",
-                    format!(
-                        "{}: not a tensor file (.npz); evaluate reads musculo's tensor format",
-                        input.display()
-                    ),
-                ));
-            }
             let name = input
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            clips.push(ClipFile {
-                name,
-                path: input.clone(),
-            });
+            clips.push(clip_of(name, input.clone(), format)?);
         } else {
             return Err(Error::invalid(
                 "--input",
@@ -97,7 +118,10 @@ pub fn collect(inputs: &[PathBuf]) -> crate::Result<Vec<ClipFile>> {
         ));
     }
     if clips.is_empty() {
-        return Err(Error::invalid("--input", "no .npz tensor files found"));
+        return Err(Error::invalid(
+            "--input",
+            "no tensor (.npz) or motion file (.npy, .bvh, .c3d, .trc) found",
+        ));
     }
     Ok(clips)
 }
@@ -114,6 +138,11 @@ pub struct SetOptions {
     /// A folder holding `<clip>.npz` control files.
     pub control: Option<PathBuf>,
     pub metrics: EvaluateOptions,
+    /// How motion files are read (length unit).
+    pub read: ReadOptions,
+    /// The skeleton map of motion files; None: each format's built-in map (names matched
+    /// for marker files).
+    pub map: Option<SkeletonMap>,
 }
 
 /// The metrics of every clip that could be evaluated, the reasons of those that could not,
@@ -129,23 +158,33 @@ pub struct SetReport {
 /// Evaluates `clips` in parallel on the current rayon pool, calling `progress(done, total)`
 /// after each. A clip whose file, model, reference or control cannot be read or does not fit
 /// is listed in [`SetReport::failed`] with the reason; the others are evaluated.
+///
+/// A motion file goes through the augmentation chain without its muscles (scaling to the
+/// clip's bones, IK, filtering, inverse dynamics, contacts; the format's built-in skeleton
+/// map) on `options.model` or the default model, and is evaluated on the clip's scaled model
+/// with capacities at every frame's pose.
 pub fn evaluate_set(
     clips: &[ClipFile],
     options: &SetOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> crate::Result<SetReport> {
     options.metrics.validate()?;
-    let shared = match &options.model {
-        Some(p) => Some(Model::from_osim_file(p)?),
-        None => None,
+    let shared = Shared {
+        options,
+        model: match &options.model {
+            Some(p) => Some(Model::from_osim_file(p)?),
+            None => None,
+        },
+        default: std::sync::OnceLock::new(),
+        curves: std::sync::OnceLock::new(),
+        chain: std::sync::OnceLock::new(),
     };
-    let shared_curves = std::sync::OnceLock::new();
-    let default = std::sync::OnceLock::new();
     let done = AtomicUsize::new(0);
     let results: Vec<Result<ClipMetrics, (String, String)>> = clips
         .par_iter()
         .map(|clip| {
-            let result = evaluate_file(clip, options, shared.as_ref(), &default, &shared_curves)
+            let result = shared
+                .evaluate(clip)
                 .map_err(|e| (clip.name.clone(), e.to_string()));
             progress(done.fetch_add(1, Ordering::Relaxed) + 1, clips.len());
             result
@@ -179,65 +218,133 @@ fn curves_of(model: &Model) -> crate::Result<CapacityCurves> {
     CapacityCurves::new(model, &set.floating_base)
 }
 
-fn evaluate_file(
-    clip: &ClipFile,
-    options: &SetOptions,
-    shared: Option<&Model>,
-    default: &std::sync::OnceLock<Model>,
-    shared_curves: &std::sync::OnceLock<Result<CapacityCurves, String>>,
-) -> crate::Result<ClipMetrics> {
-    let beside = clip.path.with_extension("osim");
-    let own;
-    let (model, model_is_shared) = match shared {
-        Some(m) => (m, true),
-        None if beside.is_file() => {
-            own = Model::from_osim_file(&beside)?;
-            (&own, false)
-        }
-        None => (default.get_or_init(Model::default_fullbody), true),
-    };
-    // one set of curves for the model every clip shares; a clip's own model gets its own
-    let own_curves;
-    let capacity = if options.metrics.muscles_per_frame {
-        Capacity::PerFrame
-    } else if model_is_shared {
-        match shared_curves.get_or_init(|| curves_of(model).map_err(|e| e.to_string())) {
-            Ok(c) => Capacity::Curves(c),
-            Err(e) => return Err(Error::invalid("model", e.clone())),
-        }
-    } else {
-        own_curves = curves_of(model)?;
-        Capacity::Curves(&own_curves)
-    };
-    let frames = TensorFrames::read(&clip.path, model)?;
-    let find = |dir: &Path, what: &'static str| -> crate::Result<PathBuf> {
-        let p = dir.join(format!("{}.npz", clip.name));
-        if p.is_file() {
-            Ok(p)
-        } else {
-            Err(Error::invalid(
-                what,
-                format!("{}: no {what} for clip \"{}\"", p.display(), clip.name),
-            ))
-        }
-    };
-    let reference = match &options.reference {
-        Some(dir) => Some(TensorFrames::read(&find(dir, "reference")?, model)?),
-        None => None,
-    };
-    let control = match &options.control {
-        Some(dir) => Some(Control::read(&find(dir, "control")?, model)?),
-        None => None,
-    };
-    evaluate_clip(
-        model,
-        &clip.name,
-        &frames,
-        reference.as_ref(),
-        control.as_ref(),
-        capacity,
-        &options.metrics,
-    )
+/// What the clips of one set share: the settings, the models and curves built once, and the
+/// chain for motion files.
+struct Shared<'a> {
+    options: &'a SetOptions,
+    /// `--model`, read once.
+    model: Option<Model>,
+    default: std::sync::OnceLock<Model>,
+    /// The curves of the model every tensor clip shares (errors as text: they are shared).
+    curves: std::sync::OnceLock<Result<CapacityCurves, String>>,
+    chain: std::sync::OnceLock<Result<Chain, String>>,
+}
+
+impl Shared<'_> {
+    fn evaluate(&self, clip: &ClipFile) -> crate::Result<ClipMetrics> {
+        let shared_error = |e: &String| Error::invalid("model", e.clone());
+        // the frames, the model they belong to, and how capacities are found
+        let own_model;
+        let own_curves;
+        let (frames, model, capacity) = match clip.format {
+            Some(format) => {
+                let chain = self
+                    .chain
+                    .get_or_init(|| self.motion_chain().map_err(|e| e.to_string()))
+                    .as_ref()
+                    .map_err(shared_error)?;
+                let (motion, _) = crate::motion::read_with_warnings(
+                    &clip.path,
+                    Some(format),
+                    &self.options.read,
+                )?;
+                let builtin = match &self.options.map {
+                    Some(_) => None,
+                    None => format.default_map().map(SkeletonMap::builtin).transpose()?,
+                };
+                let map = self.options.map.as_ref().or(builtin.as_ref());
+                let v = Variant::identity();
+                own_model = chain.clip_model(&motion, map, &v)?;
+                let out = chain.run(&motion, map, &v)?;
+                let arrays: Vec<(String, ndarray::ArrayD<f64>)> = out
+                    .arrays
+                    .iter()
+                    .map(|a| {
+                        let values = a.values.iter().map(|&v| v as f64).collect();
+                        ndarray::ArrayD::from_shape_vec(ndarray::IxDyn(&a.shape), values)
+                            .map(|x| (a.name.to_string(), x))
+                            .map_err(|e| Error::invalid("arrays", format!("{}: {e}", a.name)))
+                    })
+                    .collect::<crate::Result<_>>()?;
+                let frames = TensorFrames::from_arrays(&arrays, &own_model, &clip.name)?;
+                (frames, &own_model, Capacity::PerFrame)
+            }
+            None => {
+                let beside = clip.path.with_extension("osim");
+                let (model, shared) = match &self.model {
+                    Some(m) => (m, true),
+                    None if beside.is_file() => {
+                        own_model = Model::from_osim_file(&beside)?;
+                        (&own_model, false)
+                    }
+                    None => (self.default.get_or_init(Model::default_fullbody), true),
+                };
+                // one set of curves for the model the clips share; a clip's own model
+                // gets its own
+                let capacity = if self.options.metrics.muscles_per_frame {
+                    Capacity::PerFrame
+                } else if shared {
+                    let curves = self
+                        .curves
+                        .get_or_init(|| curves_of(model).map_err(|e| e.to_string()))
+                        .as_ref()
+                        .map_err(shared_error)?;
+                    Capacity::Curves(curves)
+                } else {
+                    own_curves = curves_of(model)?;
+                    Capacity::Curves(&own_curves)
+                };
+                (TensorFrames::read(&clip.path, model)?, model, capacity)
+            }
+        };
+        let find = |dir: &Path, what: &'static str| -> crate::Result<PathBuf> {
+            let p = dir.join(format!("{}.npz", clip.name));
+            if p.is_file() {
+                Ok(p)
+            } else {
+                Err(Error::invalid(
+                    what,
+                    format!("{}: no {what} for clip \"{}\"", p.display(), clip.name),
+                ))
+            }
+        };
+        let reference = match &self.options.reference {
+            Some(dir) => Some(TensorFrames::read(&find(dir, "reference")?, model)?),
+            None => None,
+        };
+        let control = match &self.options.control {
+            Some(dir) => Some(Control::read(&find(dir, "control")?, model)?),
+            None => None,
+        };
+        evaluate_clip(
+            model,
+            &clip.name,
+            &frames,
+            reference.as_ref(),
+            control.as_ref(),
+            capacity,
+            &self.options.metrics,
+        )
+    }
+
+    /// The augmentation chain without muscles, on `--model` or the default model.
+    fn motion_chain(&self) -> crate::Result<Chain> {
+        let (xml, source) = match &self.options.model {
+            Some(p) => (crate::io::text::read_text(p)?, p.display().to_string()),
+            None => (
+                crate::DEFAULT_MODEL_OSIM.to_string(),
+                "models/musculo_fullbody.osim".to_string(),
+            ),
+        };
+        Chain::new(
+            xml,
+            source,
+            ChainOptions {
+                muscles: false,
+                ..ChainOptions::default()
+            },
+        )
+    }
 }
 
 /// The CSV columns of [`SetReport::to_csv`].

@@ -61,8 +61,17 @@ pub struct TensorFrames {
 impl TensorFrames {
     /// Reads `path` for `model` (n = `model.nq()` values per frame in every coordinate array).
     pub fn read(path: &Path, model: &Model) -> crate::Result<TensorFrames> {
-        let source = path.display().to_string();
         let arrays = read_npz_as_f64(path)?;
+        Self::from_arrays(&arrays, model, &path.display().to_string())
+    }
+
+    /// The frames of named arrays (as a tensor file holds them; `source` names them in
+    /// errors) for `model`.
+    pub fn from_arrays(
+        arrays: &[(String, ndarray::ArrayD<f64>)],
+        model: &Model,
+        source: &str,
+    ) -> crate::Result<TensorFrames> {
         let n = model.nq();
         let find = |name: &str| arrays.iter().find(|(k, _)| k == name).map(|(_, a)| a);
         let bad = |msg: String| crate::Error::invalid("tensor file", format!("{source}: {msg}"));
@@ -85,7 +94,7 @@ impl TensorFrames {
         let layout_only = find("q").is_none() && find("joint_rot").is_some();
         let mut layout_error = None;
         let (q, qd, qdd, tau) = if layout_only {
-            let c = from_layout(model, &arrays, &bad)?;
+            let c = from_layout(model, arrays, &bad)?;
             frames = Some(c.rotation_error.len());
             layout_error = Some(c.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v)));
             (c.q, c.qd, c.qdd, c.tau)

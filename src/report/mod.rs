@@ -481,8 +481,13 @@ fn bin_columns(values: &[f64], t_count: usize, rows: usize) -> (usize, Vec<f64>)
 }
 
 /// The dataset page of `report`: the set summary, the distribution of each metric over the
-/// clips, the failures, and the worst clips — linked to `<clip>.html` when `linked`.
-pub fn dataset_page(title: &str, report: &SetReport, linked: bool) -> crate::Result<String> {
+/// clips, the failures, and the worst clips — linked to `<clip>.html` where `linked` says
+/// there is one.
+pub fn dataset_page(
+    title: &str,
+    report: &SetReport,
+    linked: &dyn Fn(&str) -> bool,
+) -> crate::Result<String> {
     let columns = report.summary.columns();
     let mut body = format!("<h1>{}</h1>\n<table><tr>", escape(title));
     for (name, _) in &columns {
@@ -536,7 +541,7 @@ pub fn dataset_page(title: &str, report: &SetReport, linked: bool) -> crate::Res
     }
     body.push_str("</div>\n");
     let link = |name: &str| {
-        if linked {
+        if linked(name) {
             format!("<a href=\"{}.html\">{}</a>", escape(name), escape(name))
         } else {
             escape(name)
@@ -602,8 +607,8 @@ fn record_of(clip: &ClipFile) -> Option<ClipRecord> {
 }
 
 /// Writes the report of an evaluated set into `out`: `index.html` (the dataset page of
-/// `report`, titled `title`) and, with `pages`, `<clip>.html` for every evaluated clip of
-/// `clips` (in parallel, `progress(done, total)` after each). Each file is written whole or
+/// `report`, titled `title`) and, with `pages`, `<clip>.html` for every evaluated tensor
+/// file of `clips` (a motion file's figures are on the dataset page only) (in parallel, `progress(done, total)` after each). Each file is written whole or
 /// not at all; returns the files written.
 pub fn write_report(
     title: &str,
@@ -620,7 +625,12 @@ pub fn write_report(
         let evaluated: Vec<(&ClipFile, &ClipMetrics)> = report
             .clips
             .iter()
-            .filter_map(|m| clips.iter().find(|c| c.name == m.clip).map(|c| (c, m)))
+            .filter_map(|m| {
+                clips
+                    .iter()
+                    .find(|c| c.name == m.clip && c.format.is_none())
+                    .map(|c| (c, m))
+            })
             .collect();
         let files: Vec<crate::Result<PathBuf>> = evaluated
             .par_iter()
@@ -659,7 +669,8 @@ pub fn write_report(
         source,
     })?;
     let index = out.join("index.html");
-    crate::motion::npy::write_file_atomic(&index, dataset_page(title, report, pages)?.as_bytes())?;
+    let paged = |name: &str| pages && clips.iter().any(|c| c.name == name && c.format.is_none());
+    crate::motion::npy::write_file_atomic(&index, dataset_page(title, report, &paged)?.as_bytes())?;
     written.push(index);
     Ok(written)
 }

@@ -9,8 +9,9 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// Tensor files (.npz in musculo's format: q, qd, qdd, tau, time and, where present,
-    /// contact_point_force, muscle_act, muscle_force; or only the per-joint layout) or folders
-    /// of them (searched recursively; an augmentation's output folder works as it is).
+    /// contact_point_force, muscle_act, muscle_force; or only the per-joint layout), motion
+    /// files (HumanML3D/KIT .npy, .bvh, .c3d, .trc) or folders of them (searched recursively;
+    /// an augmentation's output folder works as it is).
     #[arg(long, required = true, num_args = 1..)]
     input: Vec<PathBuf>,
     /// Where to write the metrics: FILE.json (every clip, the failures and the set summary)
@@ -44,6 +45,17 @@ pub struct Args {
     /// evaluation per frame, several times slower.
     #[arg(long)]
     muscles_per_frame: bool,
+    /// Format of motion files among the inputs (default: from each file's extension and
+    /// array shape); they go through IK, inverse dynamics and contacts first (no muscles).
+    #[arg(long, value_parser = musculo::motion::Format::parse)]
+    format: Option<musculo::motion::Format>,
+    /// Length unit of motion files (m, cm, mm, in or metres per unit).
+    #[arg(long)]
+    length_unit: Option<String>,
+    /// Skeleton map of motion files (built-in name or .json file; default: each format's
+    /// built-in map).
+    #[arg(long)]
+    map: Option<String>,
     /// Threads (default: all cores).
     #[arg(long)]
     jobs: Option<usize>,
@@ -69,11 +81,17 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             )
         })?),
     };
-    let clips = collect(&args.input)?;
+    let clips = collect(&args.input, args.format)?;
     let options = SetOptions {
         model: args.model.clone(),
         reference: args.reference.clone(),
         control: args.control.clone(),
+        read: crate::tool::read_options(args.length_unit.as_deref())?,
+        map: match &args.map {
+            // the format only matters without a map
+            Some(m) => crate::tool::skeleton_map(Some(m), musculo::motion::Format::Trc)?,
+            None => None,
+        },
         metrics: EvaluateOptions {
             floor_height: floor,
             contact_height: args.contact_height,

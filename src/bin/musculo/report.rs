@@ -27,6 +27,17 @@ pub struct Args {
     /// Only the dataset page (no page per clip).
     #[arg(long)]
     no_clip_pages: bool,
+    /// Format of motion files among the inputs (default: from each file's extension and
+    /// array shape); they go through IK, inverse dynamics and contacts first (no muscles).
+    #[arg(long, value_parser = musculo::motion::Format::parse)]
+    format: Option<musculo::motion::Format>,
+    /// Length unit of motion files (m, cm, mm, in or metres per unit).
+    #[arg(long)]
+    length_unit: Option<String>,
+    /// Skeleton map of motion files (built-in name or .json file; default: each format's
+    /// built-in map).
+    #[arg(long)]
+    map: Option<String>,
     /// Threads (default: all cores).
     #[arg(long)]
     jobs: Option<usize>,
@@ -46,11 +57,17 @@ pub fn floor(text: &str) -> Result<Option<f64>, musculo::Error> {
 }
 
 pub fn run(args: &Args) -> Result<bool, musculo::Error> {
-    let clips = collect(&args.input)?;
+    let clips = collect(&args.input, args.format)?;
     let options = SetOptions {
         model: args.model.clone(),
         reference: args.reference.clone(),
         control: None,
+        read: crate::tool::read_options(args.length_unit.as_deref())?,
+        map: match &args.map {
+            // the format only matters without a map
+            Some(m) => crate::tool::skeleton_map(Some(m), musculo::motion::Format::Trc)?,
+            None => None,
+        },
         metrics: EvaluateOptions {
             floor_height: floor(&args.floor)?,
             ..EvaluateOptions::default()
@@ -97,7 +114,7 @@ pub fn dataset_report(
     dir: &Path,
     pool: &rayon::ThreadPool,
 ) -> Result<PathBuf, musculo::Error> {
-    let clips = collect(&[out.to_path_buf()])?;
+    let clips = collect(&[out.to_path_buf()], None)?;
     let options = SetOptions::default();
     let report = pool.install(|| evaluate_set(&clips, &options, &|_, _| {}))?;
     let title = format!("musculo augment: {}", out.display());
