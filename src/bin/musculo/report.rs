@@ -5,78 +5,101 @@ use crate::tool::{FrameProgress, invalid};
 use musculo::evaluate::{EvaluateOptions, SetOptions, collect, evaluate_set};
 use std::path::{Path, PathBuf};
 
+/// The arguments `evaluate` and `report` share: which model, reference and floor, and how
+/// motion files are read.
+#[derive(clap::Args)]
+pub struct SetArgs {
+    /// OpenSim 4.x model of every clip (default: `<clip>.osim` beside the clip when there is
+    /// one, else the built-in default model).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Folder of reference clips of the same names (e.g. the augmented real data a generated
+    /// set imitates, or clips with measured loads): adds the contact-force and joint-actuation
+    /// errors, and draws its torques and forces dashed in the report.
+    #[arg(long, value_name = "DIR")]
+    pub reference: Option<PathBuf>,
+    /// Floor height (m, along +y), or `clip`: each clip's own ground level (the 5th
+    /// percentile of its lowest contact heights while it needs support), for data whose floor
+    /// is not at 0.
+    #[arg(long, default_value = "0", allow_hyphen_values = true)]
+    pub floor: String,
+    /// Format of motion files among the inputs (default: from each file's extension and
+    /// array shape); they go through IK, inverse dynamics and contacts first (no muscles).
+    #[arg(long, value_parser = musculo::motion::Format::parse)]
+    pub format: Option<musculo::motion::Format>,
+    /// Length unit of motion files (m, cm, mm, in or metres per unit).
+    #[arg(long)]
+    pub length_unit: Option<String>,
+    /// Skeleton map of motion files (built-in name or .json file; default: each format's
+    /// built-in map).
+    #[arg(long)]
+    pub map: Option<String>,
+    /// Threads (default: all cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+}
+
+impl SetArgs {
+    /// The clips of `input` and the set's options (metrics at their defaults but the floor).
+    pub fn clips_and_options(
+        &self,
+        input: &[PathBuf],
+    ) -> Result<(Vec<musculo::evaluate::ClipFile>, SetOptions), musculo::Error> {
+        let floor = match self.floor.as_str() {
+            "clip" => None,
+            text => Some(text.parse::<f64>().map_err(|_| {
+                invalid(
+                    "--floor",
+                    format!("{text}: give a height in metres or `clip`"),
+                )
+            })?),
+        };
+        let options = SetOptions {
+            model: self.model.clone(),
+            reference: self.reference.clone(),
+            control: None,
+            read: crate::tool::read_options(self.length_unit.as_deref())?,
+            map: match &self.map {
+                // the format only matters without a map
+                Some(m) => crate::tool::skeleton_map(Some(m), musculo::motion::Format::Trc)?,
+                None => None,
+            },
+            metrics: EvaluateOptions {
+                floor_height: floor,
+                ..EvaluateOptions::default()
+            },
+        };
+        Ok((collect(input, self.format)?, options))
+    }
+
+    /// The thread pool of `--jobs`.
+    pub fn pool(&self) -> Result<rayon::ThreadPool, musculo::Error> {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(self.jobs.unwrap_or(0))
+            .build()
+            .map_err(|e| invalid("--jobs", e.to_string()))
+    }
+}
+
 #[derive(clap::Args)]
 pub struct Args {
-    /// Tensor files (.npz) or folders of them, e.g. an augmentation's output folder.
+    /// Tensor files (.npz) or motion files, or folders of them, e.g. an augmentation's output
+    /// folder.
     #[arg(required = true, num_args = 1..)]
     input: Vec<PathBuf>,
     /// Folder to write `index.html` (the dataset page) and `<clip>.html` into.
     #[arg(long)]
     out: PathBuf,
-    /// OpenSim 4.x model of every clip (default: `<clip>.osim` beside the clip when there is
-    /// one, else the built-in default model).
-    #[arg(long)]
-    model: Option<PathBuf>,
-    /// Folder of reference clips of the same names (e.g. with measured loads): drawn dashed
-    /// beside the clip's torques and ground reactions, and compared in the metrics.
-    #[arg(long, value_name = "DIR")]
-    reference: Option<PathBuf>,
-    /// Floor height (m, along +y), or `clip` (see `musculo evaluate`).
-    #[arg(long, default_value = "0", allow_hyphen_values = true)]
-    floor: String,
     /// Only the dataset page (no page per clip).
     #[arg(long)]
     no_clip_pages: bool,
-    /// Format of motion files among the inputs (default: from each file's extension and
-    /// array shape); they go through IK, inverse dynamics and contacts first (no muscles).
-    #[arg(long, value_parser = musculo::motion::Format::parse)]
-    format: Option<musculo::motion::Format>,
-    /// Length unit of motion files (m, cm, mm, in or metres per unit).
-    #[arg(long)]
-    length_unit: Option<String>,
-    /// Skeleton map of motion files (built-in name or .json file; default: each format's
-    /// built-in map).
-    #[arg(long)]
-    map: Option<String>,
-    /// Threads (default: all cores).
-    #[arg(long)]
-    jobs: Option<usize>,
-}
-
-/// `--floor`: a height in metres or `clip`.
-pub fn floor(text: &str) -> Result<Option<f64>, musculo::Error> {
-    match text {
-        "clip" => Ok(None),
-        _ => text.parse::<f64>().map(Some).map_err(|_| {
-            invalid(
-                "--floor",
-                format!("{text}: give a height in metres or `clip`"),
-            )
-        }),
-    }
+    #[command(flatten)]
+    set: SetArgs,
 }
 
 pub fn run(args: &Args) -> Result<bool, musculo::Error> {
-    let clips = collect(&args.input, args.format)?;
-    let options = SetOptions {
-        model: args.model.clone(),
-        reference: args.reference.clone(),
-        control: None,
-        read: crate::tool::read_options(args.length_unit.as_deref())?,
-        map: match &args.map {
-            // the format only matters without a map
-            Some(m) => crate::tool::skeleton_map(Some(m), musculo::motion::Format::Trc)?,
-            None => None,
-        },
-        metrics: EvaluateOptions {
-            floor_height: floor(&args.floor)?,
-            ..EvaluateOptions::default()
-        },
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.jobs.unwrap_or(0))
-        .build()
-        .map_err(|e| invalid("--jobs", e.to_string()))?;
+    let (clips, options) = args.set.clips_and_options(&args.input)?;
+    let pool = args.set.pool()?;
     let bar = FrameProgress::new("evaluate");
     let report = pool.install(|| evaluate_set(&clips, &options, &|d, t| bar.update(d, t)))?;
     bar.finish();
