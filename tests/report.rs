@@ -1,7 +1,7 @@
 //! `musculo report`: the pages hold every plot, and in a real browser (headless Chromium) every
-//! plot draws content — each `<figure class="plot">` is rendered on its own to PNG and must show
-//! at least a few hundred pixels in the plots' data colours (not the black, grey and white of
-//! axes, text and background).
+//! plot draws content — `report --png` renders each `<figure class="plot">` on its own to PNG,
+//! and each must show at least a few hundred pixels in the plots' data colours (not the black,
+//! grey and white of axes, text and background).
 //!
 //! Chromium is `MUSCULO_CHROMIUM`, else `chromium` or `chromium-browser` on the PATH; without
 //! it the browser test reports "skipped: chromium not found", unless `MUSCULO_REQUIRE_CHROMIUM=1`
@@ -30,20 +30,7 @@ fn demo_report(dir: &Path) -> PathBuf {
     pages
 }
 
-/// The `<figure class="plot" data-plot="…">` blocks of a page: (id, svg).
-fn plots(html: &str) -> Vec<(String, String)> {
-    let mut out = Vec::new();
-    let mut rest = html;
-    while let Some(i) = rest.find("<figure class=\"plot\" data-plot=\"") {
-        rest = &rest[i + 32..];
-        let id = rest[..rest.find('"').unwrap()].to_string();
-        let start = rest.find("<svg").unwrap();
-        let end = rest.find("</svg>").unwrap() + 6;
-        out.push((id, rest[start..end].to_string()));
-        rest = &rest[end..];
-    }
-    out
-}
+use musculo::report::figures as plots;
 
 #[test]
 fn pages_hold_every_plot() {
@@ -116,40 +103,22 @@ fn every_plot_draws_content_in_a_real_browser() {
     };
     let dir = temp_dir("browser");
     let pages = demo_report(&dir);
+    // the product's own PNG path: `report --png`, every figure through the browser
+    let png_dir = dir.join("png");
+    let (ok, out, err) = musculo_cli(
+        "report {} --out {} --png --chromium {}",
+        &[&dir.join("aug"), &png_dir, &browser],
+    );
+    assert!(ok, "{err}");
+    assert!(out.contains("figure(s) written as PNG"), "{out}");
     let mut checked = 0;
-    for page in ["squat.html", "index.html"] {
-        let html = std::fs::read_to_string(pages.join(page)).unwrap();
+    for page in ["squat", "index"] {
+        let html = std::fs::read_to_string(pages.join(format!("{page}.html"))).unwrap();
         for (id, svg) in plots(&html) {
-            let attr = |name: &str| -> u32 {
-                let i = svg.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
-                svg[i..i + svg[i..].find('"').unwrap()].parse().unwrap()
-            };
-            let (w, h) = (attr("width"), attr("height"));
-            let one = dir.join(format!("{id}.html"));
-            std::fs::write(
-                &one,
-                format!("<!DOCTYPE html><html><body style=\"margin:0\">{svg}</body></html>"),
-            )
-            .unwrap();
-            let png = dir.join(format!("{id}.png"));
-            let out = std::process::Command::new(&browser)
-                .args([
-                    "--headless",
-                    "--no-sandbox",
-                    "--disable-gpu",
-                    "--hide-scrollbars",
-                    &format!("--window-size={w},{h}"),
-                    &format!("--screenshot={}", png.display()),
-                ])
-                .arg(format!("file://{}", one.display()))
-                .output()
-                .expect("run chromium");
-            assert!(
-                png.is_file(),
-                "{id}: no screenshot: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
+            let png = png_dir.join(format!("{page}.{id}.png"));
+            assert!(png.is_file(), "{}", png.display());
             let drawn = coloured_pixels(&png);
+            let (w, h) = musculo::report::svg_size(&svg).unwrap();
             println!("{page} {id}: {w}×{h}, {drawn} pixels of drawn data");
             assert!(drawn >= 300, "{page} {id}: only {drawn} coloured pixels");
             checked += 1;

@@ -32,6 +32,37 @@ const MOST_LINES: usize = 8;
 /// Most columns of a heat map (frames are averaged into bins beyond it).
 const MOST_COLUMNS: usize = 300;
 
+/// The plots of a page written here: (id, `<svg>…</svg>`) of each
+/// `<figure class="plot" data-plot="id">`, in page order.
+pub fn figures(html: &str) -> Vec<(String, String)> {
+    const MARK: &str = "<figure class=\"plot\" data-plot=\"";
+    let mut out = Vec::new();
+    let mut rest = html;
+    while let Some(i) = rest.find(MARK) {
+        rest = &rest[i + MARK.len()..];
+        let Some(id_end) = rest.find('"') else { break };
+        let id = rest[..id_end].to_string();
+        let (Some(start), Some(end)) = (rest.find("<svg"), rest.find("</svg>")) else {
+            break;
+        };
+        if end < start {
+            break;
+        }
+        out.push((id, rest[start..end + 6].to_string()));
+        rest = &rest[end + 6..];
+    }
+    out
+}
+
+/// The pixel size (width, height) an `<svg width=… height=…>` declares.
+pub fn svg_size(svg: &str) -> Option<(u32, u32)> {
+    let attr = |name: &str| -> Option<u32> {
+        let i = svg.find(&format!("{name}=\""))? + name.len() + 2;
+        svg[i..i + svg[i..].find('"')?].parse().ok()
+    };
+    Some((attr("width")?, attr("height")?))
+}
+
 /// `text` with `&`, `<`, `>` and `"` escaped for HTML.
 pub fn escape(text: &str) -> String {
     text.replace('&', "&amp;")

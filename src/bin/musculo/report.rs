@@ -93,6 +93,13 @@ pub struct Args {
     /// Only the dataset page (no page per clip).
     #[arg(long)]
     no_clip_pages: bool,
+    /// Also write every figure as PNG beside its page (`<page>.<figure>.png`), rendered by
+    /// headless Chromium (`--chromium`, else MUSCULO_CHROMIUM, else `chromium` on the PATH).
+    #[arg(long)]
+    png: bool,
+    /// The Chromium executable for --png.
+    #[arg(long, requires = "png")]
+    chromium: Option<PathBuf>,
     #[command(flatten)]
     set: SetArgs,
 }
@@ -120,8 +127,21 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         )
     })?;
     bar.finish();
+    let mut pngs = 0;
+    if args.png {
+        let browser = chromium(args.chromium.as_deref())?;
+        let bar = FrameProgress::new("png");
+        for (i, page) in written.iter().enumerate() {
+            pngs += write_pngs(&browser, page)?;
+            bar.update(i + 1, written.len());
+        }
+        bar.finish();
+    }
     for (clip, reason) in &report.failed {
         eprintln!("failed: {clip}: {reason}");
+    }
+    if args.png {
+        println!("{pngs} figure(s) written as PNG beside their pages");
     }
     println!(
         "{} page(s) written; open {}",
@@ -143,4 +163,92 @@ pub fn dataset_report(
     let title = format!("musculo augment: {}", out.display());
     musculo::report::write_report(&title, &clips, &report, &options, dir, false, &|_, _| {})?;
     Ok(dir.join("index.html"))
+}
+
+/// The Chromium executable: `given`, else MUSCULO_CHROMIUM, else `chromium` or
+/// `chromium-browser` on the PATH.
+fn chromium(given: Option<&Path>) -> Result<PathBuf, musculo::Error> {
+    if let Some(p) = given {
+        return Ok(p.to_path_buf());
+    }
+    if let Some(p) = std::env::var_os("MUSCULO_CHROMIUM") {
+        return Ok(PathBuf::from(p));
+    }
+    std::env::var_os("PATH")
+        .and_then(|path| {
+            std::env::split_paths(&path)
+                .flat_map(|d| [d.join("chromium"), d.join("chromium-browser")])
+                .find(|p| p.is_file())
+        })
+        .ok_or_else(|| {
+            invalid(
+                "--png",
+                "needs headless Chromium (Debian: apt install chromium); name it with \
+                 --chromium or MUSCULO_CHROMIUM",
+            )
+        })
+}
+
+/// Renders every figure of the HTML page `page` to `<page without .html>.<figure>.png`
+/// beside it; returns how many.
+fn write_pngs(browser: &Path, page: &Path) -> Result<usize, musculo::Error> {
+    let io = |path: &Path, source| musculo::Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let html = std::fs::read_to_string(page).map_err(|e| io(page, e))?;
+    let scratch = std::env::temp_dir().join(format!("musculo-png-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch).map_err(|e| io(&scratch, e))?;
+    let stem = page.with_extension("");
+    let mut count = 0;
+    for (id, svg) in musculo::report::figures(&html) {
+        let (w, h) = musculo::report::svg_size(&svg).ok_or_else(|| {
+            invalid(
+                "--png",
+                format!("{}: figure {id} has no size", page.display()),
+            )
+        })?;
+        let one = scratch.join(format!("{id}.html"));
+        let text = format!("<!DOCTYPE html><html><body style=\"margin:0\">{svg}</body></html>");
+        std::fs::write(&one, text).map_err(|e| io(&one, e))?;
+        let target = PathBuf::from(format!("{}.{id}.png", stem.display()));
+        // drawn under a hidden name beside the target, then renamed: whole or not at all
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let partial = target.with_file_name(format!(".{name}.tmp-{}.png", std::process::id()));
+        let absolute = std::path::absolute(&partial).map_err(|e| io(&partial, e))?;
+        let _ = std::fs::remove_file(&absolute);
+        let out = std::process::Command::new(browser)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--hide-scrollbars",
+            ])
+            .arg(format!("--window-size={w},{h}"))
+            .arg(format!("--screenshot={}", absolute.display()))
+            .arg(format!("file://{}", one.display()))
+            .output()
+            .map_err(|e| io(browser, e))?;
+        if !absolute.is_file() {
+            return Err(invalid(
+                "--png",
+                format!(
+                    "{} drew no {}: {}",
+                    browser.display(),
+                    target.display(),
+                    String::from_utf8_lossy(&out.stderr)
+                        .lines()
+                        .last()
+                        .unwrap_or("")
+                ),
+            ));
+        }
+        std::fs::rename(&absolute, &target).map_err(|e| io(&target, e))?;
+        count += 1;
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+    Ok(count)
 }
