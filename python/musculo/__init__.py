@@ -20,6 +20,7 @@ from ._musculo import (
     __version__,
     augment_clip,
     augment_file,
+    evaluate,
     read_motion,
 )
 
@@ -30,6 +31,7 @@ __all__ = [
     "MusculoError",
     "augment_clip",
     "augment_file",
+    "evaluate",
     "read_motion",
     "__version__",
 ]

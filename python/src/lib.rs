@@ -1114,6 +1114,78 @@ fn augment_file<'py>(
     clip_output_dict(py, output)
 }
 
+/// Physical-plausibility metrics (`musculo evaluate`) of tensor files (`.npz` in musculo's
+/// format, e.g. written from `augment_clip`'s arrays or by a generator) and motion files,
+/// or folders of them: a dict with `clips` (one dict of metrics per clip), `failed`
+/// ([clip, reason] pairs) and `summary` (FlexMotion's columns). `floor` is a height in metres
+/// or "clip"; `model`, `reference` and `control` are paths as for the command; see the
+/// documentation of `musculo::evaluate` for every metric's definition and unit.
+#[pyfunction]
+#[pyo3(signature = (inputs, model = None, reference = None, control = None, floor = None, muscles_per_frame = false, format = None, map = None, length_unit = None))]
+#[allow(clippy::too_many_arguments)]
+fn evaluate<'py>(
+    py: Python<'py>,
+    inputs: Vec<PathBuf>,
+    model: Option<PathBuf>,
+    reference: Option<PathBuf>,
+    control: Option<PathBuf>,
+    floor: Option<Bound<'py, PyAny>>,
+    muscles_per_frame: bool,
+    format: Option<&str>,
+    map: Option<&str>,
+    length_unit: Option<&str>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use musculo::evaluate::{EvaluateOptions, SetOptions, collect, evaluate_set};
+    use musculo::motion::{Format, LengthUnit, ReadOptions};
+    let floor_height = match floor {
+        None => Some(0.0),
+        Some(f) if f.extract::<String>().is_ok_and(|s| s == "clip") => None,
+        Some(f) => Some(
+            f.extract::<f64>()
+                .map_err(|_| MusculoError::new_err("floor: give a height in metres or \"clip\""))?,
+        ),
+    };
+    let text = py
+        .detach(|| -> musculo::Result<String> {
+            let format = format.map(Format::parse).transpose()?;
+            let length_unit = length_unit
+                .map(|u| {
+                    LengthUnit::parse(u).ok_or_else(|| musculo::Error::InvalidArgument {
+                        argument: "length_unit",
+                        message: format!("`{u}`: use m, cm, mm, in or a number"),
+                    })
+                })
+                .transpose()?;
+            let map = match map {
+                Some(name) if name.ends_with(".json") => Some(
+                    musculo::motion::skeleton::SkeletonMap::read(std::path::Path::new(name))?,
+                ),
+                Some(name) => Some(musculo::motion::skeleton::SkeletonMap::builtin(name)?),
+                None => None,
+            };
+            let clips = collect(&inputs, format)?;
+            let options = SetOptions {
+                model,
+                reference,
+                control,
+                metrics: EvaluateOptions {
+                    floor_height,
+                    muscles_per_frame,
+                    ..EvaluateOptions::default()
+                },
+                read: ReadOptions { length_unit },
+                map,
+            };
+            let report = evaluate_set(&clips, &options, &|_, _| {})?;
+            serde_json::to_string(&report).map_err(|e| musculo::Error::InvalidArgument {
+                argument: "report",
+                message: e.to_string(),
+            })
+        })
+        .map_err(to_py)?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
 /// The augmentation chain on the built-in default model.
 fn default_chain(scale_to_clip: bool) -> musculo::Result<musculo::augment::chain::Chain> {
     use musculo::augment::chain::{Chain, ChainOptions};
@@ -1155,6 +1227,7 @@ fn _musculo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(augment_clip, m)?)?;
     m.add_function(wrap_pyfunction!(augment_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_motion, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add("MusculoError", m.py().get_type::<MusculoError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -401,3 +401,37 @@ def test_jax_muscle_loss_gives_the_loss_gradients(model):
     assert float(value) == pytest.approx(ref["loss"], rel=1e-12)
     for g, name in zip(grads, ["grad_q", "grad_qdd", "grad_a"]):
         np.testing.assert_allclose(np.asarray(g), ref[name], rtol=1e-12, atol=0)
+
+
+def test_evaluate_a_motion_file_and_augmented_tensors(tmp_path):
+    """musculo.evaluate: a motion file (through the chain without muscles) and the tensors of
+    the same clip written from augment_file's arrays give the same kinematic figures and a
+    zero Euler–Lagrange residual."""
+    if not os.path.exists(C3D):
+        pytest.skip("reference data not found")
+    direct = musculo.evaluate([C3D], map="c3d_lower_body")
+    assert direct["failed"] == [] and len(direct["clips"]) == 1
+    a = direct["clips"][0]
+    out = augment_file_cached()
+    keep = {k: v for k, v in out.items() if isinstance(v, np.ndarray)}
+    np.savez(tmp_path / "walking2.npz", **keep)
+    (tmp_path / "walking2.osim").write_text(out["model_xml"])
+    b = musculo.evaluate([str(tmp_path)])["clips"][0]
+    for key in ("frames", "skate", "skate_speed", "float", "penetrate"):
+        assert abs(a[key] - b[key]) <= 1e-6 * (1 + abs(a[key])), (key, a[key], b[key])
+    assert a["el_residual"] < 1e-6 and b["el_residual"] < 1e-6
+    summary = musculo.evaluate([str(tmp_path)], floor="clip")["summary"]
+    assert summary["clips"] == 1 and summary["float"] < a["float"]
+    with pytest.raises(musculo.MusculoError, match="no such file"):
+        musculo.evaluate([str(tmp_path / "missing.npz")])
+    with pytest.raises(musculo.MusculoError, match="floor"):
+        musculo.evaluate([str(tmp_path)], floor="ground")
+
+
+_AUGMENTED = {}
+
+
+def augment_file_cached():
+    if "walking2" not in _AUGMENTED:
+        _AUGMENTED["walking2"] = musculo.augment_file(C3D, map="c3d_lower_body")
+    return _AUGMENTED["walking2"]
