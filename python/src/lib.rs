@@ -1001,6 +1001,31 @@ fn ik_dict(
     Ok(d)
 }
 
+/// `length_unit`: a unit name or metres per file unit.
+fn length_unit_of(text: Option<&str>) -> musculo::Result<Option<musculo::motion::LengthUnit>> {
+    text.map(|u| {
+        musculo::motion::LengthUnit::parse(u).ok_or_else(|| musculo::Error::InvalidArgument {
+            argument: "length_unit",
+            message: format!("`{u}`: use m, cm, mm, in or a number"),
+        })
+    })
+    .transpose()
+}
+
+/// `map`: a JSON file (a `.json` name or an existing path) or a built-in map's name.
+fn skeleton_map_of(
+    name: Option<&str>,
+) -> musculo::Result<Option<musculo::motion::skeleton::SkeletonMap>> {
+    use musculo::motion::skeleton::SkeletonMap;
+    match name {
+        Some(n) if n.ends_with(".json") || std::path::Path::new(n).exists() => {
+            Ok(Some(SkeletonMap::read(std::path::Path::new(n))?))
+        }
+        Some(n) => Ok(Some(SkeletonMap::builtin(n)?)),
+        None => Ok(None),
+    }
+}
+
 /// A motion file read as `musculo ik` and `musculo augment` read it: the motion, its format
 /// and the skeleton map that applies (`map` given, else the format's built-in one; None for
 /// markers matched by name).
@@ -1015,25 +1040,15 @@ fn read_clip(
     Option<musculo::motion::skeleton::SkeletonMap>,
 )> {
     use musculo::motion::skeleton::SkeletonMap;
-    use musculo::motion::{Format, LengthUnit, ReadOptions};
+    use musculo::motion::{Format, ReadOptions};
     let format = match format {
         Some(f) => Format::parse(f)?,
         None => Format::detect(path)?,
     };
-    let length_unit = length_unit
-        .map(|u| {
-            LengthUnit::parse(u).ok_or_else(|| musculo::Error::InvalidArgument {
-                argument: "length_unit",
-                message: format!("`{u}`: use m, cm, mm, in or a number"),
-            })
-        })
-        .transpose()?;
+    let length_unit = length_unit_of(length_unit)?;
     let motion = musculo::motion::read(path, Some(format), &ReadOptions { length_unit })?;
-    let map = match map {
-        Some(name) if name.ends_with(".json") || std::path::Path::new(name).exists() => {
-            Some(SkeletonMap::read(std::path::Path::new(name))?)
-        }
-        Some(name) => Some(SkeletonMap::builtin(name)?),
+    let map = match skeleton_map_of(map)? {
+        Some(m) => Some(m),
         None => format.default_map().map(SkeletonMap::builtin).transpose()?,
     };
     Ok((motion, format, map))
@@ -1136,7 +1151,7 @@ fn evaluate<'py>(
     length_unit: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
     use musculo::evaluate::{EvaluateOptions, SetOptions, collect, evaluate_set};
-    use musculo::motion::{Format, LengthUnit, ReadOptions};
+    use musculo::motion::{Format, ReadOptions};
     let floor_height = match floor {
         None => Some(0.0),
         Some(f) if f.extract::<String>().is_ok_and(|s| s == "clip") => None,
@@ -1148,21 +1163,8 @@ fn evaluate<'py>(
     let text = py
         .detach(|| -> musculo::Result<String> {
             let format = format.map(Format::parse).transpose()?;
-            let length_unit = length_unit
-                .map(|u| {
-                    LengthUnit::parse(u).ok_or_else(|| musculo::Error::InvalidArgument {
-                        argument: "length_unit",
-                        message: format!("`{u}`: use m, cm, mm, in or a number"),
-                    })
-                })
-                .transpose()?;
-            let map = match map {
-                Some(name) if name.ends_with(".json") => Some(
-                    musculo::motion::skeleton::SkeletonMap::read(std::path::Path::new(name))?,
-                ),
-                Some(name) => Some(musculo::motion::skeleton::SkeletonMap::builtin(name)?),
-                None => None,
-            };
+            let length_unit = length_unit_of(length_unit)?;
+            let map = skeleton_map_of(map)?;
             let clips = collect(&inputs, format)?;
             let options = SetOptions {
                 model,

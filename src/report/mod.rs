@@ -107,12 +107,15 @@ fn column(a: &[f64], n: usize, j: usize) -> Vec<f64> {
     a.chunks(n).map(|r| r[j]).collect()
 }
 
-/// One optional T × … array of the file at `path`, as f64.
-fn extra_array(path: &Path, name: &str) -> crate::Result<Option<(Vec<usize>, Vec<f64>)>> {
-    Ok(read_npz_as_f64(path)?
-        .into_iter()
+/// One optional array of `arrays` (shape, values).
+fn extra_array(
+    arrays: &[(String, ndarray::ArrayD<f64>)],
+    name: &str,
+) -> Option<(Vec<usize>, Vec<f64>)> {
+    arrays
+        .iter()
         .find(|(k, _)| k == name)
-        .map(|(_, a)| (a.shape().to_vec(), a.iter().copied().collect())))
+        .map(|(_, a)| (a.shape().to_vec(), a.iter().copied().collect()))
 }
 
 /// The metrics as a two-row table.
@@ -146,7 +149,9 @@ pub fn clip_page(
     metrics: Option<&ClipMetrics>,
     record: Option<&ClipRecord>,
 ) -> crate::Result<String> {
-    let frames = TensorFrames::read(path, model)?;
+    // the file read once: its frames, and the arrays only the plots need
+    let arrays = read_npz_as_f64(path)?;
+    let frames = TensorFrames::from_arrays(&arrays, model, &path.display().to_string())?;
     let reference = match reference {
         Some(p) => Some(TensorFrames::read(p, model)?),
         None => None,
@@ -274,7 +279,7 @@ pub fn clip_page(
     // ground reactions and centres of pressure per contact group
     let groups = set.groups();
     let g = groups.len();
-    let cop = extra_array(path, "cop")?;
+    let cop = extra_array(&arrays, "cop");
     if frames.groups == g && !frames.grf.is_empty() {
         let up = |grf: &[f64], k: usize, axis: usize| -> Vec<f64> {
             (0..t_count).map(|f| grf[3 * (f * g + k) + axis]).collect()
@@ -340,7 +345,7 @@ pub fn clip_page(
         }
     }
     // contact timeline
-    if let Some((shape, state)) = extra_array(path, "contact_state")?
+    if let Some((shape, state)) = extra_array(&arrays, "contact_state")
         && shape.len() == 2
         && shape[1] == set.points.len()
     {
