@@ -20,24 +20,11 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 fn chain() -> Chain {
-    Chain::new(
-        musculo::DEFAULT_MODEL_OSIM.to_string(),
-        "models/musculo_fullbody.osim".into(),
-        ChainOptions::default(),
-    )
-    .unwrap()
+    Chain::default_model(ChainOptions::default()).unwrap()
 }
 
 fn demo_inputs(chain: &Chain) -> Vec<ClipInput> {
-    demo::clips(&chain.model)
-        .unwrap()
-        .into_iter()
-        .map(|(name, motion)| ClipInput {
-            input: format!("demo:{name}"),
-            name,
-            source: ClipSource::Motion(Box::new(motion)),
-        })
-        .collect()
+    demo::inputs(&chain.model).unwrap()
 }
 
 fn options(out: &Path) -> RunOptions {

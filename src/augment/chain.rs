@@ -165,6 +165,15 @@ pub struct Chain {
 }
 
 impl Chain {
+    /// A chain on the built-in default full-body model.
+    pub fn default_model(options: ChainOptions) -> crate::Result<Chain> {
+        Chain::new(
+            crate::DEFAULT_MODEL_OSIM.to_string(),
+            "models/musculo_fullbody.osim".into(),
+            options,
+        )
+    }
+
     /// A chain on the model in `xml` (named `source` in messages).
     pub fn new(xml: String, source: String, options: ChainOptions) -> crate::Result<Chain> {
         if !(options.reserve_optimal_force > 0.0 && options.reserve_optimal_force.is_finite()) {

@@ -35,6 +35,19 @@ pub fn clips(model: &Model) -> crate::Result<Vec<(String, Motion)>> {
     Ok(out)
 }
 
+/// The demo clips as inputs of [`super::runner::run`] (named `demo:<clip>`), on `model` (the
+/// default model).
+pub fn inputs(model: &Model) -> crate::Result<Vec<super::runner::ClipInput>> {
+    Ok(clips(model)?
+        .into_iter()
+        .map(|(name, motion)| super::runner::ClipInput {
+            input: format!("demo:{name}"),
+            name,
+            source: super::runner::ClipSource::Motion(Box::new(motion)),
+        })
+        .collect())
+}
+
 /// The coordinates of clip `name` at time t (s), through `set(coordinate, value)`.
 fn pose(name: &str, t: f64, set: &mut dyn FnMut(&str, f64)) {
     let deg = PI / 180.0;

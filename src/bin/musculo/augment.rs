@@ -6,7 +6,7 @@ use crate::tool::{invalid, model_text, read_options, skeleton_map};
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::augment::chain::{Chain, ChainOptions};
 use musculo::augment::perturb::PerturbationRanges;
-use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
+use musculo::augment::runner::{self, ClipInput, RunOptions};
 use musculo::augment::{demo, describe};
 use musculo::motion::Format;
 use std::path::PathBuf;
@@ -154,14 +154,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     let chain = Chain::new(xml, source, options)?;
     let layout = describe(&chain)?;
     let clips: Vec<ClipInput> = if args.demo {
-        demo::clips(&chain.model)?
-            .into_iter()
-            .map(|(name, motion)| ClipInput {
-                input: format!("demo:{name}"),
-                name,
-                source: ClipSource::Motion(Box::new(motion)),
-            })
-            .collect()
+        demo::inputs(&chain.model)?
     } else {
         runner::list_inputs(&args.input, args.format)?
     };
