@@ -7,6 +7,7 @@ mod export_mjcf;
 mod id;
 mod ik;
 mod inspect;
+mod learn;
 mod loss;
 mod model;
 mod muscles;
@@ -97,6 +98,12 @@ enum Command {
     /// contacts, muscle activations and reserves; a dataset page with the metrics'
     /// distributions and the worst clips.
     Report(report::Args),
+    /// Train the physics-aware motion autoencoder on tensor files (runs `musculo-learn
+    /// train-ae`, the learned module: `cargo build --release -p musculo-learn`).
+    TrainAe(learn::Args),
+    /// Reconstruct tensor files with a trained autoencoder and report the joint-position error
+    /// and the Euler–Lagrange residual (runs `musculo-learn reconstruct`).
+    Reconstruct(learn::Args),
 }
 
 fn main() -> ExitCode {
@@ -117,6 +124,8 @@ fn main() -> ExitCode {
         },
         Command::Merge(args) => augment::merge(&args),
         Command::Loss(args) => loss::run(&args),
+        Command::TrainAe(args) => return learn::run("train-ae", &args),
+        Command::Reconstruct(args) => return learn::run("reconstruct", &args),
         Command::Report(args) => match report::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,

@@ -1,0 +1,422 @@
+//! Training data: the tensor files of `musculo augment`, read into per-frame feature vectors.
+//!
+//! Each frame of a clip becomes one vector y_t of D values, the modalities of METHOD.md §1 in
+//! the form the physics losses take them (SI units, ground frame):
+//!
+//! ```text
+//! y_t = [ p_t (J×3, m) | q_t | q̇_t | q̈_t | τ_t (n each) | λ_t (P×3, N) | a_t (m) ]
+//! ```
+//!
+//! - p: `joint_pos`, the joint centres — what a person looks at, and what the reconstruction
+//!   error is measured on;
+//! - q, q̇, q̈, τ: `q`, `qd`, `qdd`, `tau`, the model's n independent coordinates (radians and
+//!   metres), their rates and the generalized forces (N·m or N);
+//! - λ: `contact_point_force`, the ground force at each of the model's P contact spheres, each
+//!   acting at the sphere's lowest point (the contact points of [`musculo::loss::EulerLagrange`]);
+//! - a: `muscle_act`, the m muscle activations.
+//!
+//! The coordinate blocks stand in for the per-joint rotations of METHOD.md §1 because the
+//! losses are exact in them: r = M q̈ + C q̇ + G − τ − J_cᵀλ needs q, q̇, q̈, τ and λ as they are,
+//! and going back from per-joint rotations to q is a fit. A decoded y_t is therefore a motion the
+//! physics can judge directly (`musculo loss`, `musculo evaluate`).
+//!
+//! The network sees standardized features, (y − μ)/σ per feature with the set's mean and
+//! standard deviation ([`Normalizer`]); a feature that barely varies (a locked coordinate, a
+//! contact sphere that never touches) gets the floor σ = max(σ, 1 % of its block's mean σ) so
+//! that it is neither amplified nor divided by zero.
+
+use musculo::loss::tensor_file::TensorFrames;
+use musculo::model::Model;
+use musculo::motion::npy::read_npz_as_f64;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+/// Where each modality sits in a frame's feature vector.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FeatureLayout {
+    /// J, the joints of `joint_pos`.
+    pub joints: usize,
+    /// n, the model's independent coordinates.
+    pub coordinates: usize,
+    /// P, the contact points of λ.
+    pub contacts: usize,
+    /// m, the muscles of a.
+    pub muscles: usize,
+}
+
+impl FeatureLayout {
+    /// D, the width of a frame's vector.
+    pub fn width(&self) -> usize {
+        3 * self.joints + 4 * self.coordinates + 3 * self.contacts + self.muscles
+    }
+
+    /// The blocks in order, each with its name and range.
+    pub fn blocks(&self) -> [(&'static str, Range<usize>); 7] {
+        let (j, n, p, m) = (
+            3 * self.joints,
+            self.coordinates,
+            3 * self.contacts,
+            self.muscles,
+        );
+        let mut start = 0;
+        let mut next = |len: usize| {
+            let r = start..start + len;
+            start += len;
+            r
+        };
+        [
+            ("joint_pos", next(j)),
+            ("q", next(n)),
+            ("qd", next(n)),
+            ("qdd", next(n)),
+            ("tau", next(n)),
+            ("contact_point_force", next(p)),
+            ("muscle_act", next(m)),
+        ]
+    }
+
+    /// The range of block `name` (one of [`Self::blocks`]'s names).
+    pub fn block(&self, name: &str) -> Range<usize> {
+        self.blocks()
+            .into_iter()
+            .find(|(k, _)| *k == name)
+            .map(|(_, r)| r)
+            .unwrap_or(0..0)
+    }
+}
+
+/// One clip: T frames × D features, SI units.
+#[derive(Clone, Debug)]
+pub struct Clip {
+    pub name: String,
+    pub frames: usize,
+    /// T × D, row-major.
+    pub y: Vec<f32>,
+    /// Whether the clip's body is the model's own: false for augmentation variants with a
+    /// changed height, mass or carried load, whose dynamics the physics losses (on the unscaled
+    /// model) would judge wrongly. Such clips are reconstructed but left out of the physics terms.
+    pub body_is_model: bool,
+}
+
+/// The clips of a training set, one layout for all.
+#[derive(Clone, Debug)]
+pub struct ClipSet {
+    pub layout: FeatureLayout,
+    pub clips: Vec<Clip>,
+    /// The frame rate shared by every clip (Hz).
+    pub rate_hz: f64,
+}
+
+/// Errors of the learned module, each naming what it is about.
+#[derive(Debug, thiserror::Error)]
+pub enum LearnError {
+    #[error(transparent)]
+    Musculo(#[from] musculo::Error),
+    #[error("{what}: {message}")]
+    Invalid { what: String, message: String },
+    #[error("{path}: {message}")]
+    File { path: PathBuf, message: String },
+}
+
+impl LearnError {
+    pub fn invalid(what: impl Into<String>, message: impl Into<String>) -> LearnError {
+        LearnError::Invalid {
+            what: what.into(),
+            message: message.into(),
+        }
+    }
+}
+
+pub type Result<T> = std::result::Result<T, LearnError>;
+
+impl ClipSet {
+    /// Reads the tensor files `inputs` (files, or folders searched recursively for `.npz`
+    /// files other than `stats.npz`) for `model`. A folder with a `manifest.json` of
+    /// `musculo augment` also tells which clips are variants with a changed body.
+    pub fn read(inputs: &[PathBuf], model: &Model) -> Result<ClipSet> {
+        let mut files = Vec::new();
+        let mut variants = Vec::new();
+        for input in inputs {
+            if input.is_dir() {
+                collect_npz(input, &mut files)?;
+                variants.extend(changed_bodies(input)?);
+            } else if input.is_file() {
+                files.push(input.clone());
+            } else {
+                return Err(LearnError::File {
+                    path: input.clone(),
+                    message: "no such file or folder".into(),
+                });
+            }
+        }
+        files.sort();
+        if files.is_empty() {
+            return Err(LearnError::invalid(
+                "training data",
+                format!("no tensor files (.npz) in {}", show_paths(inputs)),
+            ));
+        }
+        let mut set: Option<ClipSet> = None;
+        for file in &files {
+            let name = file
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let (clip, layout, rate) = read_clip(file, &name, model)?;
+            let clip = Clip {
+                body_is_model: !variants.iter().any(|v| v == &name),
+                ..clip
+            };
+            match &mut set {
+                None => {
+                    set = Some(ClipSet {
+                        layout,
+                        clips: vec![clip],
+                        rate_hz: rate,
+                    })
+                }
+                Some(s) => {
+                    if s.layout != layout {
+                        return Err(LearnError::File {
+                            path: file.clone(),
+                            message: format!(
+                                "layout {layout:?} differs from the first file's {:?}",
+                                s.layout
+                            ),
+                        });
+                    }
+                    if (s.rate_hz - rate).abs() > 1e-6 * rate {
+                        return Err(LearnError::File {
+                            path: file.clone(),
+                            message: format!(
+                                "{rate} frames/s, the first file has {} (resample the set to one rate)",
+                                s.rate_hz
+                            ),
+                        });
+                    }
+                    s.clips.push(clip);
+                }
+            }
+        }
+        set.ok_or_else(|| LearnError::invalid("training data", "no clips"))
+    }
+
+    /// Every frame of every clip.
+    pub fn frames(&self) -> usize {
+        self.clips.iter().map(|c| c.frames).sum()
+    }
+}
+
+/// One tensor file as a clip.
+fn read_clip(path: &Path, name: &str, model: &Model) -> Result<(Clip, FeatureLayout, f64)> {
+    let arrays = read_npz_as_f64(path)?;
+    let source = path.display().to_string();
+    let frames = TensorFrames::from_arrays(&arrays, model, &source)?;
+    let file_error = |message: String| LearnError::File {
+        path: path.to_path_buf(),
+        message,
+    };
+    if frames.layout_error.is_some() {
+        return Err(file_error(
+            "holds only the per-joint layout (no q, qd, qdd, tau): train on files of `musculo augment`".into(),
+        ));
+    }
+    if frames.muscles == 0 {
+        return Err(file_error("has no `muscle_act`".into()));
+    }
+    if !frames.external.is_empty() && frames.external.iter().any(|v| *v != 0.0) {
+        return Err(file_error(
+            "carries measured external loads (`external`), which the feature vector has no place for".into(),
+        ));
+    }
+    let joint_pos = arrays
+        .iter()
+        .find(|(k, _)| k == "joint_pos")
+        .map(|(_, a)| a)
+        .ok_or_else(|| file_error("has no array `joint_pos`".into()))?;
+    let t = frames.frames;
+    if joint_pos.ndim() != 3 || joint_pos.shape()[0] != t || joint_pos.shape()[2] != 3 {
+        return Err(file_error(format!(
+            "`joint_pos` has shape {:?}, expected ({t}, J, 3)",
+            joint_pos.shape()
+        )));
+    }
+    let layout = FeatureLayout {
+        joints: joint_pos.shape()[1],
+        coordinates: model.nq(),
+        contacts: frames.contacts,
+        muscles: frames.muscles,
+    };
+    let rate = frames.rate_hz()?;
+    let d = layout.width();
+    let (n, p, m) = (layout.coordinates, 3 * layout.contacts, layout.muscles);
+    let pos: Vec<f64> = joint_pos.iter().copied().collect();
+    let mut y = Vec::with_capacity(t * d);
+    for f in 0..t {
+        let j = 3 * layout.joints;
+        y.extend(pos[f * j..(f + 1) * j].iter().map(|v| *v as f32));
+        for block in [&frames.q, &frames.qd, &frames.qdd, &frames.tau] {
+            y.extend(block[f * n..(f + 1) * n].iter().map(|v| *v as f32));
+        }
+        if p > 0 {
+            y.extend(frames.lambda[f * p..(f + 1) * p].iter().map(|v| *v as f32));
+        }
+        y.extend(
+            frames.muscle_act[f * m..(f + 1) * m]
+                .iter()
+                .map(|v| *v as f32),
+        );
+    }
+    if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+        return Err(file_error(format!(
+            "frame {}: feature {} is not finite",
+            i / d,
+            i % d
+        )));
+    }
+    let clip = Clip {
+        name: name.to_string(),
+        frames: t,
+        y,
+        body_is_model: true,
+    };
+    Ok((clip, layout, rate))
+}
+
+fn collect_npz(dir: &Path, files: &mut Vec<PathBuf>) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| LearnError::File {
+        path: dir.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    for entry in entries {
+        let path = entry
+            .map_err(|e| LearnError::File {
+                path: dir.to_path_buf(),
+                message: e.to_string(),
+            })?
+            .path();
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+        let hidden = name.as_deref().is_some_and(|n| n.starts_with('.'));
+        if hidden {
+            continue;
+        }
+        if path.is_dir() {
+            collect_npz(&path, files)?;
+        } else if path.extension().is_some_and(|e| e == "npz")
+            && name.as_deref() != Some("stats.npz")
+        {
+            files.push(path);
+        }
+    }
+    Ok(())
+}
+
+/// The clip names of `dir/manifest.json` whose variant changed the body (height, mass or a
+/// carried load); none without a manifest.
+fn changed_bodies(dir: &Path) -> Result<Vec<String>> {
+    let path = dir.join("manifest.json");
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(Vec::new());
+    };
+    let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| LearnError::File {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    let mut out = Vec::new();
+    for clip in json["clips"].as_array().into_iter().flatten() {
+        let v = &clip["variant"];
+        let number = |k: &str, neutral: f64| v[k].as_f64().unwrap_or(neutral);
+        let changed = (number("height_scale", 1.0) - 1.0).abs() > 1e-12
+            || (number("mass_scale", 1.0) - 1.0).abs() > 1e-12
+            || number("load_kg", 0.0) != 0.0;
+        if let (true, Some(name)) = (changed, clip["clip"].as_str()) {
+            out.push(name.rsplit('/').next().unwrap_or(name).to_string());
+        }
+    }
+    Ok(out)
+}
+
+fn show_paths(paths: &[PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Augments the demo clips of `musculo augment --demo` (default model, default chain) into
+/// folder `out`: a small training set on any machine (3 clips, 330 frames at 30 Hz).
+pub fn augment_demo(out: &Path) -> Result<()> {
+    use musculo::augment::chain::{Chain, ChainOptions};
+    use musculo::augment::runner::{self, RunOptions};
+    use musculo::augment::{demo, describe};
+    let chain = Chain::default_model(ChainOptions::default())?;
+    let layout = describe(&chain)?;
+    let clips = demo::inputs(&chain.model)?;
+    runner::run(&chain, &layout, &clips, &RunOptions::new(out), &|_| {})?;
+    Ok(())
+}
+
+/// Per-feature standardization: z = (y − μ)/σ.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Normalizer {
+    pub mean: Vec<f32>,
+    pub std: Vec<f32>,
+}
+
+impl Normalizer {
+    /// μ and σ of every feature over all frames of `set`, σ floored per block (module docs).
+    pub fn of(set: &ClipSet) -> Normalizer {
+        let d = set.layout.width();
+        let count = set.frames().max(1) as f64;
+        let mut sum = vec![0.0f64; d];
+        let mut sq = vec![0.0f64; d];
+        for clip in &set.clips {
+            for row in clip.y.chunks(d) {
+                for i in 0..d {
+                    let v = row[i] as f64;
+                    sum[i] += v;
+                    sq[i] += v * v;
+                }
+            }
+        }
+        let mean: Vec<f64> = sum.iter().map(|s| s / count).collect();
+        let mut std: Vec<f64> = (0..d)
+            .map(|i| (sq[i] / count - mean[i] * mean[i]).max(0.0).sqrt())
+            .collect();
+        for (_, range) in set.layout.blocks() {
+            if range.is_empty() {
+                continue;
+            }
+            let typical = std[range.clone()].iter().sum::<f64>() / range.len() as f64;
+            let floor = (0.01 * typical).max(1e-6);
+            for s in &mut std[range] {
+                *s = s.max(floor);
+            }
+        }
+        Normalizer {
+            mean: mean.iter().map(|v| *v as f32).collect(),
+            std: std.iter().map(|v| *v as f32).collect(),
+        }
+    }
+
+    /// Standardizes rows of D values in place.
+    pub fn normalize(&self, y: &mut [f32]) {
+        let d = self.mean.len();
+        for row in y.chunks_mut(d) {
+            for i in 0..d {
+                row[i] = (row[i] - self.mean[i]) / self.std[i];
+            }
+        }
+    }
+
+    /// Undoes [`Self::normalize`] in place.
+    pub fn denormalize(&self, z: &mut [f32]) {
+        let d = self.mean.len();
+        for row in z.chunks_mut(d) {
+            for i in 0..d {
+                row[i] = row[i] * self.std[i] + self.mean[i];
+            }
+        }
+    }
+}

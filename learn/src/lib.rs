@@ -1,0 +1,21 @@
+//! musculo's learned module (ARCHITECTURE.md: `learn/`, a workspace member kept out of the
+//! default build): a physics-aware motion autoencoder on burn, trained on the tensors of
+//! `musculo augment`, with the Euler–Lagrange and muscle losses of musculo's `loss` module
+//! joined to burn's autodiff as a custom backward operation.
+//!
+//! - [`data`]: tensor files → per-frame feature vectors, and their standardization;
+//! - [`autoencoder`]: the Transformer autoencoder with a temporally downsampled latent;
+//! - [`physics`]: the physics terms as burn's custom op (value and gradient from musculo);
+//! - [`train`]: the training loop, reconstruction and its quality figures;
+//! - [`checkpoint`]: saving and loading a trained autoencoder.
+//!
+//! Backend: burn's NdArray (CPU) with autodiff; every tensor lives on a `Device`
+//! (`Device::flex()`, `.autodiff()` for training).
+
+pub mod autoencoder;
+pub mod checkpoint;
+pub mod data;
+pub mod physics;
+pub mod train;
+
+pub use data::{ClipSet, LearnError, Result};

@@ -1,0 +1,447 @@
+//! Training the autoencoder: Adam on random windows of the set's clips, the loss
+//!
+//! ```text
+//! L = (1 / (B·T·D)) Σ (ẑ − z)²                       reconstruction, standardized units
+//!   + L_phys(ẑ)                                       crate::physics (w_E, w_M inside)
+//!   + w_a · (1 / (B·T·m)) Σ (max(0, −â) + max(0, â − 1))² / σ_a²      activation bounds
+//! ```
+//!
+//! with â the decoded activations in SI units. The learning rate follows a cosine from its
+//! initial value to a tenth of it at the last step. Each step draws B windows of T frames: a clip
+//! with probability proportional to its frames, a start uniform over the clip — from the
+//! SplitMix64 stream of the seed, so that a seed fixes the run (with the network's
+//! initialization seeded from the same number).
+//!
+//! [`reconstruct`] runs a trained model over whole clips (windows of T frames; a clip's last
+//! window is aligned to its end) and [`Reconstruction`] measures what came back: the joint
+//! position error (m) and the Euler–Lagrange residual of the decoded q, q̇, q̈, τ, λ.
+
+use crate::autoencoder::{Autoencoder, AutoencoderConfig};
+use crate::data::{ClipSet, FeatureLayout, LearnError, Normalizer, Result};
+use crate::physics::{Physics, PhysicsCall, PhysicsWeights, physics_loss};
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor, TensorData};
+use musculo::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput};
+use musculo::model::Model;
+use musculo::random::SplitMix64;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The training run's settings.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct TrainConfig {
+    pub steps: usize,
+    /// B, windows per step.
+    pub batch: usize,
+    /// T, frames per window (a multiple of the autoencoder's k).
+    pub window: usize,
+    pub learning_rate: f64,
+    pub seed: u64,
+    /// The physics terms; both weights 0 trains on the reconstruction alone.
+    pub physics: PhysicsWeights,
+    /// w_a, the activation-bound penalty.
+    pub bound_weight: f64,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            steps: 2000,
+            batch: 8,
+            window: 64,
+            learning_rate: 1e-3,
+            seed: 0,
+            physics: PhysicsWeights::default(),
+            bound_weight: 1.0,
+        }
+    }
+}
+
+/// One step's losses (the weighted terms' values before weighting) and the time so far.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct StepLog {
+    pub step: usize,
+    pub total: f64,
+    pub reconstruction: f64,
+    pub euler: f64,
+    pub muscle: f64,
+    pub bounds: f64,
+    pub seconds: f64,
+}
+
+impl StepLog {
+    /// The CSV header of [`Self::csv_row`].
+    pub const CSV_HEADER: &'static str = "step,total,reconstruction,euler,muscle,bounds,seconds";
+
+    /// One CSV row.
+    pub fn csv_row(&self) -> String {
+        format!(
+            "{},{:e},{:e},{:e},{:e},{:e},{:.3}",
+            self.step,
+            self.total,
+            self.reconstruction,
+            self.euler,
+            self.muscle,
+            self.bounds,
+            self.seconds
+        )
+    }
+}
+
+/// A trained autoencoder with what it needs to be used: its sizes and the standardization.
+#[derive(Debug)]
+pub struct Trained {
+    pub model: Autoencoder,
+    pub config: AutoencoderConfig,
+    pub normalizer: Normalizer,
+    pub layout: FeatureLayout,
+    pub log: Vec<StepLog>,
+}
+
+/// Trains an autoencoder of `config` on `set` (`model`: the musculoskeletal model the clips
+/// were augmented with, for the physics terms) on `device` (an autodiff device), calling
+/// `progress` after each step.
+pub fn train_autoencoder(
+    set: &ClipSet,
+    model: &Model,
+    config: &AutoencoderConfig,
+    train: &TrainConfig,
+    device: &Device,
+    progress: &mut dyn FnMut(&StepLog),
+) -> Result<Trained> {
+    validate(set, config, train)?;
+    let d = set.layout.width();
+    let normalizer = Normalizer::of(set);
+    let clips: Vec<Vec<f32>> = set
+        .clips
+        .iter()
+        .map(|c| {
+            let mut z = c.y.clone();
+            normalizer.normalize(&mut z);
+            z
+        })
+        .collect();
+    let physics = if train.physics.euler > 0.0 || train.physics.muscle > 0.0 {
+        Some(Arc::new(Physics::new(
+            model.clone(),
+            set.layout.clone(),
+            normalizer.clone(),
+            train.physics,
+        )?))
+    } else {
+        None
+    };
+    device.seed(train.seed);
+    let mut net = config.init(device);
+    let mut optimizer = AdamConfig::new().init();
+    let mut rng = SplitMix64(musculo::random::mix(train.seed));
+    let total_frames = set.frames();
+    let (b, t) = (train.batch, train.window);
+    let acts = set.layout.block("muscle_act");
+    let (a_mean, a_std): (Vec<f32>, Vec<f32>) = acts
+        .clone()
+        .map(|i| (normalizer.mean[i], normalizer.std[i]))
+        .unzip();
+    let a_mean = Tensor::<1>::from_floats(a_mean.as_slice(), device).reshape([1, 1, acts.len()]);
+    let a_std = Tensor::<1>::from_floats(a_std.as_slice(), device).reshape([1, 1, acts.len()]);
+    let start = Instant::now();
+    let mut log = Vec::with_capacity(train.steps);
+    for step in 0..train.steps {
+        let mut batch = Vec::with_capacity(b * t * d);
+        let mut include = Vec::with_capacity(b);
+        for _ in 0..b {
+            let mut pick = (rng.unit() * total_frames as f64) as usize;
+            let mut c = 0;
+            while pick >= set.clips[c].frames {
+                pick -= set.clips[c].frames;
+                c += 1;
+            }
+            let clip = &set.clips[c];
+            let s = (rng.unit() * (clip.frames - t + 1) as f64) as usize;
+            batch.extend_from_slice(&clips[c][s * d..(s + t) * d]);
+            include.push(clip.body_is_model);
+        }
+        let z = Tensor::<3>::from_data(TensorData::new(batch, [b, t, d]), device);
+        let z_hat = net.forward(z.clone());
+        let reconstruction = (z_hat.clone() - z).powf_scalar(2.0).mean();
+        let mut loss = reconstruction.clone();
+        let (mut euler, mut muscle) = (0.0, 0.0);
+        if let Some(physics) = &physics {
+            let call = PhysicsCall {
+                physics: physics.clone(),
+                include: Arc::new(include.clone()),
+            };
+            // the term's parts, for the log (the op itself returns only their weighted sum)
+            let parts = physics.evaluate(
+                &z_hat.to_data().try_to_vec::<f32>().unwrap_or_default(),
+                b,
+                t,
+                &include,
+                false,
+            )?;
+            euler = parts.euler;
+            muscle = parts.muscle;
+            loss = loss + physics_loss(z_hat.clone(), call).reshape([1]);
+        }
+        let a = z_hat.slice([0..b, 0..t, acts.clone()]) * a_std.clone() + a_mean.clone();
+        let outside = relu(-a.clone()) + relu(a - 1.0);
+        let bounds = (outside / a_std.clone()).powf_scalar(2.0).mean();
+        if train.bound_weight > 0.0 {
+            loss = loss + bounds.clone() * train.bound_weight;
+        }
+        let total: f64 = loss.clone().into_scalar::<f32>() as f64;
+        if !total.is_finite() {
+            return Err(LearnError::invalid(
+                "training",
+                format!("step {step}: the loss is {total} (lower the learning rate)"),
+            ));
+        }
+        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        // cosine decay: lr · (0.1 + 0.9 · (1 + cos(π s / S)) / 2)
+        let progress_fraction = step as f64 / train.steps.max(1) as f64;
+        let lr = train.learning_rate
+            * (0.1 + 0.45 * (1.0 + (std::f64::consts::PI * progress_fraction).cos()));
+        net = optimizer.step(lr, net, grads);
+        let entry = StepLog {
+            step,
+            total,
+            reconstruction: reconstruction.into_scalar::<f32>() as f64,
+            euler,
+            muscle,
+            bounds: bounds.into_scalar::<f32>() as f64,
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        progress(&entry);
+        log.push(entry);
+    }
+    Ok(Trained {
+        model: net.valid(),
+        config: AutoencoderConfig { ..config.clone() },
+        normalizer,
+        layout: set.layout.clone(),
+        log,
+    })
+}
+
+fn validate(set: &ClipSet, config: &AutoencoderConfig, train: &TrainConfig) -> Result<()> {
+    let bad = |m: String| Err(LearnError::invalid("training settings", m));
+    if config.features != set.layout.width() {
+        return bad(format!(
+            "the autoencoder takes {} features, the data have {}",
+            config.features,
+            set.layout.width()
+        ));
+    }
+    if train.window == 0
+        || config.downsample == 0
+        || !train.window.is_multiple_of(config.downsample)
+    {
+        return bad(format!(
+            "window {} must be a positive multiple of the downsampling {}",
+            train.window, config.downsample
+        ));
+    }
+    if train.window > config.max_frames {
+        return bad(format!(
+            "window {} is longer than the position encoding's {} frames",
+            train.window, config.max_frames
+        ));
+    }
+    if train.batch == 0 || train.steps == 0 {
+        return bad("batch and steps must be ≥ 1".into());
+    }
+    if !(train.learning_rate > 0.0 && train.learning_rate.is_finite()) {
+        return bad(format!("learning rate {}", train.learning_rate));
+    }
+    if let Some(c) = set.clips.iter().find(|c| c.frames < train.window) {
+        return bad(format!(
+            "clip {} has {} frames, fewer than the window of {} (shorten --window)",
+            c.name, c.frames, train.window
+        ));
+    }
+    if config.heads == 0 || !config.d_model.is_multiple_of(config.heads) {
+        return bad(format!(
+            "d_model {} is not a multiple of {} heads",
+            config.d_model, config.heads
+        ));
+    }
+    Ok(())
+}
+
+/// A clip's frames decoded by a trained autoencoder, in SI units (T × D).
+#[derive(Clone, Debug)]
+pub struct Reconstruction {
+    pub name: String,
+    pub frames: usize,
+    pub y: Vec<f32>,
+}
+
+/// Every clip of `set` through `trained` (inference device `device`), in windows of `window`
+/// frames (a multiple of k, at most the shortest clip); overlapping frames of a clip's last
+/// window take that window's values.
+pub fn reconstruct(
+    trained: &Trained,
+    set: &ClipSet,
+    window: usize,
+    device: &Device,
+) -> Result<Vec<Reconstruction>> {
+    let d = set.layout.width();
+    let k = trained.model.downsample();
+    if set.layout != trained.layout {
+        return Err(LearnError::invalid(
+            "reconstruction",
+            "the data's layout differs from the model's",
+        ));
+    }
+    if window == 0 || !window.is_multiple_of(k) {
+        return Err(LearnError::invalid(
+            "reconstruction",
+            format!("window {window} is not a positive multiple of {k}"),
+        ));
+    }
+    let mut out = Vec::new();
+    for clip in &set.clips {
+        if clip.frames < window {
+            return Err(LearnError::invalid(
+                "reconstruction",
+                format!("clip {} is shorter than the window {window}", clip.name),
+            ));
+        }
+        let mut z = clip.y.clone();
+        trained.normalizer.normalize(&mut z);
+        let mut starts: Vec<usize> = (0..=clip.frames - window).step_by(window).collect();
+        if starts.last() != Some(&(clip.frames - window)) {
+            starts.push(clip.frames - window);
+        }
+        let mut batch = Vec::with_capacity(starts.len() * window * d);
+        for s in &starts {
+            batch.extend_from_slice(&z[s * d..(s + window) * d]);
+        }
+        let input =
+            Tensor::<3>::from_data(TensorData::new(batch, [starts.len(), window, d]), device);
+        let decoded: Vec<f32> = trained
+            .model
+            .forward(input)
+            .into_data()
+            .try_to_vec::<f32>()
+            .map_err(|e| LearnError::invalid("reconstruction", format!("{e:?}")))?;
+        let mut y = vec![0.0f32; clip.frames * d];
+        for (w, s) in starts.iter().enumerate() {
+            let src = &decoded[w * window * d..(w + 1) * window * d];
+            y[s * d..(s + window) * d].copy_from_slice(src);
+        }
+        trained.normalizer.denormalize(&mut y);
+        out.push(Reconstruction {
+            name: clip.name.clone(),
+            frames: clip.frames,
+            y,
+        });
+    }
+    Ok(out)
+}
+
+/// What a reconstruction kept: errors against the clip and its physics.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ReconstructionQuality {
+    /// Mean over frames and joints of ‖p̂ − p‖ (m).
+    pub joint_pos_error: f64,
+    /// Root mean square of the decoded frames' Euler–Lagrange residual r (N·m or N per
+    /// coordinate, all coordinates and frames).
+    pub residual_rms: f64,
+    /// The same of the original frames (≈ 0 for `musculo augment` output).
+    pub residual_rms_data: f64,
+    /// RMS of the original τ, the scale residuals are read against.
+    pub tau_rms: f64,
+}
+
+/// Joint-position error and residuals of `recon` against `set` (clips in the same order), the
+/// residual on `model` with its contact set.
+pub fn quality(
+    set: &ClipSet,
+    recon: &[Reconstruction],
+    model: &Model,
+) -> Result<ReconstructionQuality> {
+    let layout = &set.layout;
+    let d = layout.width();
+    let pos = layout.block("joint_pos");
+    let (mut err, mut count) = (0.0, 0usize);
+    for (clip, rec) in set.clips.iter().zip(recon) {
+        for f in 0..clip.frames {
+            for j in 0..layout.joints {
+                let i = f * d + pos.start + 3 * j;
+                let e: f64 = (0..3)
+                    .map(|c| (clip.y[i + c] - rec.y[i + c]) as f64)
+                    .map(|v| v * v)
+                    .sum();
+                err += e.sqrt();
+                count += 1;
+            }
+        }
+    }
+    let euler = if layout.contacts > 0 {
+        EulerLagrange::new().with_contact_set(&musculo::augment::chain::contact_set(model)?)
+    } else {
+        EulerLagrange::new()
+    };
+    let residual_rms = |frames: &[(&[f32], usize)]| -> Result<(f64, f64)> {
+        let (mut sum, mut tau_sum, mut n_values) = (0.0, 0.0, 0usize);
+        for (y, t) in frames {
+            let get = |name: &str| -> Vec<f64> {
+                let r = layout.block(name);
+                (0..*t)
+                    .flat_map(|f| r.clone().map(move |i| y[f * d + i] as f64))
+                    .collect()
+            };
+            let (q, qd, qdd, tau, lambda) = (
+                get("q"),
+                get("qd"),
+                get("qdd"),
+                get("tau"),
+                get("contact_point_force"),
+            );
+            let batch = EulerLagrangeBatch {
+                frames: *t,
+                q: &q,
+                qd: &qd,
+                qdd: &qdd,
+                tau: &tau,
+                lambda: &lambda,
+            };
+            let mut out = EulerLagrangeOutput::default();
+            euler.evaluate(model, &batch, false, &mut out)?;
+            sum += out.residual.iter().map(|r| r * r).sum::<f64>();
+            tau_sum += tau.iter().map(|v| v * v).sum::<f64>();
+            n_values += out.residual.len();
+        }
+        let n = n_values.max(1) as f64;
+        Ok(((sum / n).sqrt(), (tau_sum / n).sqrt()))
+    };
+    let own: Vec<(&[f32], usize)> = set
+        .clips
+        .iter()
+        .filter(|c| c.body_is_model)
+        .map(|c| (c.y.as_slice(), c.frames))
+        .collect();
+    let decoded: Vec<(&[f32], usize)> = set
+        .clips
+        .iter()
+        .zip(recon)
+        .filter(|(c, _)| c.body_is_model)
+        .map(|(_, r)| (r.y.as_slice(), r.frames))
+        .collect();
+    let (residual_rms_data, tau_rms) = residual_rms(&own)?;
+    let (residual_rms, _) = residual_rms(&decoded)?;
+    Ok(ReconstructionQuality {
+        joint_pos_error: err / count.max(1) as f64,
+        residual_rms,
+        residual_rms_data,
+        tau_rms,
+    })
+}
+
+/// The autoencoder's parameter count.
+pub fn parameters(model: &Autoencoder) -> usize {
+    model.num_params()
+}

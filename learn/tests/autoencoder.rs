@@ -1,0 +1,245 @@
+//! The learned module at tiny scale: the physics op's gradient against finite differences, the
+//! autoencoder overfitting the demo clips, the physics terms' effect on the reconstruction's
+//! Euler–Lagrange residual (FlexMotion's ablation, on our data), checkpoints and bad input.
+
+use burn::tensor::{Device, Tensor, TensorData};
+use musculo::model::Model;
+use musculo_learn::autoencoder::AutoencoderConfig;
+use musculo_learn::checkpoint;
+use musculo_learn::data::{ClipSet, Normalizer};
+use musculo_learn::physics::{Physics, PhysicsCall, PhysicsWeights, physics_loss};
+use musculo_learn::train::{self, TrainConfig};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("musculo-learn-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// The demo clips augmented once per test binary (3 clips, 330 frames at 30 Hz).
+fn demo_data() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = temp_dir("demo");
+        musculo_learn::data::augment_demo(&dir).unwrap();
+        dir
+    })
+}
+
+fn model() -> Model {
+    Model::default_fullbody()
+}
+
+#[test]
+fn physics_op_gradient_equals_finite_differences() {
+    let model = model();
+    let set = ClipSet::read(&[demo_data().to_path_buf()], &model).unwrap();
+    let normalizer = Normalizer::of(&set);
+    let d = set.layout.width();
+    let physics = Arc::new(
+        Physics::new(
+            model,
+            set.layout.clone(),
+            normalizer.clone(),
+            PhysicsWeights {
+                euler: 1.0,
+                muscle: 0.5,
+                muscle_stride: 3,
+            },
+        )
+        .unwrap(),
+    );
+    // two sequences of 6 frames from the squat, perturbed so that the residual is not zero;
+    // the second is left out of the terms
+    let (b, t) = (2, 6);
+    let squat = set.clips.iter().find(|c| c.name == "squat").unwrap();
+    let mut z: Vec<f32> = squat.y[30 * d..(30 + b * t) * d].to_vec();
+    normalizer.normalize(&mut z);
+    let mut state = 7u64;
+    for v in &mut z {
+        state = musculo::random::mix(state);
+        *v += 0.3 * ((state >> 11) as f32 / (1u64 << 53) as f32 - 0.5);
+    }
+    let include = vec![true, false];
+    let device = Device::flex().autodiff();
+    let input =
+        Tensor::<3>::from_data(TensorData::new(z.clone(), [b, t, d]), &device).require_grad();
+    let call = PhysicsCall {
+        physics: physics.clone(),
+        include: Arc::new(include.clone()),
+    };
+    let value = physics_loss(input.clone(), call).sum();
+    let loss: f32 = value.clone().into_scalar();
+    let grads = value.backward();
+    let grad: Vec<f32> = input
+        .grad(&grads)
+        .unwrap()
+        .into_data()
+        .try_to_vec::<f32>()
+        .unwrap();
+    let direct = physics.evaluate(&z, b, t, &include, true).unwrap();
+    assert!((loss as f64 - direct.loss).abs() <= 1e-6 * direct.loss);
+    assert!(direct.euler > 0.0 && direct.muscle > 0.0);
+    // nothing flows into the excluded sequence
+    assert!(grad[t * d..].iter().all(|g| *g == 0.0));
+    // directional derivatives along random directions, central differences of the f64 value
+    for trial in 0..3 {
+        let dir: Vec<f32> = (0..z.len())
+            .map(|i| {
+                let r = musculo::random::mix((trial * 1_000_003 + i) as u64);
+                (r >> 11) as f32 / (1u64 << 53) as f32 - 0.5
+            })
+            .collect();
+        let h = 1e-2f32;
+        let at = |s: f32| -> f64 {
+            let zz: Vec<f32> = z.iter().zip(&dir).map(|(a, v)| a + s * v).collect();
+            physics.evaluate(&zz, b, t, &include, false).unwrap().loss
+        };
+        let fd = (at(h) - at(-h)) / (2.0 * h as f64);
+        let analytic: f64 = grad
+            .iter()
+            .zip(&dir)
+            .map(|(g, v)| *g as f64 * *v as f64)
+            .sum();
+        let rel = (fd - analytic).abs() / fd.abs().max(1e-12);
+        assert!(
+            rel < 2e-3,
+            "trial {trial}: finite difference {fd}, op gradient {analytic} (relative {rel})"
+        );
+    }
+}
+
+fn tiny(set: &ClipSet) -> AutoencoderConfig {
+    AutoencoderConfig::new(set.layout.width())
+        .with_d_model(64)
+        .with_d_ff(128)
+        .with_layers(2)
+        .with_latent(32)
+        .with_downsample(4)
+}
+
+#[test]
+fn autoencoder_overfits_the_demo_clips_and_the_physics_terms_lower_the_residual() {
+    let model = model();
+    let set = ClipSet::read(&[demo_data().to_path_buf()], &model).unwrap();
+    // the default sizes (d = 128, 2 + 2 layers, k = 4, 32 latent values per 4 frames)
+    let config = AutoencoderConfig::new(set.layout.width());
+    let steps = 2500;
+    let run = |euler: f64| {
+        let train = TrainConfig {
+            steps,
+            batch: 8,
+            window: 32,
+            learning_rate: 2e-3,
+            seed: 3,
+            physics: PhysicsWeights {
+                euler,
+                muscle: 0.0,
+                muscle_stride: 4,
+            },
+            bound_weight: 1.0,
+        };
+        let device = Device::flex().autodiff();
+        let trained =
+            train::train_autoencoder(&set, &model, &config, &train, &device, &mut |_| {}).unwrap();
+        let recon = train::reconstruct(&trained, &set, 32, &Device::flex()).unwrap();
+        let quality = train::quality(&set, &recon, &model).unwrap();
+        eprintln!(
+            "w_E = {euler}: {} steps in {:.1} s, final loss {:.5}: {quality:?}",
+            steps,
+            trained.log.last().unwrap().seconds,
+            trained.log.last().unwrap().total
+        );
+        quality
+    };
+    let plain = run(0.0);
+    let physical = run(1.0);
+    // the data themselves satisfy the equations of motion (musculo augment's τ)
+    assert!(plain.residual_rms_data < 1e-3 * plain.tau_rms);
+    for q in [&plain, &physical] {
+        assert!(
+            q.joint_pos_error < 0.01,
+            "joint positions reconstructed to {} m",
+            q.joint_pos_error
+        );
+    }
+    // measured: joint positions 2.3 mm and 8.5 mm, residual RMS 2.91 → 0.57 N·m (5.1×)
+    let factor = plain.residual_rms / physical.residual_rms;
+    assert!(
+        factor > 4.0,
+        "the physics terms lowered the residual only {factor}× ({} → {} N·m)",
+        plain.residual_rms,
+        physical.residual_rms
+    );
+}
+
+#[test]
+fn a_checkpoint_reads_back_to_the_same_reconstruction() {
+    let model = model();
+    let set = ClipSet::read(&[demo_data().to_path_buf()], &model).unwrap();
+    let config = tiny(&set);
+    let train = TrainConfig {
+        steps: 5,
+        batch: 2,
+        window: 32,
+        ..TrainConfig::default()
+    };
+    let trained = train::train_autoencoder(
+        &set,
+        &model,
+        &config,
+        &train,
+        &Device::flex().autodiff(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let dir = temp_dir("checkpoint");
+    checkpoint::save(&trained, &train, "hash", &dir).unwrap();
+    let csv = std::fs::read_to_string(dir.join("loss.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 6);
+    let device = Device::flex();
+    let loaded = checkpoint::load(&dir, &device).unwrap();
+    assert_eq!(loaded.model_hash, "hash");
+    let a = train::reconstruct(&trained, &set, 32, &device).unwrap();
+    let b = train::reconstruct(&loaded.trained, &set, 32, &device).unwrap();
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.y, y.y, "clip {}", x.name);
+    }
+    // a damaged checkpoint is an error naming the file
+    std::fs::write(dir.join("autoencoder.bpk"), b"not a record").unwrap();
+    let err = checkpoint::load(&dir, &device).err().unwrap().to_string();
+    assert!(err.contains("autoencoder.bpk"), "{err}");
+}
+
+#[test]
+fn bad_training_input_is_an_error_not_a_panic() {
+    let model = model();
+    let missing = ClipSet::read(&[PathBuf::from("/nonexistent/clips")], &model)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(missing.contains("/nonexistent/clips"), "{missing}");
+    let empty = temp_dir("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let none = ClipSet::read(std::slice::from_ref(&empty), &model)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(none.contains("no tensor files"), "{none}");
+    let set = ClipSet::read(&[demo_data().to_path_buf()], &model).unwrap();
+    let device = Device::flex().autodiff();
+    for (window, expect) in [(30, "multiple"), (200, "fewer than the window")] {
+        let train = TrainConfig {
+            window,
+            steps: 1,
+            ..TrainConfig::default()
+        };
+        let err = train::train_autoencoder(&set, &model, &tiny(&set), &train, &device, &mut |_| {})
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains(expect), "window {window}: {err}");
+    }
+}
