@@ -29,7 +29,7 @@ pub fn clips(model: &Model) -> crate::Result<Vec<(String, Motion)>> {
     let mut out = Vec::new();
     for (name, seconds) in [("march", 4.0), ("squat", 4.0), ("reach", 3.0)] {
         let frames = (seconds * RATE_HZ) as usize;
-        let motion = sample(model, name, frames, |t, set| pose(name, t, set))?;
+        let motion = from_pose(model, name, frames, |t, set| pose(name, t, set))?;
         out.push((name.to_string(), motion));
     }
     Ok(out)
@@ -119,8 +119,12 @@ fn ground(
     dynamics::forward_kinematics(model, data, q)
 }
 
-/// The marker trajectories of a coordinate motion.
-fn sample(
+/// The 22 SMPL-named joint-marker trajectories (a [`Motion`] named `demo:<name>`, 30 frames per
+/// second, `frames` frames) of the coordinate motion `pose` on `model` — `pose(t, set)` calls
+/// `set(coordinate, value)` for the coordinates it moves at time t (s); the others keep their
+/// defaults — with the pelvis put on the ground each frame as for the demo clips. Errors name a
+/// coordinate or marker the model lacks.
+pub fn from_pose(
     model: &Model,
     name: &str,
     frames: usize,
