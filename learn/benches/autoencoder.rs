@@ -1,14 +1,17 @@
 //! The autoencoder's cost on this CPU (burn's Flex backend), side by side in one process:
 //! a training step (B = 8 windows of T = 64 frames) on the reconstruction alone, with the
 //! Euler–Lagrange term and with the muscle term too (every 4th frame), as ratios to the plain
-//! step; the time to encode and decode one 64-frame sequence; the parameter count.
+//! step; the time to encode and decode one 64-frame sequence; the parameter count; the latent
+//! diffusion model's training step and the time to sample one 64-frame motion.
 //!
 //! `cargo bench -p musculo-learn --bench autoencoder`
 
+use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 use musculo::model::Model;
 use musculo_learn::autoencoder::AutoencoderConfig;
 use musculo_learn::data::ClipSet;
+use musculo_learn::diffusion::{self, Concept, Control, DenoiserConfig, DiffusionTrainConfig};
 use musculo_learn::physics::PhysicsWeights;
 use musculo_learn::train::{self, TrainConfig};
 use std::time::Instant;
@@ -38,7 +41,7 @@ fn main() {
             &config,
             &train,
             &Device::flex().autodiff(),
-            &mut |_| {},
+            &mut |_, _| {},
         )
         .expect("training");
         // the first steps warm the allocator; time the second half
@@ -90,6 +93,71 @@ fn main() {
         "encode + decode of one 64-frame sequence: {:.2} ms ({:.0} frames/s)",
         per * 1e3,
         64.0 / per
+    );
+    // latent diffusion: a training step (B = 16 windows of 64 frames) and DDIM sampling
+    let texts: Vec<Vec<f32>> = set
+        .clips
+        .iter()
+        .map(|c| musculo_learn::text::bag_of_words(&c.caption))
+        .collect();
+    let normalizer = musculo_learn::data::Normalizer::of(&set);
+    let dconfig = DenoiserConfig::new(
+        config.latent,
+        d,
+        config.downsample,
+        musculo_learn::text::BUCKETS,
+    );
+    let dtrain = DiffusionTrainConfig {
+        steps,
+        ..DiffusionTrainConfig::default()
+    };
+    let denoiser = diffusion::train_denoiser(
+        &set,
+        &net,
+        &normalizer,
+        &texts,
+        &dconfig,
+        &dtrain,
+        &Device::flex().autodiff(),
+        &mut |_| {},
+    )
+    .expect("diffusion training");
+    let half = steps / 2;
+    let step = (denoiser.log[steps - 1].2 - denoiser.log[half - 1].2) / (steps - half) as f64;
+    let concept = [Concept {
+        text: texts[0].clone(),
+        weight: 2.5,
+    }];
+    let time_sampling = |control: &Control, guidance: usize| -> f64 {
+        let start = Instant::now();
+        diffusion::sample(
+            &denoiser,
+            &net,
+            &normalizer,
+            &concept,
+            control,
+            64,
+            1,
+            30,
+            guidance,
+            0,
+        )
+        .expect("sampling");
+        start.elapsed().as_secs_f64()
+    };
+    let free = time_sampling(&Control::none(64, d), 0);
+    let mut control = Control::none(64, d);
+    control.set_block(&set.layout, "joint_pos", 0..64, &set.clips[0].y);
+    let guided = time_sampling(&control, 5);
+    println!(
+        "denoiser: {} parameters; training step (B = 16 × 64 frames) {:.1} ms",
+        denoiser.model.num_params(),
+        step * 1e3
+    );
+    println!(
+        "sampling one 64-frame motion (30 DDIM steps, caption guidance): {:.0} ms; with joint-position control and 5 guidance steps per DDIM step: {:.0} ms",
+        free * 1e3,
+        guided * 1e3
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -96,6 +96,8 @@ pub struct Clip {
     /// changed height, mass or carried load, whose dynamics the physics losses (on the unscaled
     /// model) would judge wrongly. Such clips are reconstructed but left out of the physics terms.
     pub body_is_model: bool,
+    /// The clip's caption ([`crate::text::caption`]).
+    pub caption: String,
 }
 
 /// The clips of a training set, one layout for all.
@@ -165,6 +167,7 @@ impl ClipSet {
             let (clip, layout, rate) = read_clip(file, &name, model)?;
             let clip = Clip {
                 body_is_model: !variants.iter().any(|v| v == &name),
+                caption: crate::text::caption(&name, file, inputs)?,
                 ..clip
             };
             match &mut set {
@@ -279,6 +282,7 @@ fn read_clip(path: &Path, name: &str, model: &Model) -> Result<(Clip, FeatureLay
         frames: t,
         y,
         body_is_model: true,
+        caption: String::new(),
     };
     Ok((clip, layout, rate))
 }
@@ -419,4 +423,61 @@ impl Normalizer {
             }
         }
     }
+}
+
+/// Writes frames `y` (T × D, SI units, at `rate_hz`) as a tensor file in musculo's format, so
+/// that `musculo loss`, `evaluate` and `report` read it: `joint_pos` (T × J × 3), `q`, `qd`,
+/// `qdd`, `tau` (T × n), `contact_point_force` (T × P × 3), `muscle_act` (T × m) and `time`
+/// (T, s), float32.
+pub fn write_tensor_file(
+    path: &Path,
+    layout: &FeatureLayout,
+    y: &[f32],
+    rate_hz: f64,
+) -> Result<()> {
+    use ndarray::{ArrayD, IxDyn};
+    let d = layout.width();
+    if y.is_empty() || !y.len().is_multiple_of(d) || rate_hz.is_nan() || rate_hz <= 0.0 {
+        return Err(LearnError::invalid(
+            "tensor file",
+            format!(
+                "{} values are not whole frames of {d}, or rate {rate_hz} Hz",
+                y.len()
+            ),
+        ));
+    }
+    let t = y.len() / d;
+    let block = |name: &str, shape: Vec<usize>| -> Result<ArrayD<f32>> {
+        let r = layout.block(name);
+        let values: Vec<f32> = (0..t)
+            .flat_map(|f| y[f * d + r.start..f * d + r.end].iter().copied())
+            .collect();
+        ArrayD::from_shape_vec(IxDyn(&shape), values)
+            .map_err(|e| LearnError::invalid("tensor file", e.to_string()))
+    };
+    let n = layout.coordinates;
+    let arrays = [
+        ("joint_pos", block("joint_pos", vec![t, layout.joints, 3])?),
+        ("q", block("q", vec![t, n])?),
+        ("qd", block("qd", vec![t, n])?),
+        ("qdd", block("qdd", vec![t, n])?),
+        ("tau", block("tau", vec![t, n])?),
+        (
+            "contact_point_force",
+            block("contact_point_force", vec![t, layout.contacts, 3])?,
+        ),
+        ("muscle_act", block("muscle_act", vec![t, layout.muscles])?),
+        (
+            "time",
+            ArrayD::from_shape_vec(
+                IxDyn(&[t]),
+                (0..t).map(|f| (f as f64 / rate_hz) as f32).collect(),
+            )
+            .map_err(|e| LearnError::invalid("tensor file", e.to_string()))?,
+        ),
+    ];
+    let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
+        arrays.iter().map(|(k, a)| (*k, a.view())).collect();
+    musculo::motion::npy::write_npz(path, &views, false)?;
+    Ok(())
 }

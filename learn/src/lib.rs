@@ -1,12 +1,17 @@
 //! musculo's learned module (ARCHITECTURE.md: `learn/`, a workspace member kept out of the
-//! default build): a physics-aware motion autoencoder on burn, trained on the tensors of
+//! default build), on burn: a physics-aware motion autoencoder trained on the tensors of
 //! `musculo augment`, with the Euler–Lagrange and muscle losses of musculo's `loss` module
-//! joined to burn's autodiff as a custom backward operation.
+//! joined to burn's autodiff as a custom backward operation; a latent diffusion model over its
+//! latents conditioned on captions and spatial controls; and the composition of concepts
+//! (conjunction, negation) at sampling time.
 //!
 //! - [`data`]: tensor files → per-frame feature vectors, and their standardization;
 //! - [`autoencoder`]: the Transformer autoencoder with a temporally downsampled latent;
 //! - [`physics`]: the physics terms as burn's custom op (value and gradient from musculo);
 //! - [`train`]: the training loop, reconstruction and its quality figures;
+//! - [`diffusion`]: latent diffusion (DDPM training, DDIM sampling) conditioned on captions and
+//!   spatial controls, and the composition of concepts (conjunction, negation);
+//! - [`text`]: caption vectors (a built-in bag of words, or precomputed embeddings);
 //! - [`checkpoint`]: saving and loading a trained autoencoder.
 //!
 //! Backend: burn's NdArray (CPU) with autodiff; every tensor lives on a `Device`
@@ -15,7 +20,9 @@
 pub mod autoencoder;
 pub mod checkpoint;
 pub mod data;
+pub mod diffusion;
 pub mod physics;
+pub mod text;
 pub mod train;
 
 pub use data::{ClipSet, LearnError, Result};

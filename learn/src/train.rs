@@ -102,14 +102,15 @@ pub struct Trained {
 
 /// Trains an autoencoder of `config` on `set` (`model`: the musculoskeletal model the clips
 /// were augmented with, for the physics terms) on `device` (an autodiff device), calling
-/// `progress` after each step.
+/// `progress` after each step with the step's losses and the network as it now is (to save
+/// snapshots of a long run).
 pub fn train_autoencoder(
     set: &ClipSet,
     model: &Model,
     config: &AutoencoderConfig,
     train: &TrainConfig,
     device: &Device,
-    progress: &mut dyn FnMut(&StepLog),
+    progress: &mut dyn FnMut(&StepLog, &Autoencoder),
 ) -> Result<Trained> {
     validate(set, config, train)?;
     let d = set.layout.width();
@@ -199,10 +200,7 @@ pub fn train_autoencoder(
             ));
         }
         let grads = GradientsParams::from_grads(loss.backward(), &net);
-        // cosine decay: lr · (0.1 + 0.9 · (1 + cos(π s / S)) / 2)
-        let progress_fraction = step as f64 / train.steps.max(1) as f64;
-        let lr = train.learning_rate
-            * (0.1 + 0.45 * (1.0 + (std::f64::consts::PI * progress_fraction).cos()));
+        let lr = cosine_learning_rate(train.learning_rate, step, train.steps);
         net = optimizer.step(lr, net, grads);
         let entry = StepLog {
             step,
@@ -213,7 +211,7 @@ pub fn train_autoencoder(
             bounds: bounds.into_scalar::<f32>() as f64,
             seconds: start.elapsed().as_secs_f64(),
         };
-        progress(&entry);
+        progress(&entry, &net);
         log.push(entry);
     }
     Ok(Trained {
@@ -223,6 +221,13 @@ pub fn train_autoencoder(
         layout: set.layout.clone(),
         log,
     })
+}
+
+/// The learning rate at `step` of `steps`: a cosine from `initial` to a tenth of it,
+/// lr = initial · (0.1 + 0.9 · (1 + cos(π step / steps)) / 2).
+pub fn cosine_learning_rate(initial: f64, step: usize, steps: usize) -> f64 {
+    let fraction = step as f64 / steps.max(1) as f64;
+    initial * (0.1 + 0.45 * (1.0 + (std::f64::consts::PI * fraction).cos()))
 }
 
 fn validate(set: &ClipSet, config: &AutoencoderConfig, train: &TrainConfig) -> Result<()> {

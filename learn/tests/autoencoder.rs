@@ -143,7 +143,8 @@ fn autoencoder_overfits_the_demo_clips_and_the_physics_terms_lower_the_residual(
         };
         let device = Device::flex().autodiff();
         let trained =
-            train::train_autoencoder(&set, &model, &config, &train, &device, &mut |_| {}).unwrap();
+            train::train_autoencoder(&set, &model, &config, &train, &device, &mut |_, _| {})
+                .unwrap();
         let recon = train::reconstruct(&trained, &set, 32, &Device::flex()).unwrap();
         let quality = train::quality(&set, &recon, &model).unwrap();
         eprintln!(
@@ -192,7 +193,7 @@ fn a_checkpoint_reads_back_to_the_same_reconstruction() {
         &config,
         &train,
         &Device::flex().autodiff(),
-        &mut |_| {},
+        &mut |_, _| {},
     )
     .unwrap();
     let dir = temp_dir("checkpoint");
@@ -236,10 +237,11 @@ fn bad_training_input_is_an_error_not_a_panic() {
             steps: 1,
             ..TrainConfig::default()
         };
-        let err = train::train_autoencoder(&set, &model, &tiny(&set), &train, &device, &mut |_| {})
-            .err()
-            .unwrap()
-            .to_string();
+        let err =
+            train::train_autoencoder(&set, &model, &tiny(&set), &train, &device, &mut |_, _| {})
+                .err()
+                .unwrap()
+                .to_string();
         assert!(err.contains(expect), "window {window}: {err}");
     }
 }

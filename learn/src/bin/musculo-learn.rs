@@ -1,14 +1,17 @@
 //! `musculo-learn`: the learned module's command-line tool (also reached as `musculo train-ae`
 //! and `musculo reconstruct`, which run this program when it is installed beside `musculo`).
 
+use burn::module::Module;
 use burn::tensor::Device;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::model::Model;
 use musculo_learn::autoencoder::AutoencoderConfig;
 use musculo_learn::checkpoint;
-use musculo_learn::data::{ClipSet, LearnError};
+use musculo_learn::data::{ClipSet, LearnError, write_tensor_file};
+use musculo_learn::diffusion::{self, Concept, Control, DenoiserConfig, DiffusionTrainConfig};
 use musculo_learn::physics::PhysicsWeights;
+use musculo_learn::text::bag_of_words;
 use musculo_learn::train::{self, TrainConfig};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -32,6 +35,104 @@ enum Command {
     /// Run a checkpoint over tensor files and report what the reconstruction kept: joint
     /// position error and the Euler–Lagrange residual of the decoded frames (JSON).
     Reconstruct(ReconstructArgs),
+    /// Train the latent diffusion model on the latents of a trained autoencoder, conditioned on
+    /// captions (texts.json, HumanML3D texts/, or precomputed embeddings) and random spatial
+    /// controls.
+    TrainDiffusion(TrainDiffusionArgs),
+    /// Generate motions from captions (with conjunction --and and negation --not) and spatial
+    /// controls; writes tensor files that `musculo loss`, `evaluate` and `report` read.
+    Generate(GenerateArgs),
+}
+
+#[derive(clap::Args)]
+struct TrainDiffusionArgs {
+    /// The autoencoder checkpoint folder of `train-ae`.
+    #[arg(long)]
+    autoencoder: PathBuf,
+    /// Tensor files or folders of `musculo augment` output (captions beside them).
+    #[arg(long, num_args = 1.., required = true)]
+    data: Vec<PathBuf>,
+    /// The checkpoint folder to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// The .osim model of the data (default: the built-in full-body model).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Precomputed caption embeddings: an .npz with one 1-D array per clip name (instead of the
+    /// built-in bag of words).
+    #[arg(long)]
+    text_embeddings: Option<PathBuf>,
+    #[arg(long, default_value_t = 3000)]
+    steps: usize,
+    #[arg(long, default_value_t = 16)]
+    batch: usize,
+    /// Frames per window (a multiple of the autoencoder's k).
+    #[arg(long, default_value_t = 64)]
+    window: usize,
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Write the checkpoint every N steps too (0: only at the end).
+    #[arg(long, default_value_t = 500)]
+    save_every: usize,
+}
+
+#[derive(clap::Args)]
+struct GenerateArgs {
+    /// The diffusion checkpoint folder of `train-diffusion`.
+    #[arg(long)]
+    diffusion: PathBuf,
+    /// The caption (built-in text encoder).
+    #[arg(long)]
+    text: Option<String>,
+    /// A precomputed caption embedding (.npy, 1-D), for models trained with --text-embeddings.
+    #[arg(long)]
+    text_embedding: Option<PathBuf>,
+    /// Concepts that must also be present (conjunction).
+    #[arg(long = "and")]
+    and: Vec<String>,
+    /// Concepts that must be absent (negation).
+    #[arg(long = "not")]
+    not: Vec<String>,
+    /// Guidance weight of each present concept.
+    #[arg(long, default_value_t = 2.5)]
+    weight: f32,
+    /// Weight of each negated concept (subtracted).
+    #[arg(long, default_value_t = 1.0)]
+    not_weight: f32,
+    /// Frames per motion (a multiple of k).
+    #[arg(long, default_value_t = 64)]
+    frames: usize,
+    /// Motions to generate.
+    #[arg(long, default_value_t = 1)]
+    count: usize,
+    /// DDIM steps.
+    #[arg(long, default_value_t = 30)]
+    sampling_steps: usize,
+    /// Spatial-guidance gradient steps per DDIM step (with --control).
+    #[arg(long, default_value_t = 5)]
+    guidance: usize,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Spatial control: a tensor file whose frames give the targets.
+    #[arg(long)]
+    control: Option<PathBuf>,
+    /// The controlled modalities (joint_pos, q, qd, qdd, tau, contact_point_force, muscle_act).
+    #[arg(long, value_delimiter = ',', default_value = "joint_pos")]
+    control_blocks: Vec<String>,
+    /// The controlled frames, FIRST:END (end exclusive; default: all).
+    #[arg(long)]
+    control_frames: Option<String>,
+    /// The .osim model (default: the built-in full-body model), to read the control file.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Output folder: NAME_000.npz, NAME_001.npz, …
+    #[arg(long)]
+    out: PathBuf,
+    /// The files' name stem.
+    #[arg(long, default_value = "sample")]
+    name: String,
 }
 
 #[derive(clap::Args)]
@@ -76,6 +177,11 @@ struct TrainArgs {
     latent: usize,
     #[arg(long, default_value_t = 4)]
     downsample: usize,
+    /// Write the checkpoint every N steps too (0: only at the end), so that an interrupted run
+    /// keeps its latest snapshot (training restarts from scratch: the optimizer's state is not
+    /// saved).
+    #[arg(long, default_value_t = 500)]
+    save_every: usize,
 }
 
 #[derive(clap::Args)]
@@ -102,6 +208,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::TrainAe(args) => train_ae(args),
         Command::Reconstruct(args) => reconstruct(args),
+        Command::TrainDiffusion(args) => train_diffusion(args),
+        Command::Generate(args) => generate(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -157,13 +265,34 @@ fn train_ae(args: TrainArgs) -> Result<(), LearnError> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let device = Device::flex().autodiff();
-    let trained = train::train_autoencoder(&set, &model, &config, &train, &device, &mut |s| {
-        bar.set_position(s.step as u64 + 1);
-        bar.set_message(format!(
-            "loss {:.4} (recon {:.4}, EL {:.4})",
-            s.total, s.reconstruction, s.euler
-        ));
-    })?;
+    let normalizer = musculo_learn::data::Normalizer::of(&set);
+    let mut log = Vec::new();
+    let mut saved: Result<(), LearnError> = Ok(());
+    let trained =
+        train::train_autoencoder(&set, &model, &config, &train, &device, &mut |s, net| {
+            bar.set_position(s.step as u64 + 1);
+            bar.set_message(format!(
+                "loss {:.4} (recon {:.4}, EL {:.4})",
+                s.total, s.reconstruction, s.euler
+            ));
+            log.push(s.clone());
+            let step = s.step + 1;
+            if args.save_every > 0
+                && step % args.save_every == 0
+                && step < train.steps
+                && saved.is_ok()
+            {
+                let snapshot = train::Trained {
+                    model: net.valid(),
+                    config: config.clone(),
+                    normalizer: normalizer.clone(),
+                    layout: set.layout.clone(),
+                    log: log.clone(),
+                };
+                saved = checkpoint::save(&snapshot, &train, &hash, &args.out);
+            }
+        })?;
+    saved?;
     bar.finish_and_clear();
     checkpoint::save(&trained, &train, &hash, &args.out)?;
     eprintln!(
@@ -196,5 +325,237 @@ fn reconstruct(args: ReconstructArgs) -> Result<(), LearnError> {
         Some(path) => musculo::motion::npy::write_file_atomic(path, json.as_bytes())?,
         None => println!("{json}"),
     }
+    Ok(())
+}
+
+fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
+    let (model, _) = load_model(args.model.as_deref())?;
+    let loaded = checkpoint::load(&args.autoencoder, &Device::flex())?;
+    let set = ClipSet::read(&args.data, &model)?;
+    let (texts, kind) = match &args.text_embeddings {
+        Some(path) => {
+            let arrays = musculo::motion::npy::read_npz_f32(path)?;
+            let mut texts = Vec::new();
+            for clip in &set.clips {
+                let (_, a) = arrays
+                    .iter()
+                    .find(|(k, _)| k == &clip.name)
+                    .ok_or_else(|| LearnError::File {
+                        path: path.clone(),
+                        message: format!("has no embedding for clip {}", clip.name),
+                    })?;
+                texts.push(a.iter().copied().collect::<Vec<f32>>());
+            }
+            let width = texts[0].len();
+            (texts, checkpoint::TextKind::Precomputed(width))
+        }
+        None => {
+            let mut texts = Vec::new();
+            for clip in &set.clips {
+                texts.push(bag_of_words(&clip.caption));
+            }
+            (texts, checkpoint::TextKind::BuiltIn)
+        }
+    };
+    let ae = &loaded.trained;
+    let config = DenoiserConfig::new(
+        ae.config.latent,
+        ae.config.features,
+        ae.config.downsample,
+        texts[0].len(),
+    );
+    let train = DiffusionTrainConfig {
+        steps: args.steps,
+        batch: args.batch,
+        window: args.window,
+        learning_rate: args.lr,
+        seed: args.seed,
+    };
+    let bar = ProgressBar::new(train.steps as u64).with_style(
+        ProgressStyle::with_template(
+            "train-diffusion [{bar:30}] {pos}/{len} steps  {msg}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut log = Vec::new();
+    let mut saved: Result<(), LearnError> = Ok(());
+    let trained = diffusion::train_denoiser(
+        &set,
+        &ae.model,
+        &ae.normalizer,
+        &texts,
+        &config,
+        &train,
+        &Device::flex().autodiff(),
+        &mut |s| {
+            bar.set_position(s.step as u64 + 1);
+            bar.set_message(format!("loss {:.4}", s.loss));
+            log.push((s.step, s.loss, s.seconds));
+            let done = s.step + 1;
+            if args.save_every > 0
+                && done % args.save_every == 0
+                && done < train.steps
+                && saved.is_ok()
+            {
+                let snapshot = diffusion::TrainedDenoiser {
+                    model: s.model.valid(),
+                    config: config.clone(),
+                    latent_scale: s.latent_scale,
+                    log: log.clone(),
+                };
+                saved = checkpoint::save_denoiser(
+                    &snapshot,
+                    &train,
+                    &args.autoencoder,
+                    kind.clone(),
+                    set.rate_hz,
+                    &args.out,
+                );
+            }
+        },
+    )?;
+    saved?;
+    bar.finish_and_clear();
+    checkpoint::save_denoiser(
+        &trained,
+        &train,
+        &args.autoencoder,
+        kind,
+        set.rate_hz,
+        &args.out,
+    )?;
+    eprintln!(
+        "{} parameters, {} steps in {:.1} s; wrote {}",
+        trained.model.num_params(),
+        train.steps,
+        trained.log.last().map_or(0.0, |s| s.2),
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn generate(args: GenerateArgs) -> Result<(), LearnError> {
+    let device = Device::flex();
+    let loaded = checkpoint::load_denoiser(&args.diffusion, &device)?;
+    let ae = checkpoint::load(&loaded.autoencoder, &device)?;
+    let layout = &ae.trained.layout;
+    let d = layout.width();
+    let vector = |text: &str| -> Result<Vec<f32>, LearnError> {
+        match loaded.text {
+            checkpoint::TextKind::BuiltIn => Ok(bag_of_words(text)),
+            checkpoint::TextKind::Precomputed(_) => Err(LearnError::invalid(
+                "--text",
+                "this model was trained on precomputed embeddings: give --text-embedding FILE.npy (--and/--not need the built-in text encoder)",
+            )),
+        }
+    };
+    let mut concepts = Vec::new();
+    match (&args.text, &args.text_embedding) {
+        (Some(t), None) => concepts.push(Concept {
+            text: vector(t)?,
+            weight: args.weight,
+        }),
+        (None, Some(path)) => {
+            let a = musculo::motion::npy::read_array_f32(path)?;
+            concepts.push(Concept {
+                text: a.iter().copied().collect(),
+                weight: args.weight,
+            });
+        }
+        (None, None) => {}
+        (Some(_), Some(_)) => {
+            return Err(LearnError::invalid(
+                "--text",
+                "give --text or --text-embedding, not both",
+            ));
+        }
+    }
+    for t in &args.and {
+        concepts.push(Concept {
+            text: vector(t)?,
+            weight: args.weight,
+        });
+    }
+    for t in &args.not {
+        concepts.push(Concept {
+            text: vector(t)?,
+            weight: -args.not_weight,
+        });
+    }
+    let mut control = Control::none(args.frames, d);
+    if let Some(path) = &args.control {
+        let (model, _) = load_model(args.model.as_deref())?;
+        let source = ClipSet::read(std::slice::from_ref(path), &model)?;
+        let clip = &source.clips[0];
+        if source.layout != *layout {
+            return Err(LearnError::File {
+                path: path.clone(),
+                message: "its layout differs from the model's".into(),
+            });
+        }
+        let range = match &args.control_frames {
+            None => 0..args.frames,
+            Some(spec) => {
+                let (a, b) = spec.split_once(':').ok_or_else(|| {
+                    LearnError::invalid("--control-frames", format!("{spec}: expected FIRST:END"))
+                })?;
+                let parse = |v: &str| {
+                    v.trim().parse::<usize>().map_err(|e| {
+                        LearnError::invalid("--control-frames", format!("{spec}: {e}"))
+                    })
+                };
+                parse(a)?..parse(b)?
+            }
+        };
+        if range.start >= range.end || range.end > args.frames.min(clip.frames) {
+            return Err(LearnError::invalid(
+                "--control-frames",
+                format!(
+                    "{range:?} is not within the {} generated frames and the control's {}",
+                    args.frames, clip.frames
+                ),
+            ));
+        }
+        for block in &args.control_blocks {
+            if layout.block(block).is_empty() {
+                return Err(LearnError::invalid(
+                    "--control-blocks",
+                    format!("unknown block {block}"),
+                ));
+            }
+            control.set_block(layout, block, range.clone(), &clip.y);
+        }
+    }
+    let y = diffusion::sample(
+        &loaded.denoiser,
+        &ae.trained.model,
+        &ae.trained.normalizer,
+        &concepts,
+        &control,
+        args.frames,
+        args.count,
+        args.sampling_steps,
+        args.guidance,
+        args.seed,
+    )?;
+    std::fs::create_dir_all(&args.out).map_err(|e| LearnError::File {
+        path: args.out.clone(),
+        message: e.to_string(),
+    })?;
+    for k in 0..args.count {
+        let path = args.out.join(format!("{}_{k:03}.npz", args.name));
+        write_tensor_file(
+            &path,
+            layout,
+            &y[k * args.frames * d..(k + 1) * args.frames * d],
+            loaded.rate_hz,
+        )?;
+    }
+    eprintln!(
+        "wrote {} motions of {} frames to {}",
+        args.count,
+        args.frames,
+        args.out.display()
+    );
     Ok(())
 }

@@ -1,4 +1,4 @@
-//! `musculo train-ae` and `musculo reconstruct`: the learned module lives in the workspace
+//! `musculo train-ae`, `reconstruct`, `train-diffusion` and `generate`: the learned module lives in the workspace
 //! member `learn/` (burn, kept out of the default build), whose program `musculo-learn` these
 //! subcommands run with the same arguments. It is looked for beside this program, then on PATH.
 

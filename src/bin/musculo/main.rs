@@ -104,6 +104,12 @@ enum Command {
     /// Reconstruct tensor files with a trained autoencoder and report the joint-position error
     /// and the Euler–Lagrange residual (runs `musculo-learn reconstruct`).
     Reconstruct(learn::Args),
+    /// Train the latent diffusion model (captions and spatial controls) on a trained
+    /// autoencoder's latents (runs `musculo-learn train-diffusion`).
+    TrainDiffusion(learn::Args),
+    /// Generate motions from captions (--and, --not) and spatial controls as tensor files
+    /// (runs `musculo-learn generate`).
+    Generate(learn::Args),
 }
 
 fn main() -> ExitCode {
@@ -126,6 +132,8 @@ fn main() -> ExitCode {
         Command::Loss(args) => loss::run(&args),
         Command::TrainAe(args) => return learn::run("train-ae", &args),
         Command::Reconstruct(args) => return learn::run("reconstruct", &args),
+        Command::TrainDiffusion(args) => return learn::run("train-diffusion", &args),
+        Command::Generate(args) => return learn::run("generate", &args),
         Command::Report(args) => match report::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,
