@@ -151,3 +151,29 @@ fn every_plot_draws_content_in_a_real_browser() {
     assert!(drawn < 300, "{drawn}");
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn a_training_page_plots_every_nonzero_loss_column_on_a_log_scale() {
+    let csv = "step,total,reconstruction,euler,muscle,seconds\n\
+               0,1e1,1e0,9e0,0e0,0.1\n\
+               1,1e0,1e-1,9e-1,0e0,0.2\n\
+               2,1e-1,1e-2,9e-2,0e0,0.3\n";
+    let html = musculo::report::training_page("run", "loss.csv", csv).unwrap();
+    let figures = plots(&html);
+    assert_eq!(figures.len(), 1);
+    let svg = &figures[0].1;
+    // one legend entry per loss column that is not zero throughout, no `seconds`
+    for name in ["total", "reconstruction", "euler"] {
+        assert!(svg.contains(name), "{name}");
+    }
+    for absent in ["muscle", "seconds"] {
+        assert!(!svg.contains(absent), "{absent}");
+    }
+    // log₁₀ scale: the axis spans −2 … 1
+    assert!(svg.contains("log₁₀ loss"));
+    let err = musculo::report::training_page("run", "loss.csv", "step,total\n0,1\n1,x\n")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("loss.csv: line 3"), "{err}");
+}

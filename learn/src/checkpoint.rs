@@ -3,7 +3,8 @@
 //! - `autoencoder.bpk`: the weights (burn's burnpack record, `Module::save_file`);
 //! - `autoencoder.json`: the sizes, the feature layout, the standardization, the training
 //!   settings and the musculo model's hash, everything needed to rebuild and use it;
-//! - `loss.csv`: the loss curve, one row per step.
+//! - `loss.csv`: the loss curve, one row per step, and `loss.html`, its plot (a page of musculo's
+//!   report: log₁₀ of each loss over the steps).
 //!
 //! Each file is written to a temporary name and renamed, so an interrupted save leaves the
 //! previous checkpoint whole.
@@ -90,7 +91,14 @@ pub fn save(trained: &Trained, train: &TrainConfig, model_hash: &str, dir: &Path
         csv.push_str(&row.csv_row());
         csv.push('\n');
     }
-    write_atomic(&dir.join("loss.csv"), csv.as_bytes())
+    write_loss(dir, "autoencoder training", &csv)
+}
+
+/// `loss.csv` and its plot `loss.html` (musculo's report page of a loss log) in `dir`.
+fn write_loss(dir: &Path, title: &str, csv: &str) -> Result<()> {
+    write_atomic(&dir.join("loss.csv"), csv.as_bytes())?;
+    let html = musculo::report::training_page(title, "loss.csv", csv)?;
+    write_atomic(&dir.join("loss.html"), html.as_bytes())
 }
 
 /// A checkpoint read back: the autoencoder on `device` and what it was trained with.
@@ -202,7 +210,7 @@ pub fn save_denoiser(
     for (step, loss, seconds) in &trained.log {
         csv.push_str(&format!("{step},{loss:e},{seconds:.3}\n"));
     }
-    write_atomic(&dir.join("loss.csv"), csv.as_bytes())
+    write_loss(dir, "latent diffusion training", &csv)
 }
 
 /// Reads the diffusion checkpoint in `dir` onto `device`.

@@ -12,7 +12,7 @@
 
 mod plot;
 
-pub use plot::{PALETTE, Series, WIDTH, heat_map, histogram, line_chart};
+pub use plot::{PALETTE, Series, WIDTH, heat_map, histogram, line_chart, line_chart_over};
 
 use crate::augment::output::ClipRecord;
 use crate::dynamics::{self, Data};
@@ -91,6 +91,68 @@ fn figure(out: &mut String, id: &str, svg: &str, caption: &str) {
         "<figure class=\"plot\" data-plot=\"{id}\">{svg}<figcaption>{}</figcaption></figure>",
         escape(caption)
     );
+}
+
+/// A training run's loss curves as a page: `csv` is a loss log with a header whose first column
+/// is the step and whose other columns are losses (as `musculo-learn` writes `loss.csv`; a column
+/// named `seconds` is left out). One chart of log₁₀ of every loss column over the steps, columns
+/// that are zero throughout omitted. Errors name `source` and the line of a malformed row.
+pub fn training_page(title: &str, source: &str, csv: &str) -> crate::Result<String> {
+    let bad = |line: usize, m: String| {
+        crate::Error::invalid("loss log", format!("{source}: line {line}: {m}"))
+    };
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| bad(1, "empty".into()))?
+        .split(',')
+        .collect();
+    if header.len() < 2 {
+        return Err(bad(1, "expected step and at least one loss column".into()));
+    }
+    let mut steps = Vec::new();
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); header.len() - 1];
+    for (k, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let values: Vec<f64> = line
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| bad(k + 2, e.to_string()))?;
+        if values.len() != header.len() {
+            return Err(bad(
+                k + 2,
+                format!("{} values, the header has {}", values.len(), header.len()),
+            ));
+        }
+        steps.push(values[0]);
+        for (c, v) in values[1..].iter().enumerate() {
+            columns[c].push(*v);
+        }
+    }
+    let series: Vec<Series> = header[1..]
+        .iter()
+        .zip(&columns)
+        .filter(|(name, values)| **name != "seconds" && values.iter().any(|v| *v != 0.0))
+        .enumerate()
+        .map(|(i, (name, values))| Series {
+            name: name.to_string(),
+            values: values
+                .iter()
+                .map(|v| if *v > 0.0 { v.log10() } else { f64::NAN })
+                .collect(),
+            dashed: false,
+            color: i,
+        })
+        .collect();
+    let svg = line_chart_over("loss", "step", "log₁₀ loss", &steps, &series, 360)?;
+    let mut body = format!("<h1>{}</h1>\n", escape(title));
+    figure(
+        &mut body,
+        "loss",
+        &svg,
+        &format!("{} steps from {source}", steps.len()),
+    );
+    Ok(page(title, &body))
 }
 
 /// The `k` indices of `scores` with the largest values (ties by index), in index order.

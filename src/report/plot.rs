@@ -65,6 +65,18 @@ pub fn line_chart(
     series: &[Series],
     height: u32,
 ) -> crate::Result<String> {
+    line_chart_over(title, "time (s)", y_label, time, series, height)
+}
+
+/// A line chart of `series` over the abscissae `time`, labelled `x_label`.
+pub fn line_chart_over(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    time: &[f64],
+    series: &[Series],
+    height: u32,
+) -> crate::Result<String> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
@@ -80,7 +92,7 @@ pub fn line_chart(
             .map_err(failed)?;
         chart
             .configure_mesh()
-            .x_desc("time (s)")
+            .x_desc(x_label)
             .y_desc(y_label)
             .light_line_style(WHITE.mix(0.0))
             .draw()
