@@ -18,6 +18,10 @@
 //! ĥ₀ = (h_τ − √(1 − ᾱ_τ) ε̂) / √ᾱ_τ,   h_τ' = √ᾱ_τ' ĥ₀ + √(1 − ᾱ_τ') ε̂
 //! ```
 //!
+//! Training windows (a clip with probability ∝ its frames, a uniform start) are encoded by the
+//! frozen autoencoder as they are drawn, so a large set costs no memory beyond its frames; the
+//! latent scale s is the latents' RMS over up to 256 windows spread evenly over the set.
+//!
 //! **Conditions**: e, a caption's vector ([`crate::text`]), enters through a linear layer added
 //! to every latent token; c, the spatial controls, are masked targets in the standardized frame
 //! features z — per frame the values m ⊙ z and the mask m for any subset of features (joint
@@ -279,10 +283,22 @@ fn normal(rng: &mut SplitMix64) -> f32 {
     ((-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()) as f32
 }
 
-/// The latents of every clip's frames `s..s+window` through the frozen autoencoder `ae`
-/// (inference device), standardized frames `z` (T × D) in, T/k × c out.
-fn encode(ae: &Autoencoder, z: &[f32], window: usize, d: usize, device: &Device) -> Vec<f32> {
-    let x = Tensor::<3>::from_data(TensorData::new(z.to_vec(), [1, window, d]), device);
+/// The latents of windows `(clip, start)` of `window` frames through the frozen autoencoder
+/// `ae` (inference device), from the clips' standardized frames `z` (T × D each); W × T/k × c
+/// values out, windows in order.
+fn encode_windows(
+    ae: &Autoencoder,
+    z: &[Vec<f32>],
+    windows: &[(usize, usize)],
+    window: usize,
+    d: usize,
+    device: &Device,
+) -> Vec<f32> {
+    let mut batch = Vec::with_capacity(windows.len() * window * d);
+    for &(ci, s) in windows {
+        batch.extend_from_slice(&z[ci][s * d..(s + window) * d]);
+    }
+    let x = Tensor::<3>::from_data(TensorData::new(batch, [windows.len(), window, d]), device);
     ae.encode(x)
         .into_data()
         .try_to_vec::<f32>()
@@ -332,25 +348,33 @@ pub fn train_denoiser(
         ));
     }
     let inference = Device::flex();
-    // every window start of every clip, encoded once (the autoencoder is frozen)
-    let mut windows: Vec<(usize, usize, Vec<f32>)> = Vec::new();
-    for (ci, clip) in set.clips.iter().enumerate() {
-        let mut z = clip.y.clone();
-        normalizer.normalize(&mut z);
-        for s in 0..=clip.frames - t {
-            let h = encode(ae, &z[s * d..(s + t) * d], t, d, &inference);
-            windows.push((ci, s, h));
-        }
-    }
-    let count: usize = windows.iter().map(|w| w.2.len()).sum();
-    let rms = (windows
+    let standardized: Vec<Vec<f32>> = set
+        .clips
         .iter()
-        .flat_map(|w| w.2.iter())
-        .map(|v| (*v as f64).powi(2))
-        .sum::<f64>()
-        / count.max(1) as f64)
-        .sqrt()
-        .max(1e-6) as f32;
+        .map(|clip| {
+            let mut z = clip.y.clone();
+            normalizer.normalize(&mut z);
+            z
+        })
+        .collect();
+    // s: the latents' RMS over up to 256 windows spread evenly over the set's window starts
+    let starts: Vec<(usize, usize)> = set
+        .clips
+        .iter()
+        .enumerate()
+        .flat_map(|(ci, clip)| (0..=clip.frames - t).map(move |s| (ci, s)))
+        .collect();
+    let probe: Vec<(usize, usize)> = (0..starts.len().min(256))
+        .map(|i| starts[i * starts.len() / starts.len().min(256)])
+        .collect();
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for chunk in probe.chunks(32) {
+        let h = encode_windows(ae, &standardized, chunk, t, d, &inference);
+        sum += h.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
+        count += h.len();
+    }
+    let rms = (sum / count.max(1) as f64).sqrt().max(1e-6) as f32;
+    let total_frames = set.frames();
     let ab = alpha_bar();
     device.seed(train.seed);
     let mut net = config.init(device);
@@ -369,8 +393,22 @@ pub fn train_denoiser(
             Vec::with_capacity(b * config.text),
         );
         let mut controls = Vec::with_capacity(b);
-        for _ in 0..b {
-            let (ci, s, h0) = &windows[(rng.unit() * windows.len() as f64) as usize];
+        // B windows: a clip with probability ∝ its frames, a uniform start; encoded together
+        let picks: Vec<(usize, usize)> = (0..b)
+            .map(|_| {
+                let mut pick = (rng.unit() * total_frames as f64) as usize;
+                let mut ci = 0;
+                while pick >= set.clips[ci].frames {
+                    pick -= set.clips[ci].frames;
+                    ci += 1;
+                }
+                let s = (rng.unit() * (set.clips[ci].frames - t + 1) as f64) as usize;
+                (ci, s)
+            })
+            .collect();
+        let latents = encode_windows(ae, &standardized, &picks, t, d, &inference);
+        for (w, (ci, s)) in picks.iter().enumerate() {
+            let h0 = &latents[w * tokens * c..(w + 1) * tokens * c];
             let ts = (rng.unit() * STEPS as f64) as usize;
             let (sa, sn) = (ab[ts].sqrt() as f32, (1.0 - ab[ts]).sqrt() as f32);
             for v in h0 {

@@ -45,7 +45,7 @@ use musculo::loss::{
     MuscleLossOutput,
 };
 use musculo::model::Model;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// The weights of the physics terms (0 switches a term off).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -174,8 +174,18 @@ impl Physics {
             },
             ..PhysicsValue::default()
         };
+        if z.len() != sequences * frames * d || include.len() != sequences {
+            return Err(crate::data::LearnError::invalid(
+                "physics",
+                format!(
+                    "{} values and {} inclusion flags for {sequences} sequences × {frames} frames × {d} features",
+                    z.len(),
+                    include.len()
+                ),
+            ));
+        }
         let chosen: Vec<usize> = (0..sequences).filter(|s| include[*s]).collect();
-        if chosen.is_empty() || z.len() != sequences * frames * d {
+        if chosen.is_empty() {
             return Ok(value);
         }
         // y = σ ⊙ z + μ for the chosen sequences' frames, split into the loss's arrays
@@ -304,11 +314,42 @@ impl Physics {
     }
 }
 
-/// One call of the physics op: the terms and which sequences of the batch they apply to.
+/// One call of the physics op: the terms, which sequences of the batch they apply to, and
+/// where the forward pass leaves its outcome (the terms' parts for a log, or the error).
 #[derive(Clone)]
 pub struct PhysicsCall {
     pub physics: Arc<Physics>,
     pub include: Arc<Vec<bool>>,
+    pub outcome: Arc<Mutex<Option<Result<PhysicsParts>>>>,
+}
+
+/// The physics terms' parts of one forward pass, before their weights.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhysicsParts {
+    pub euler: f64,
+    pub muscle: f64,
+}
+
+impl PhysicsCall {
+    /// A call of `physics` on the sequences with `include[s]`.
+    pub fn new(physics: Arc<Physics>, include: Vec<bool>) -> PhysicsCall {
+        PhysicsCall {
+            physics,
+            include: Arc::new(include),
+            outcome: Arc::new(Mutex::new(None)),
+        }
+    }
+
+    /// The last forward pass's parts, or its error (the op itself returns NaN then).
+    pub fn outcome(&self) -> Result<PhysicsParts> {
+        let taken = self.outcome.lock().ok().and_then(|mut o| o.take());
+        taken.unwrap_or_else(|| {
+            Err(crate::data::LearnError::invalid(
+                "physics",
+                "the op has not run",
+            ))
+        })
+    }
 }
 
 /// burn's backend extension for the physics op (module docs).
@@ -319,20 +360,40 @@ pub trait PhysicsBackend: Backend {
 }
 
 /// z's values on the host with its batch and frame counts; the value and, when `gradient`, the
-/// gradient of the physics terms. An invalid batch (it cannot happen with the model's own
-/// decoder output) gives a NaN loss, which the trainer reports as an error.
+/// gradient of the physics terms. The outcome goes to `call.outcome`; on an error (a batch that
+/// does not fit the model) the op's value is NaN and [`PhysicsCall::outcome`] holds the error.
 fn host_value<B: Backend>(z: FloatTensor<B>, call: &PhysicsCall, gradient: bool) -> PhysicsValue {
     let dims = z.shape().dims::<3>();
-    let data = burn::tensor::read_sync(B::float_into_data(z)).ok();
-    let values: Vec<f32> = data
-        .and_then(|d| d.try_to_vec::<f32>().ok())
-        .unwrap_or_default();
-    call.physics
-        .evaluate(&values, dims[0], dims[1], &call.include, gradient)
-        .unwrap_or_else(|_| PhysicsValue {
-            loss: f64::NAN,
-            ..PhysicsValue::default()
-        })
+    let values = burn::tensor::read_sync(B::float_into_data(z))
+        .map_err(|e| crate::data::LearnError::invalid("physics", format!("{e:?}")))
+        .and_then(|d| {
+            d.try_to_vec::<f32>()
+                .map_err(|e| crate::data::LearnError::invalid("physics", format!("{e:?}")))
+        });
+    let value = values.and_then(|v| {
+        call.physics
+            .evaluate(&v, dims[0], dims[1], &call.include, gradient)
+    });
+    let (value, outcome) = match value {
+        Ok(v) => {
+            let parts = PhysicsParts {
+                euler: v.euler,
+                muscle: v.muscle,
+            };
+            (v, Ok(parts))
+        }
+        Err(e) => (
+            PhysicsValue {
+                loss: f64::NAN,
+                ..PhysicsValue::default()
+            },
+            Err(e),
+        ),
+    };
+    if let Ok(mut slot) = call.outcome.lock() {
+        *slot = Some(outcome);
+    }
+    value
 }
 
 impl PhysicsBackend for Flex {

@@ -170,21 +170,11 @@ pub fn train_autoencoder(
         let mut loss = reconstruction.clone();
         let (mut euler, mut muscle) = (0.0, 0.0);
         if let Some(physics) = &physics {
-            let call = PhysicsCall {
-                physics: physics.clone(),
-                include: Arc::new(include.clone()),
-            };
-            // the term's parts, for the log (the op itself returns only their weighted sum)
-            let parts = physics.evaluate(
-                &z_hat.to_data().try_to_vec::<f32>().unwrap_or_default(),
-                b,
-                t,
-                &include,
-                false,
-            )?;
+            let call = PhysicsCall::new(physics.clone(), include.clone());
+            loss = loss + physics_loss(z_hat.clone(), call.clone()).reshape([1]);
+            let parts = call.outcome()?;
             euler = parts.euler;
             muscle = parts.muscle;
-            loss = loss + physics_loss(z_hat.clone(), call).reshape([1]);
         }
         let a = z_hat.slice([0..b, 0..t, acts.clone()]) * a_std.clone() + a_mean.clone();
         let outside = relu(-a.clone()) + relu(a - 1.0);

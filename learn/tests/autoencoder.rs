@@ -66,11 +66,8 @@ fn physics_op_gradient_equals_finite_differences() {
     let device = Device::flex().autodiff();
     let input =
         Tensor::<3>::from_data(TensorData::new(z.clone(), [b, t, d]), &device).require_grad();
-    let call = PhysicsCall {
-        physics: physics.clone(),
-        include: Arc::new(include.clone()),
-    };
-    let value = physics_loss(input.clone(), call).sum();
+    let call = PhysicsCall::new(physics.clone(), include.clone());
+    let value = physics_loss(input.clone(), call.clone()).sum();
     let loss: f32 = value.clone().into_scalar();
     let grads = value.backward();
     let grad: Vec<f32> = input
@@ -79,11 +76,20 @@ fn physics_op_gradient_equals_finite_differences() {
         .into_data()
         .try_to_vec::<f32>()
         .unwrap();
+    let parts = call.outcome().unwrap();
     let direct = physics.evaluate(&z, b, t, &include, true).unwrap();
+    assert_eq!((parts.euler, parts.muscle), (direct.euler, direct.muscle));
     assert!((loss as f64 - direct.loss).abs() <= 1e-6 * direct.loss);
     assert!(direct.euler > 0.0 && direct.muscle > 0.0);
     // nothing flows into the excluded sequence
     assert!(grad[t * d..].iter().all(|g| *g == 0.0));
+    // a batch that does not fit the layout: NaN from the op and the error from the call
+    let narrow = Tensor::<3>::from_data(TensorData::new(vec![0.0f32; 2 * 5], [1, 2, 5]), &device);
+    let bad = PhysicsCall::new(physics.clone(), vec![true]);
+    let v: f32 = physics_loss(narrow, bad.clone()).sum().into_scalar();
+    assert!(v.is_nan());
+    let err = bad.outcome().err().unwrap().to_string();
+    assert!(err.contains("10 values"), "{err}");
     // directional derivatives along random directions, central differences of the f64 value
     for trial in 0..3 {
         let dir: Vec<f32> = (0..z.len())
