@@ -376,8 +376,11 @@ pub fn train_denoiser(
     let rms = (sum / count.max(1) as f64).sqrt().max(1e-6) as f32;
     let total_frames = set.frames();
     let ab = alpha_bar();
-    device.seed(train.seed);
-    let mut net = config.init(device);
+    let mut net = {
+        let _held = crate::INITIALIZATION.lock();
+        device.seed(train.seed);
+        config.init(device)
+    };
     let mut optimizer = AdamConfig::new().init();
     let mut rng = SplitMix64(musculo::random::mix(train.seed ^ 0x5eed));
     let tokens = t / k;

@@ -26,3 +26,9 @@ pub mod text;
 pub mod train;
 
 pub use data::{ClipSet, LearnError, Result};
+
+/// burn seeds a device's random generator globally (`Device::seed`), so two trainings that
+/// initialize their networks at once on one device would interleave their draws. Every seeded
+/// initialization here holds this lock from the seed to the last parameter drawn, which keeps a
+/// seed's network the same whatever else runs (tests in parallel threads, say).
+pub(crate) static INITIALIZATION: std::sync::Mutex<()> = std::sync::Mutex::new(());

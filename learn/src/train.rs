@@ -134,8 +134,11 @@ pub fn train_autoencoder(
     } else {
         None
     };
-    device.seed(train.seed);
-    let mut net = config.init(device);
+    let mut net = {
+        let _held = crate::INITIALIZATION.lock();
+        device.seed(train.seed);
+        config.init(device)
+    };
     let mut optimizer = AdamConfig::new().init();
     let mut rng = SplitMix64(musculo::random::mix(train.seed));
     let total_frames = set.frames();

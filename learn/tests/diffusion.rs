@@ -36,6 +36,14 @@ const B: &str = "a person raises the right arm";
 const NEITHER: &str = "a person stands still";
 const THRESHOLD_DEG: f32 = 40.0;
 
+/// burn's CPU backend splits its reductions over the shared thread pool as the pool is free, so
+/// trainings running beside each other round differently and long runs drift apart; the tests of
+/// this file take turns so that each figure is the one a run alone gives.
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    TURN.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// (clip name, caption, squats, raises the arm, f_squat, depth, f_arm, phase)
 fn recipes() -> Vec<(String, &'static str, bool, bool, [f64; 4])> {
     let mut rng = musculo::random::SplitMix64(2026);
@@ -235,6 +243,7 @@ fn rates(concepts: &[Concept], samples: usize, seed: u64) -> [f64; 4] {
 
 #[test]
 fn the_training_set_shows_its_labels() {
+    let _turn = one_at_a_time();
     let f = fixture();
     let model = Model::default_fullbody();
     let recipes = recipes();
@@ -251,6 +260,7 @@ fn the_training_set_shows_its_labels() {
 
 #[test]
 fn captions_steer_and_composition_combines_and_negates_concepts() {
+    let _turn = one_at_a_time();
     let w = 2.5;
     let n = 32;
     let text = |t: &str, weight: f32| Concept {
@@ -286,6 +296,7 @@ fn captions_steer_and_composition_combines_and_negates_concepts() {
 
 #[test]
 fn spatial_controls_are_followed_on_a_held_out_clip() {
+    let _turn = one_at_a_time();
     let f = fixture();
     let model = Model::default_fullbody();
     let layout = &f.set.layout;
@@ -354,6 +365,7 @@ fn spatial_controls_are_followed_on_a_held_out_clip() {
 
 #[test]
 fn a_saved_denoiser_samples_the_same_and_its_motions_are_tensor_files_musculo_reads() {
+    let _turn = one_at_a_time();
     use musculo_learn::checkpoint::{self, TextKind};
     let f = fixture();
     let model = Model::default_fullbody();
@@ -425,6 +437,7 @@ fn a_saved_denoiser_samples_the_same_and_its_motions_are_tensor_files_musculo_re
 
 #[test]
 fn activation_and_contact_force_controls_are_followed_on_a_held_out_clip() {
+    let _turn = one_at_a_time();
     let f = fixture();
     let layout = &f.set.layout;
     let d = layout.width();
