@@ -486,6 +486,8 @@ pub fn train_denoiser(
 
 /// Spatial guidance: gradient steps on ĥ₀ that pull the decoded frames onto the controls.
 struct Guidance {
+    /// The autoencoder on the autodiff device (copied once per sampling run).
+    net: Autoencoder,
     /// Standardized targets and masks, count × frames × D.
     target: Vec<f32>,
     mask: Vec<f32>,
@@ -496,6 +498,7 @@ struct Guidance {
 
 impl Guidance {
     fn new(
+        ae: &Autoencoder,
         control: &Control,
         count: usize,
         frames: usize,
@@ -516,6 +519,7 @@ impl Guidance {
         }
         let mask = control.mask.repeat(count);
         Some(Guidance {
+            net: ae.clone().to_device(&Device::flex().autodiff()),
             target,
             mask,
             controlled,
@@ -535,7 +539,7 @@ impl Guidance {
         scale: f32,
     ) -> crate::data::Result<()> {
         let device = Device::flex().autodiff();
-        let net = ae.clone().to_device(&device);
+        let net = &self.net;
         let plain = Device::flex();
         let d = self.target.len() / (shape[0] * self.frames);
         let dims = [shape[0], self.frames, d];
@@ -697,7 +701,7 @@ pub fn sample(
             texts.extend_from_slice(&concept.text);
         }
     }
-    let guide = Guidance::new(control, count, frames, normalizer, guidance);
+    let guide = Guidance::new(ae, control, count, frames, normalizer, guidance);
     let terms = 1 + concepts.len();
     let weights: Vec<f32> = concepts.iter().map(|c| c.weight).collect();
     let e = Tensor::<2>::from_data(TensorData::new(texts, [terms * count, cfg.text]), &device);
