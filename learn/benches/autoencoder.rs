@@ -41,7 +41,7 @@ fn main() {
             &config,
             &train,
             &Device::flex().autodiff(),
-            &mut |_, _| {},
+            &mut |_| {},
         )
         .expect("training");
         // the first steps warm the allocator; time the second half
@@ -141,6 +141,7 @@ fn main() {
             30,
             guidance,
             0,
+            &Device::flex(),
         )
         .expect("sampling");
         start.elapsed().as_secs_f64()

@@ -55,7 +55,7 @@ use burn::nn::transformer::{
     TransformerEncoder, TransformerEncoderConfig, TransformerEncoderInput,
 };
 use burn::nn::{Linear, LinearConfig, PositionalEncoding, PositionalEncodingConfig};
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::activation::gelu;
 use burn::tensor::{Device, Tensor, TensorData};
 use musculo::random::SplitMix64;
@@ -264,14 +264,50 @@ pub struct TrainedDenoiser {
     pub log: Vec<(usize, f64, f64)>,
 }
 
+/// Where a denoiser's training stands after its last finished step: enough to continue it
+/// exactly as an uninterrupted run would have.
+pub struct DenoiserState {
+    /// The network on the training (autodiff) device.
+    pub net: Denoiser,
+    pub optimizer: ModuleOptimizer,
+    /// The SplitMix64 state of the draws (windows, noise, steps, captions, controls).
+    pub rng: u64,
+    /// The steps done.
+    pub step: usize,
+    /// (step, loss, seconds) per step done.
+    pub log: Vec<(usize, f64, f64)>,
+}
+
+impl DenoiserState {
+    /// A fresh run: the seeded initialization, Adam without moments, the generator at the seed.
+    pub fn new(
+        config: &DenoiserConfig,
+        train: &DiffusionTrainConfig,
+        device: &Device,
+    ) -> DenoiserState {
+        let net = {
+            let _held = crate::INITIALIZATION.lock();
+            device.seed(train.seed);
+            config.init(device)
+        };
+        DenoiserState {
+            net,
+            optimizer: AdamConfig::new().init(),
+            rng: SplitMix64(musculo::random::mix(train.seed ^ 0x5eed)).0,
+            step: 0,
+            log: Vec::new(),
+        }
+    }
+}
+
 /// One training step of the denoiser, as `progress` sees it.
 pub struct DenoiserStep<'a> {
     pub step: usize,
     pub loss: f64,
-    /// Seconds since training began.
+    /// Seconds since training began (over all the run's sessions).
     pub seconds: f64,
-    /// The network after the step.
-    pub model: &'a Denoiser,
+    /// The run after the step (its `net` is the network as it now is).
+    pub state: &'a DenoiserState,
     /// s, the latent scale.
     pub latent_scale: f32,
 }
@@ -307,8 +343,8 @@ fn encode_windows(
 
 /// Trains a denoiser on the latents of `set` under the trained autoencoder `ae` (with its
 /// standardization `normalizer`), each clip captioned by `texts[clip]` (E values each), calling
-/// `progress` after each step ([`DenoiserStep`]: the step, its loss and the network as it now
-/// is, to save snapshots of a long run).
+/// `progress` after each step ([`DenoiserStep`]: the step, its loss and the run as it now is,
+/// to save snapshots a run can continue from, [`continue_denoiser`]).
 #[allow(clippy::too_many_arguments)]
 pub fn train_denoiser(
     set: &ClipSet,
@@ -320,6 +356,38 @@ pub fn train_denoiser(
     device: &Device,
     progress: &mut dyn FnMut(&DenoiserStep),
 ) -> crate::data::Result<TrainedDenoiser> {
+    let state = DenoiserState::new(config, train, device);
+    continue_denoiser(
+        set, ae, normalizer, texts, config, train, device, state, progress,
+    )
+}
+
+/// Runs the steps of `train` that `state` has not done yet (see [`train_denoiser`]); from a
+/// state saved by an interrupted run with the same inputs and settings, the result is the
+/// uninterrupted run's.
+#[allow(clippy::too_many_arguments)]
+pub fn continue_denoiser(
+    set: &ClipSet,
+    ae: &Autoencoder,
+    normalizer: &crate::data::Normalizer,
+    texts: &[Vec<f32>],
+    config: &DenoiserConfig,
+    train: &DiffusionTrainConfig,
+    device: &Device,
+    mut state: DenoiserState,
+    progress: &mut dyn FnMut(&DenoiserStep),
+) -> crate::data::Result<TrainedDenoiser> {
+    if state.step > train.steps || state.log.len() != state.step {
+        return Err(LearnError::invalid(
+            "diffusion training",
+            format!(
+                "the state has done {} steps with {} log entries, the run has {}",
+                state.step,
+                state.log.len(),
+                train.steps
+            ),
+        ));
+    }
     let d = set.layout.width();
     let k = config.downsample;
     let (b, t) = (train.batch, train.window);
@@ -347,7 +415,9 @@ pub fn train_denoiser(
             ),
         ));
     }
-    let inference = Device::flex();
+    // the frozen autoencoder runs on the training device without autodiff
+    let inference = device.clone().inner();
+    let ae = &ae.clone().to_device(&inference);
     let standardized: Vec<Vec<f32>> = set
         .clips
         .iter()
@@ -376,19 +446,13 @@ pub fn train_denoiser(
     let rms = (sum / count.max(1) as f64).sqrt().max(1e-6) as f32;
     let total_frames = set.frames();
     let ab = alpha_bar();
-    let mut net = {
-        let _held = crate::INITIALIZATION.lock();
-        device.seed(train.seed);
-        config.init(device)
-    };
-    let mut optimizer = AdamConfig::new().init();
-    let mut rng = SplitMix64(musculo::random::mix(train.seed ^ 0x5eed));
+    let mut rng = SplitMix64(state.rng);
     let tokens = t / k;
     let c = config.latent;
     let blocks = ["joint_pos", "tau", "contact_point_force", "muscle_act", "q"];
     let start = Instant::now();
-    let mut log = Vec::new();
-    for step in 0..train.steps {
+    let earlier = state.log.last().map_or(0.0, |s| s.2);
+    for step in state.step..train.steps {
         let (mut h_t, mut eps, mut steps, mut text) = (
             Vec::with_capacity(b * tokens * c),
             Vec::with_capacity(b * tokens * c),
@@ -453,7 +517,7 @@ pub fn train_denoiser(
         let h = Tensor::<3>::from_data(TensorData::new(h_t, [b, tokens, c]), device);
         let e = Tensor::<2>::from_data(TensorData::new(text, [b, config.text]), device);
         let target = Tensor::<3>::from_data(TensorData::new(eps, [b, tokens, c]), device);
-        let loss = (net.forward(h, &steps, e, cond) - target)
+        let loss = (state.net.forward(h, &steps, e, cond) - target)
             .powf_scalar(2.0)
             .mean();
         let value = loss.clone().into_scalar::<f32>() as f64;
@@ -463,24 +527,26 @@ pub fn train_denoiser(
                 format!("step {step}: the loss is {value}"),
             ));
         }
-        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        let grads = GradientsParams::from_grads(loss.backward(), &state.net);
         let lr = crate::train::cosine_learning_rate(train.learning_rate, step, train.steps);
-        net = optimizer.step(lr, net, grads);
-        let seconds = start.elapsed().as_secs_f64();
+        state.net = state.optimizer.step(lr, state.net.clone(), grads);
+        let seconds = earlier + start.elapsed().as_secs_f64();
+        state.log.push((step, value, seconds));
+        state.step = step + 1;
+        state.rng = rng.0;
         progress(&DenoiserStep {
             step,
             loss: value,
             seconds,
-            model: &net,
+            state: &state,
             latent_scale: rms,
         });
-        log.push((step, value, seconds));
     }
     Ok(TrainedDenoiser {
-        model: net.valid(),
+        model: state.net.valid(),
         config: DenoiserConfig { ..config.clone() },
         latent_scale: rms,
-        log,
+        log: state.log,
     })
 }
 
@@ -488,6 +554,8 @@ pub fn train_denoiser(
 struct Guidance {
     /// The autoencoder on the autodiff device (copied once per sampling run).
     net: Autoencoder,
+    /// The sampling device (without autodiff).
+    device: Device,
     /// Standardized targets and masks, count × frames × D.
     target: Vec<f32>,
     mask: Vec<f32>,
@@ -499,6 +567,7 @@ struct Guidance {
 impl Guidance {
     fn new(
         ae: &Autoencoder,
+        device: &Device,
         control: &Control,
         count: usize,
         frames: usize,
@@ -519,7 +588,8 @@ impl Guidance {
         }
         let mask = control.mask.repeat(count);
         Some(Guidance {
-            net: ae.clone().to_device(&Device::flex().autodiff()),
+            net: ae.clone().to_device(&device.clone().autodiff()),
+            device: device.clone(),
             target,
             mask,
             controlled,
@@ -538,9 +608,9 @@ impl Guidance {
         shape: [usize; 3],
         scale: f32,
     ) -> crate::data::Result<()> {
-        let device = Device::flex().autodiff();
+        let plain = self.device.clone();
+        let device = plain.clone().autodiff();
         let net = &self.net;
-        let plain = Device::flex();
         let d = self.target.len() / (shape[0] * self.frames);
         let dims = [shape[0], self.frames, d];
         let target = Tensor::<3>::from_data(TensorData::new(self.target.clone(), dims), &device);
@@ -632,8 +702,9 @@ pub struct Concept {
 
 /// Samples `count` latent sequences of `frames` frames by DDIM with `sampling_steps` steps
 /// under `concepts` and `control` (with `guidance` gradient steps of spatial guidance per DDIM
-/// step, 0 for none), from seed `seed`; returns their decoded frames (SI units, `count` × frames
-/// × D) through `ae` and `normalizer`.
+/// step, 0 for none), from seed `seed`, on `device` (without autodiff; the networks are copied
+/// there); returns their decoded frames (SI units, `count` × frames × D) through `ae` and
+/// `normalizer`.
 #[allow(clippy::too_many_arguments)]
 pub fn sample(
     denoiser: &TrainedDenoiser,
@@ -646,6 +717,7 @@ pub fn sample(
     sampling_steps: usize,
     guidance: usize,
     seed: u64,
+    device: &Device,
 ) -> crate::data::Result<Vec<f32>> {
     let cfg = &denoiser.config;
     let (k, c, d) = (cfg.downsample, cfg.latent, cfg.features);
@@ -683,7 +755,9 @@ pub fn sample(
             format!("sampling steps {sampling_steps} must be 1 to {STEPS}, count ≥ 1"),
         ));
     }
-    let device = Device::flex();
+    let device = device.clone().inner();
+    let ae = &ae.clone().to_device(&device);
+    let net = denoiser.model.clone().to_device(&device);
     let tokens = frames / k;
     let ab = alpha_bar();
     let mut rng = SplitMix64(musculo::random::mix(seed));
@@ -701,7 +775,7 @@ pub fn sample(
             texts.extend_from_slice(&concept.text);
         }
     }
-    let guide = Guidance::new(ae, control, count, frames, normalizer, guidance);
+    let guide = Guidance::new(ae, &device, control, count, frames, normalizer, guidance);
     let terms = 1 + concepts.len();
     let weights: Vec<f32> = concepts.iter().map(|c| c.weight).collect();
     let e = Tensor::<2>::from_data(TensorData::new(texts, [terms * count, cfg.text]), &device);
@@ -710,8 +784,7 @@ pub fn sample(
         let next = schedule.get(i + 1).copied();
         let x = Tensor::<3>::from_data(TensorData::new(h.clone(), [count, tokens, c]), &device);
         let x = Tensor::cat(vec![x; terms], 0);
-        let eps: Vec<f32> = denoiser
-            .model
+        let eps: Vec<f32> = net
             .forward(x, &vec![tau; terms * count], e.clone(), cond.clone())
             .into_data()
             .try_to_vec::<f32>()

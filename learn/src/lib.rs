@@ -12,14 +12,16 @@
 //! - [`diffusion`]: latent diffusion (DDPM training, DDIM sampling) conditioned on captions and
 //!   spatial controls, and the composition of concepts (conjunction, negation);
 //! - [`text`]: caption vectors (a built-in bag of words, or precomputed embeddings);
-//! - [`checkpoint`]: saving and loading a trained autoencoder.
+//! - [`checkpoint`]: saving and loading trained networks, and snapshots a run continues from;
+//! - [`device`]: where the networks run (CPU, or a GPU with the `wgpu` / `cuda` features).
 //!
-//! Backend: burn's NdArray (CPU) with autodiff; every tensor lives on a `Device`
-//! (`Device::flex()`, `.autodiff()` for training).
+//! Backend: burn's Flex (pure-Rust CPU) with autodiff, or its CubeCL backend on a GPU; every
+//! tensor lives on a `Device` (`Device::flex()`, `.autodiff()` for training).
 
 pub mod autoencoder;
 pub mod checkpoint;
 pub mod data;
+pub mod device;
 pub mod diffusion;
 pub mod physics;
 pub mod text;

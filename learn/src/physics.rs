@@ -27,15 +27,16 @@
 //! The operation ([`PhysicsBackend::physics_loss`]) takes z and returns L_phys as a tensor of
 //! shape 1 × 1 × 1. The forward pass computes L_phys and ∂L_phys/∂z on the host (rayon over
 //! frames) and keeps the gradient as the op's state; the backward pass multiplies it by the
-//! incoming scalar gradient. Implemented for burn's Flex backend (pure-Rust CPU; value only) and
-//! for `Autodiff<B>` over it (value and gradient).
+//! incoming scalar gradient. Implemented for burn's Flex backend (pure-Rust CPU) and, with the
+//! `wgpu` or `cuda` feature, its CubeCL backend (GPU: z is read back to the host, the value
+//! and gradient written to the device), value only, and for `Autodiff<B>` over either (value
+//! and gradient).
 
 use crate::data::{FeatureLayout, Normalizer, Result};
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind, unary};
-use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Autodiff, Backend, Dispatch, Flex, TensorMetadata, backend_extension};
 use burn::tensor::{Tensor, TensorData};
@@ -353,7 +354,7 @@ impl PhysicsCall {
 }
 
 /// burn's backend extension for the physics op (module docs).
-#[backend_extension(Autodiff, Flex)]
+#[backend_extension(Autodiff, Flex, Cube: cfg(any(feature = "wgpu", feature = "cuda")))]
 pub trait PhysicsBackend: Backend {
     /// L_phys of z (B × T × D) as a 1 × 1 × 1 tensor.
     fn physics_loss(z: FloatTensor<Self>, call: PhysicsCall) -> FloatTensor<Self>;
@@ -396,11 +397,23 @@ fn host_value<B: Backend>(z: FloatTensor<B>, call: &PhysicsCall, gradient: bool)
     value
 }
 
+/// The value alone (no autodiff), on any backend: computed on the host, written to z's device.
+fn value_only<B: Backend>(z: FloatTensor<B>, call: &PhysicsCall) -> FloatTensor<B> {
+    let device = z.device();
+    let value = host_value::<B>(z, call, false);
+    B::float_from_data(TensorData::new(vec![value.loss as f32], [1, 1, 1]), &device)
+}
+
 impl PhysicsBackend for Flex {
     fn physics_loss(z: FloatTensor<Self>, call: PhysicsCall) -> FloatTensor<Self> {
-        let device = z.device();
-        let value = host_value::<Self>(z, &call, false);
-        Self::float_from_data(TensorData::new(vec![value.loss as f32], [1, 1, 1]), &device)
+        value_only::<Self>(z, &call)
+    }
+}
+
+#[cfg(any(feature = "wgpu", feature = "cuda"))]
+impl PhysicsBackend for burn::backend::Cube {
+    fn physics_loss(z: FloatTensor<Self>, call: PhysicsCall) -> FloatTensor<Self> {
+        value_only::<Self>(z, &call)
     }
 }
 

@@ -20,7 +20,7 @@ use crate::autoencoder::{Autoencoder, AutoencoderConfig};
 use crate::data::{ClipSet, FeatureLayout, LearnError, Normalizer, Result};
 use crate::physics::{Physics, PhysicsCall, PhysicsWeights, physics_loss};
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor, TensorData};
 use musculo::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput};
@@ -60,7 +60,7 @@ impl Default for TrainConfig {
 }
 
 /// One step's losses (the weighted terms' values before weighting) and the time so far.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StepLog {
     pub step: usize,
     pub total: f64,
@@ -100,19 +100,81 @@ pub struct Trained {
     pub log: Vec<StepLog>,
 }
 
+/// Where a training run stands after its last finished step: enough to continue it exactly as
+/// an uninterrupted run would have (the network, Adam's moments, the window generator's state
+/// and the log so far).
+pub struct TrainState {
+    /// The network on the training (autodiff) device.
+    pub net: Autoencoder,
+    pub optimizer: ModuleOptimizer,
+    /// The SplitMix64 state of the window draws.
+    pub rng: u64,
+    /// The steps done (the next step's index).
+    pub step: usize,
+    /// One entry per step done.
+    pub log: Vec<StepLog>,
+}
+
+impl TrainState {
+    /// A fresh run of `config` under `train` on `device`: the seeded initialization, Adam
+    /// without moments, the window generator at the seed.
+    pub fn new(config: &AutoencoderConfig, train: &TrainConfig, device: &Device) -> TrainState {
+        let net = {
+            let _held = crate::INITIALIZATION.lock();
+            device.seed(train.seed);
+            config.init(device)
+        };
+        TrainState {
+            net,
+            optimizer: AdamConfig::new().init(),
+            rng: SplitMix64(musculo::random::mix(train.seed)).0,
+            step: 0,
+            log: Vec::new(),
+        }
+    }
+}
+
 /// Trains an autoencoder of `config` on `set` (`model`: the musculoskeletal model the clips
 /// were augmented with, for the physics terms) on `device` (an autodiff device), calling
-/// `progress` after each step with the step's losses and the network as it now is (to save
-/// snapshots of a long run).
+/// `progress` after each step with the run's state (its log ends with that step's losses; to
+/// show progress and save snapshots a run can continue from, [`continue_training`]).
 pub fn train_autoencoder(
     set: &ClipSet,
     model: &Model,
     config: &AutoencoderConfig,
     train: &TrainConfig,
     device: &Device,
-    progress: &mut dyn FnMut(&StepLog, &Autoencoder),
+    progress: &mut dyn FnMut(&TrainState),
 ) -> Result<Trained> {
     validate(set, config, train)?;
+    let state = TrainState::new(config, train, device);
+    continue_training(set, model, config, train, device, state, progress)
+}
+
+/// Runs the steps of `train` that `state` has not done yet (see [`train_autoencoder`]); for a
+/// state saved by an interrupted run with the same set, model and settings, the result is the
+/// uninterrupted run's.
+pub fn continue_training(
+    set: &ClipSet,
+    model: &Model,
+    config: &AutoencoderConfig,
+    train: &TrainConfig,
+    device: &Device,
+    mut state: TrainState,
+    progress: &mut dyn FnMut(&TrainState),
+) -> Result<Trained> {
+    validate(set, config, train)?;
+    if state.step > train.steps || state.log.len() != state.step {
+        return Err(LearnError::invalid(
+            "training",
+            format!(
+                "the state has done {} steps with {} log entries, the run has {}",
+                state.step,
+                state.log.len(),
+                train.steps
+            ),
+        ));
+    }
     let d = set.layout.width();
     let normalizer = Normalizer::of(set);
     let clips: Vec<Vec<f32>> = set
@@ -134,13 +196,7 @@ pub fn train_autoencoder(
     } else {
         None
     };
-    let mut net = {
-        let _held = crate::INITIALIZATION.lock();
-        device.seed(train.seed);
-        config.init(device)
-    };
-    let mut optimizer = AdamConfig::new().init();
-    let mut rng = SplitMix64(musculo::random::mix(train.seed));
+    let mut rng = SplitMix64(state.rng);
     let total_frames = set.frames();
     let (b, t) = (train.batch, train.window);
     let acts = set.layout.block("muscle_act");
@@ -151,8 +207,8 @@ pub fn train_autoencoder(
     let a_mean = Tensor::<1>::from_floats(a_mean.as_slice(), device).reshape([1, 1, acts.len()]);
     let a_std = Tensor::<1>::from_floats(a_std.as_slice(), device).reshape([1, 1, acts.len()]);
     let start = Instant::now();
-    let mut log = Vec::with_capacity(train.steps);
-    for step in 0..train.steps {
+    let earlier = state.log.last().map_or(0.0, |s| s.seconds);
+    for step in state.step..train.steps {
         let mut batch = Vec::with_capacity(b * t * d);
         let mut include = Vec::with_capacity(b);
         for _ in 0..b {
@@ -168,7 +224,7 @@ pub fn train_autoencoder(
             include.push(clip.body_is_model);
         }
         let z = Tensor::<3>::from_data(TensorData::new(batch, [b, t, d]), device);
-        let z_hat = net.forward(z.clone());
+        let z_hat = state.net.forward(z.clone());
         let reconstruction = (z_hat.clone() - z).powf_scalar(2.0).mean();
         let mut loss = reconstruction.clone();
         let (mut euler, mut muscle) = (0.0, 0.0);
@@ -192,9 +248,9 @@ pub fn train_autoencoder(
                 format!("step {step}: the loss is {total} (lower the learning rate)"),
             ));
         }
-        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        let grads = GradientsParams::from_grads(loss.backward(), &state.net);
         let lr = cosine_learning_rate(train.learning_rate, step, train.steps);
-        net = optimizer.step(lr, net, grads);
+        state.net = state.optimizer.step(lr, state.net.clone(), grads);
         let entry = StepLog {
             step,
             total,
@@ -202,17 +258,19 @@ pub fn train_autoencoder(
             euler,
             muscle,
             bounds: bounds.into_scalar::<f32>() as f64,
-            seconds: start.elapsed().as_secs_f64(),
+            seconds: earlier + start.elapsed().as_secs_f64(),
         };
-        progress(&entry, &net);
-        log.push(entry);
+        state.log.push(entry);
+        state.step = step + 1;
+        state.rng = rng.0;
+        progress(&state);
     }
     Ok(Trained {
-        model: net.valid(),
+        model: state.net.valid(),
         config: AutoencoderConfig { ..config.clone() },
         normalizer,
         layout: set.layout.clone(),
-        log,
+        log: state.log,
     })
 }
 

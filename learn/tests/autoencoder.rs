@@ -159,8 +159,7 @@ fn autoencoder_overfits_the_demo_clips_and_the_physics_terms_lower_the_residual(
         };
         let device = Device::flex().autodiff();
         let trained =
-            train::train_autoencoder(&set, &model, &config, &train, &device, &mut |_, _| {})
-                .unwrap();
+            train::train_autoencoder(&set, &model, &config, &train, &device, &mut |_| {}).unwrap();
         let recon = train::reconstruct(&trained, &set, 32, &Device::flex()).unwrap();
         let quality = train::quality(&set, &recon, &model).unwrap();
         eprintln!(
@@ -210,7 +209,7 @@ fn a_checkpoint_reads_back_to_the_same_reconstruction() {
         &config,
         &train,
         &Device::flex().autodiff(),
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap();
     let dir = temp_dir("checkpoint");
@@ -229,6 +228,109 @@ fn a_checkpoint_reads_back_to_the_same_reconstruction() {
     std::fs::write(dir.join("autoencoder.bpk"), b"not a record").unwrap();
     let err = checkpoint::load(&dir, &device).err().unwrap().to_string();
     assert!(err.contains("autoencoder.bpk"), "{err}");
+}
+
+/// The losses of a log without its times.
+fn losses(log: &[train::StepLog]) -> Vec<[f64; 5]> {
+    log.iter()
+        .map(|s| [s.total, s.reconstruction, s.euler, s.muscle, s.bounds])
+        .collect()
+}
+
+#[test]
+fn an_interrupted_run_continues_to_the_uninterrupted_result() {
+    // a run of 10 steps that saves its state after steps 4 and 7; continuing from the step-7
+    // snapshot must give the uninterrupted run's losses and network, which a continuation
+    // with Adam's moments reset does not
+    let _turn = one_at_a_time();
+    let model = model();
+    let set = ClipSet::read(&[demo_data().to_path_buf()], &model).unwrap();
+    let config = tiny(&set);
+    let train = TrainConfig {
+        steps: 10,
+        batch: 2,
+        window: 32,
+        ..TrainConfig::default()
+    };
+    let normalizer = Normalizer::of(&set);
+    let run = checkpoint::RunIdentity {
+        config: &config,
+        train: &train,
+        normalizer: &normalizer,
+        model_hash: "hash",
+    };
+    let device = Device::flex().autodiff();
+    let dir = temp_dir("resume");
+    assert!(
+        checkpoint::load_state(&dir, &run, &device)
+            .unwrap()
+            .is_none()
+    );
+    let whole = train::train_autoencoder(&set, &model, &config, &train, &device, &mut |state| {
+        if state.step == 4 || state.step == 7 {
+            checkpoint::save_state(state, &run, &dir).unwrap();
+        }
+    })
+    .unwrap();
+    // only the latest snapshot's files are kept
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(files, ["optimizer-7.bpk", "resume-7.bpk", "resume.json"]);
+    let state = checkpoint::load_state(&dir, &run, &device)
+        .unwrap()
+        .unwrap();
+    assert_eq!((state.step, state.log.len()), (7, 7));
+    let resumed =
+        train::continue_training(&set, &model, &config, &train, &device, state, &mut |_| {})
+            .unwrap();
+    assert_eq!(losses(&resumed.log), losses(&whole.log));
+    let plain = Device::flex();
+    let a = train::reconstruct(&whole, &set, 32, &plain).unwrap();
+    let b = train::reconstruct(&resumed, &set, 32, &plain).unwrap();
+    let mut diff = 0.0f32;
+    for (x, y) in a.iter().zip(&b) {
+        for (u, v) in x.y.iter().zip(&y.y) {
+            diff = diff.max((u - v).abs());
+        }
+    }
+    assert!(diff <= 1e-6, "resumed vs uninterrupted: {diff}");
+    // the same continuation without Adam's moments lands elsewhere
+    let mut reset = checkpoint::load_state(&dir, &run, &device)
+        .unwrap()
+        .unwrap();
+    reset.optimizer = burn::optim::AdamConfig::new().init();
+    let restarted =
+        train::continue_training(&set, &model, &config, &train, &device, reset, &mut |_| {})
+            .unwrap();
+    let c = train::reconstruct(&restarted, &set, 32, &plain).unwrap();
+    let mut moved = 0.0f32;
+    for (x, y) in a.iter().zip(&c) {
+        for (u, v) in x.y.iter().zip(&y.y) {
+            moved = moved.max((u - v).abs());
+        }
+    }
+    eprintln!("resumed vs uninterrupted: max |Δ| {diff}; with Adam's moments reset: {moved}");
+    assert!(
+        moved > 100.0 * diff.max(1e-6),
+        "reset moments changed only {moved}"
+    );
+    // a snapshot of another run is refused, naming what differs
+    let longer = TrainConfig {
+        steps: 11,
+        ..train.clone()
+    };
+    let other = checkpoint::RunIdentity {
+        train: &longer,
+        ..run
+    };
+    let err = checkpoint::load_state(&dir, &other, &device)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("training settings"), "{err}");
 }
 
 #[test]
@@ -255,11 +357,10 @@ fn bad_training_input_is_an_error_not_a_panic() {
             steps: 1,
             ..TrainConfig::default()
         };
-        let err =
-            train::train_autoencoder(&set, &model, &tiny(&set), &train, &device, &mut |_, _| {})
-                .err()
-                .unwrap()
-                .to_string();
+        let err = train::train_autoencoder(&set, &model, &tiny(&set), &train, &device, &mut |_| {})
+            .err()
+            .unwrap()
+            .to_string();
         assert!(err.contains(expect), "window {window}: {err}");
     }
 }

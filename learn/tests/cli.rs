@@ -206,9 +206,189 @@ fn train_reconstruct_train_diffusion_and_generate() {
             ],
             "no such file or folder",
         ),
+        (
+            vec![
+                "reconstruct",
+                "--checkpoint",
+                s(&ae),
+                "--data",
+                s(&data),
+                "--device",
+                "gpu",
+            ],
+            "expected cpu, wgpu, cuda",
+        ),
     ] {
         let (ok, out) = run(&args);
         assert!(!ok && out.contains(expect), "{args:?}: {out}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The arguments of a toy `train-ae` run of `steps` steps into `out`.
+fn train_args<'a>(data: &'a Path, out: &'a Path, steps: &'a str) -> Vec<&'a str> {
+    vec![
+        "train-ae",
+        "--data",
+        s(data),
+        "--out",
+        s(out),
+        "--steps",
+        steps,
+        "--window",
+        "32",
+        "--save-every",
+        "3",
+        "--d-model",
+        "32",
+        "--seed",
+        "5",
+    ]
+}
+
+#[test]
+fn a_killed_train_ae_resumes_to_the_uninterrupted_network() {
+    let dir: PathBuf =
+        std::env::temp_dir().join(format!("musculo-learn-resume-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (data, whole, killed) = (dir.join("data"), dir.join("whole"), dir.join("killed"));
+    musculo_learn::data::augment_demo(&data).unwrap();
+    let (ok, out) = run(&train_args(&data, &whole, "60"));
+    assert!(ok, "{out}");
+    // the same run, killed (SIGKILL) as soon as its first snapshot is there
+    let mut child = Command::new(BIN)
+        .args(train_args(&data, &killed, "60"))
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let state = killed.join("resume.json");
+    let started = std::time::Instant::now();
+    while !state.is_file() && started.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let mut args = train_args(&data, &killed, "60");
+    args.push("--resume");
+    let (ok, out) = run(&args);
+    assert!(ok, "{out}");
+    let step: usize = out
+        .split("from step ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no resume message: {out}"));
+    assert!((3..60).contains(&step), "resumed from step {step}");
+    eprintln!("train-ae resumed from step {step} of 60");
+    // the same network: the same reconstruction figures, and the whole loss curve
+    let figures = |checkpoint: &Path| {
+        let (ok, out) = run(&[
+            "reconstruct",
+            "--checkpoint",
+            s(checkpoint),
+            "--data",
+            s(&data),
+        ]);
+        assert!(ok, "{out}");
+        serde_json::from_str::<serde_json::Value>(&out).unwrap()
+    };
+    let (a, b) = (figures(&whole), figures(&killed));
+    for key in ["joint_pos_error", "residual_rms"] {
+        let (x, y) = (a[key].as_f64().unwrap(), b[key].as_f64().unwrap());
+        assert!((x - y).abs() <= 1e-6 * x.abs(), "{key}: {y} resumed vs {x}");
+    }
+    let losses = |checkpoint: &Path| -> Vec<String> {
+        std::fs::read_to_string(checkpoint.join("loss.csv"))
+            .unwrap()
+            .lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string())
+            .collect()
+    };
+    assert_eq!(losses(&killed), losses(&whole));
+    // a finished run has nothing left; other settings are another run
+    let mut again = train_args(&data, &killed, "60");
+    again.push("--resume");
+    let (ok, out) = run(&again);
+    assert!(ok && out.contains("from step 60 of 60"), "{out}");
+    let mut other = train_args(&data, &killed, "61");
+    other.push("--resume");
+    let (ok, out) = run(&other);
+    assert!(!ok && out.contains("another run"), "{out}");
+
+    // the same for the denoiser: killed after its first snapshot, resumed, then both models
+    // generate the same motion from the same seed
+    let diffusion_args = |out: &Path| -> Vec<String> {
+        [
+            "train-diffusion",
+            "--autoencoder",
+            s(&whole),
+            "--data",
+            s(&data),
+            "--out",
+            s(out),
+            "--steps",
+            "40",
+            "--window",
+            "32",
+            "--batch",
+            "2",
+            "--save-every",
+            "3",
+        ]
+        .iter()
+        .map(|a| a.to_string())
+        .collect()
+    };
+    let (d_whole, d_killed) = (dir.join("diffusion_whole"), dir.join("diffusion_killed"));
+    let args = diffusion_args(&d_whole);
+    let (ok, out) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(ok, "{out}");
+    let mut child = Command::new(BIN)
+        .args(diffusion_args(&d_killed))
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let state = d_killed.join("denoiser-resume.json");
+    let started = std::time::Instant::now();
+    while !state.is_file() && started.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let mut args = diffusion_args(&d_killed);
+    args.push("--resume".into());
+    let (ok, out) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(ok, "{out}");
+    assert!(
+        out.contains("from step ") && !out.contains("from step 40 "),
+        "{out}"
+    );
+    let line = out.lines().find(|l| l.contains("from step")).unwrap_or("");
+    eprintln!("train-diffusion: {line}");
+    assert_eq!(losses(&d_killed), losses(&d_whole));
+    let sample = |checkpoint: &Path, name: &str| {
+        let (ok, out) = run(&[
+            "generate",
+            "--diffusion",
+            s(checkpoint),
+            "--frames",
+            "32",
+            "--sampling-steps",
+            "4",
+            "--name",
+            name,
+            "--out",
+            s(&dir.join("generated")),
+        ]);
+        assert!(ok, "{out}");
+        musculo::motion::npy::read_npz_f32(&dir.join("generated").join(format!("{name}_000.npz")))
+            .unwrap()
+    };
+    let (a, b) = (sample(&d_whole, "whole"), sample(&d_killed, "killed"));
+    assert_eq!(a.len(), b.len());
+    for ((ka, va), (kb, vb)) in a.iter().zip(&b) {
+        assert_eq!(ka, kb);
+        assert_eq!(va, vb, "{ka}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

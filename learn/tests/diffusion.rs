@@ -157,7 +157,7 @@ fn fixture() -> &'static Fixture {
         };
         let device = Device::flex().autodiff();
         let ae =
-            train::train_autoencoder(&set, &model, &ae_config, &ae_train, &device, &mut |_, _| {})
+            train::train_autoencoder(&set, &model, &ae_config, &ae_train, &device, &mut |_| {})
                 .unwrap();
         let texts: Vec<Vec<f32>> = set.clips.iter().map(|c| bag_of_words(&c.caption)).collect();
         let config = DenoiserConfig::new(32, set.layout.width(), 4, BUCKETS);
@@ -224,6 +224,7 @@ fn rates(concepts: &[Concept], samples: usize, seed: u64) -> [f64; 4] {
         30,
         0,
         seed,
+        &Device::flex(),
     )
     .unwrap();
     let mut counts = [0usize; 4]; // A, B, A∧B, A∧¬B
@@ -258,6 +259,7 @@ fn mean_over_samples(control: &Control, seed: u64, metric: &dyn Fn(&[f32]) -> f6
         30,
         5,
         seed,
+        &Device::flex(),
     )
     .unwrap();
     (0..samples)
@@ -408,6 +410,7 @@ fn a_saved_denoiser_samples_the_same_and_its_motions_are_tensor_files_musculo_re
             10,
             0,
             4,
+            &Device::flex(),
         )
         .unwrap()
     };
@@ -435,6 +438,7 @@ fn a_saved_denoiser_samples_the_same_and_its_motions_are_tensor_files_musculo_re
         10,
         0,
         0,
+        &Device::flex(),
     );
     assert!(bad.err().unwrap().to_string().contains("multiple of 4"));
     let _ = std::fs::remove_dir_all(&dir);

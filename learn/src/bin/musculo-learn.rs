@@ -2,7 +2,6 @@
 //! and `musculo reconstruct`, which run this program when it is installed beside `musculo`).
 
 use burn::module::Module;
-use burn::tensor::Device;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::model::Model;
@@ -46,6 +45,10 @@ enum Command {
 
 #[derive(clap::Args)]
 struct TrainDiffusionArgs {
+    /// Where the networks run: cpu, or wgpu, cuda, cuda:N in a build with that feature
+    /// (`--features wgpu` / `cuda`).
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// The autoencoder checkpoint folder of `train-ae`.
     #[arg(long)]
     autoencoder: PathBuf,
@@ -73,13 +76,23 @@ struct TrainDiffusionArgs {
     lr: f64,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Write the checkpoint every N steps too (0: only at the end).
+    /// Write the checkpoint every N steps too (0: only at the end), with what continuing the
+    /// run needs (network, Adam's state, generator, log).
     #[arg(long, default_value_t = 500)]
     save_every: usize,
+    /// Continue the run from the latest snapshot in --out (same inputs and arguments): the
+    /// result is the uninterrupted run's. Without a snapshot there the run starts from the
+    /// beginning.
+    #[arg(long)]
+    resume: bool,
 }
 
 #[derive(clap::Args)]
 struct GenerateArgs {
+    /// Where the networks run: cpu, or wgpu, cuda, cuda:N in a build with that feature
+    /// (`--features wgpu` / `cuda`).
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// The diffusion checkpoint folder of `train-diffusion`.
     #[arg(long)]
     diffusion: PathBuf,
@@ -137,6 +150,10 @@ struct GenerateArgs {
 
 #[derive(clap::Args)]
 struct TrainArgs {
+    /// Where the networks run: cpu, or wgpu, cuda, cuda:N in a build with that feature
+    /// (`--features wgpu` / `cuda`).
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// Tensor files or folders of `musculo augment` output.
     #[arg(long, num_args = 1.., required = true)]
     data: Vec<PathBuf>,
@@ -177,15 +194,22 @@ struct TrainArgs {
     latent: usize,
     #[arg(long, default_value_t = 4)]
     downsample: usize,
-    /// Write the checkpoint every N steps too (0: only at the end), so that an interrupted run
-    /// keeps its latest snapshot (training restarts from scratch: the optimizer's state is not
-    /// saved).
+    /// Write the checkpoint every N steps too (0: only at the end), with what continuing the
+    /// run needs (network, Adam's state, window generator, log).
     #[arg(long, default_value_t = 500)]
     save_every: usize,
+    /// Continue the run from the latest snapshot in --out (same data and arguments): the result
+    /// is the uninterrupted run's. Without a snapshot there the run starts from the beginning.
+    #[arg(long)]
+    resume: bool,
 }
 
 #[derive(clap::Args)]
 struct ReconstructArgs {
+    /// Where the networks run: cpu, or wgpu, cuda, cuda:N in a build with that feature
+    /// (`--features wgpu` / `cuda`).
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// The checkpoint folder of `train-ae`.
     #[arg(long)]
     checkpoint: PathBuf,
@@ -233,6 +257,34 @@ fn load_model(path: Option<&Path>) -> Result<(Model, String), LearnError> {
     Ok((model, musculo::augment::output::fnv1a_hex(&xml)))
 }
 
+/// The progress bar of training `name`, at the step where the run starts; says on stderr where
+/// a `--resume` run starts: at the snapshot's step, or from the beginning.
+fn start_bar(
+    name: &str,
+    resume: bool,
+    out: &Path,
+    snapshot_step: Option<usize>,
+    steps: usize,
+) -> ProgressBar {
+    match snapshot_step {
+        Some(step) => eprintln!(
+            "continuing the run in {} from step {step} of {steps}",
+            out.display()
+        ),
+        None if resume => eprintln!("no snapshot in {}: starting the run", out.display()),
+        None => {}
+    }
+    let bar = ProgressBar::new(steps as u64).with_style(
+        ProgressStyle::with_template(&format!(
+            "{name} [{{bar:30}}] {{pos}}/{{len}} steps  {{msg}}  ETA {{eta}}"
+        ))
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_position(snapshot_step.unwrap_or(0) as u64);
+    bar.reset_eta();
+    bar
+}
+
 fn train_ae(args: TrainArgs) -> Result<(), LearnError> {
     let (model, hash) = load_model(args.model.as_deref())?;
     let set = ClipSet::read(&args.data, &model)?;
@@ -260,38 +312,61 @@ fn train_ae(args: TrainArgs) -> Result<(), LearnError> {
         set.frames(),
         set.layout.width()
     );
-    let bar = ProgressBar::new(train.steps as u64).with_style(
-        ProgressStyle::with_template("train-ae [{bar:30}] {pos}/{len} steps  {msg}  ETA {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let device = Device::flex().autodiff();
+    let device = musculo_learn::device::parse(&args.device)?.autodiff();
     let normalizer = musculo_learn::data::Normalizer::of(&set);
-    let mut log = Vec::new();
+    let run = checkpoint::RunIdentity {
+        config: &config,
+        train: &train,
+        normalizer: &normalizer,
+        model_hash: &hash,
+    };
+    let saved = match args.resume {
+        true => checkpoint::load_state(&args.out, &run, &device)?,
+        false => None,
+    };
+    let bar = start_bar(
+        "train-ae",
+        args.resume,
+        &args.out,
+        saved.as_ref().map(|s| s.step),
+        train.steps,
+    );
+    let state = saved.unwrap_or_else(|| train::TrainState::new(&config, &train, &device));
     let mut saved: Result<(), LearnError> = Ok(());
-    let trained =
-        train::train_autoencoder(&set, &model, &config, &train, &device, &mut |s, net| {
-            bar.set_position(s.step as u64 + 1);
+    let trained = train::continue_training(
+        &set,
+        &model,
+        &config,
+        &train,
+        &device,
+        state,
+        &mut |state| {
+            let Some(s) = state.log.last() else { return };
+            bar.set_position(state.step as u64);
             bar.set_message(format!(
                 "loss {:.4} (recon {:.4}, EL {:.4})",
                 s.total, s.reconstruction, s.euler
             ));
-            log.push(s.clone());
-            let step = s.step + 1;
             if args.save_every > 0
-                && step % args.save_every == 0
-                && step < train.steps
+                && state.step % args.save_every == 0
+                && state.step < train.steps
                 && saved.is_ok()
             {
                 let snapshot = train::Trained {
-                    model: net.valid(),
+                    model: state.net.valid(),
                     config: config.clone(),
                     normalizer: normalizer.clone(),
                     layout: set.layout.clone(),
-                    log: log.clone(),
+                    log: state.log.clone(),
                 };
-                saved = checkpoint::save(&snapshot, &train, &hash, &args.out);
+                saved = checkpoint::save(&snapshot, &train, &hash, &args.out)
+                    .and_then(|()| checkpoint::save_state(state, &run, &args.out));
+            } else if state.step == train.steps && saved.is_ok() {
+                // the finished run's state: `--resume` then has nothing left to do
+                saved = checkpoint::save_state(state, &run, &args.out);
             }
-        })?;
+        },
+    )?;
     saved?;
     bar.finish_and_clear();
     checkpoint::save(&trained, &train, &hash, &args.out)?;
@@ -307,7 +382,7 @@ fn train_ae(args: TrainArgs) -> Result<(), LearnError> {
 
 fn reconstruct(args: ReconstructArgs) -> Result<(), LearnError> {
     let (model, hash) = load_model(args.model.as_deref())?;
-    let device = Device::flex();
+    let device = musculo_learn::device::parse(&args.device)?;
     let loaded = checkpoint::load(&args.checkpoint, &device)?;
     if loaded.model_hash != hash {
         eprintln!(
@@ -330,7 +405,8 @@ fn reconstruct(args: ReconstructArgs) -> Result<(), LearnError> {
 
 fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
     let (model, _) = load_model(args.model.as_deref())?;
-    let loaded = checkpoint::load(&args.autoencoder, &Device::flex())?;
+    let device = musculo_learn::device::parse(&args.device)?;
+    let loaded = checkpoint::load(&args.autoencoder, &device)?;
     let set = ClipSet::read(&args.data, &model)?;
     let (texts, kind) = match &args.text_embeddings {
         Some(path) => {
@@ -371,26 +447,41 @@ fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
         learning_rate: args.lr,
         seed: args.seed,
     };
-    let bar = ProgressBar::new(train.steps as u64).with_style(
-        ProgressStyle::with_template(
-            "train-diffusion [{bar:30}] {pos}/{len} steps  {msg}  ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    let data = musculo_learn::data::Normalizer::of(&set);
+    let run = checkpoint::DenoiserRunIdentity {
+        config: &config,
+        train: &train,
+        autoencoder: &args.autoencoder,
+        text: &kind,
+        texts: &texts,
+        data: &data,
+    };
+    let training = device.clone().autodiff();
+    let saved = match args.resume {
+        true => checkpoint::load_denoiser_state(&args.out, &run, &training)?,
+        false => None,
+    };
+    let bar = start_bar(
+        "train-diffusion",
+        args.resume,
+        &args.out,
+        saved.as_ref().map(|s| s.step),
+        train.steps,
     );
-    let mut log = Vec::new();
+    let state = saved.unwrap_or_else(|| diffusion::DenoiserState::new(&config, &train, &training));
     let mut saved: Result<(), LearnError> = Ok(());
-    let trained = diffusion::train_denoiser(
+    let trained = diffusion::continue_denoiser(
         &set,
         &ae.model,
         &ae.normalizer,
         &texts,
         &config,
         &train,
-        &Device::flex().autodiff(),
+        &training,
+        state,
         &mut |s| {
             bar.set_position(s.step as u64 + 1);
             bar.set_message(format!("loss {:.4}", s.loss));
-            log.push((s.step, s.loss, s.seconds));
             let done = s.step + 1;
             if args.save_every > 0
                 && done % args.save_every == 0
@@ -398,10 +489,10 @@ fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
                 && saved.is_ok()
             {
                 let snapshot = diffusion::TrainedDenoiser {
-                    model: s.model.valid(),
+                    model: s.state.net.valid(),
                     config: config.clone(),
                     latent_scale: s.latent_scale,
-                    log: log.clone(),
+                    log: s.state.log.clone(),
                 };
                 saved = checkpoint::save_denoiser(
                     &snapshot,
@@ -410,7 +501,11 @@ fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
                     kind.clone(),
                     set.rate_hz,
                     &args.out,
-                );
+                )
+                .and_then(|()| checkpoint::save_denoiser_state(s.state, &run, &args.out));
+            } else if done == train.steps && saved.is_ok() {
+                // the finished run's state: `--resume` then has nothing left to do
+                saved = checkpoint::save_denoiser_state(s.state, &run, &args.out);
             }
         },
     )?;
@@ -435,7 +530,7 @@ fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
 }
 
 fn generate(args: GenerateArgs) -> Result<(), LearnError> {
-    let device = Device::flex();
+    let device = musculo_learn::device::parse(&args.device)?;
     let loaded = checkpoint::load_denoiser(&args.diffusion, &device)?;
     let ae = checkpoint::load(&loaded.autoencoder, &device)?;
     let layout = &ae.trained.layout;
@@ -537,6 +632,7 @@ fn generate(args: GenerateArgs) -> Result<(), LearnError> {
         args.sampling_steps,
         args.guidance,
         args.seed,
+        &device,
     )?;
     std::fs::create_dir_all(&args.out).map_err(|e| LearnError::File {
         path: args.out.clone(),
