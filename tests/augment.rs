@@ -54,7 +54,12 @@ fn check_clip(model: &Model, npz: &Path) -> f64 {
     let a = read_npz(npz);
     let get = |name: &str| &a.get(name).unwrap_or_else(|| panic!("{name} missing")).1;
     for (name, (_, v)) in &a {
-        assert!(v.iter().all(|x| x.is_finite()), "{name} has NaN/inf");
+        if name == "ik_marker_error" {
+            // NaN only where the input had no target
+            assert!(v.iter().all(|x| x.is_nan() || *x >= 0.0), "{name}");
+        } else {
+            assert!(v.iter().all(|x| x.is_finite()), "{name} has NaN/inf");
+        }
     }
     for &v in get("muscle_act") {
         assert!((0.0..=1.0).contains(&v), "activation {v}");
@@ -510,6 +515,83 @@ fn gait2392_walk_with_measured_and_estimated_ground_reactions() {
             .is_err()
     );
     let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn ik_marker_error_names_each_marker_and_shows_a_displaced_one() {
+    // the gait2392 walk's markers through the chain (muscles off: IK is what is looked at);
+    // one marker's target moved 5 cm forward on frames 40–59 must show there, in its own
+    // column, and hardly in the others'
+    let dir = "opensim-models/Pipelines/Gait2392_Simbody";
+    let (Some(model_path), Some(trc)) = (
+        reference_file(&format!("{dir}/OutputReference/subject01_simbody.osim")),
+        reference_file(&format!("{dir}/subject01_walk1.trc")),
+    ) else {
+        return;
+    };
+    let xml = std::fs::read_to_string(&model_path).unwrap();
+    let options = ChainOptions {
+        muscles: false,
+        ..ChainOptions::default()
+    };
+    let chain = Chain::new(xml, model_path.display().to_string(), options).unwrap();
+    let clip = motion::read(&trc, None, &ReadOptions::default()).unwrap();
+    let v = Variant::identity();
+    let errors = |clip: &Motion| {
+        let out = chain.run(clip, None, &v).unwrap();
+        let a = out
+            .arrays
+            .iter()
+            .find(|a| a.name == "ik_marker_error")
+            .unwrap();
+        (
+            out.quality.ik_markers.clone(),
+            a.shape.clone(),
+            a.values.clone(),
+        )
+    };
+    let (names, shape, plain) = errors(&clip);
+    let k = names.len();
+    assert_eq!(shape, [clip.time.len(), k]);
+    assert!(k >= 30, "{k} markers");
+    // the names are the model's markers that the file has, as IK pairs them
+    for name in &names {
+        assert!(clip.names.contains(name), "{name}");
+    }
+    let moved = 3; // the fourth IK marker
+    let column = clip.names.iter().position(|n| *n == names[moved]).unwrap();
+    let mut displaced = clip.clone();
+    for f in 40..60 {
+        displaced.positions[f * clip.names.len() + column].x += 0.05;
+    }
+    let (_, _, shifted) = errors(&displaced);
+    let at = |e: &[f32], f: usize, i: usize| e[f * k + i] as f64;
+    let mut own = f64::INFINITY;
+    let mut others = 0.0f64;
+    for f in 40..60 {
+        own = own.min(at(&shifted, f, moved) - at(&plain, f, moved));
+        for i in (0..k).filter(|&i| i != moved) {
+            others = others.max((at(&shifted, f, i) - at(&plain, f, i)).abs());
+        }
+    }
+    let mut away = 0.0f64;
+    for f in (0..35).chain(65..clip.time.len()) {
+        for i in 0..k {
+            away = away.max((at(&shifted, f, i) - at(&plain, f, i)).abs());
+        }
+    }
+    println!(
+        "{} ({k} IK markers) moved 50 mm on frames 40–59: its error rose by ≥ {:.1} mm, the \
+         others' changed ≤ {:.1} mm, frames away from it ≤ {:.2e} mm",
+        names[moved],
+        1e3 * own,
+        1e3 * others,
+        1e3 * away
+    );
+    // IK absorbs part of the displacement by moving the segment (all markers weigh
+    // alike): the displaced marker keeps the larger part, and stands out from the others
+    assert!(own > 0.020 && own > 2.0 * others, "{own} vs {others}");
+    assert!(away < 1e-4, "{away}");
 }
 
 /// The C3D trials (OpenSim's walking2/walking5) through the chain with the c3d_lower_body map,

@@ -47,7 +47,8 @@ fn pages_hold_every_plot() {
             "centre_of_pressure",
             "contact_timeline",
             "activations",
-            "reserve_share"
+            "reserve_share",
+            "ik_marker_error"
         ]
     );
     // self-contained: no script and nothing fetched

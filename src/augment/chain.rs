@@ -116,6 +116,10 @@ pub struct ClipQuality {
     pub ik_error_max: f64,
     /// Frames with a coordinate at its bound after IK.
     pub ik_frames_at_bound: usize,
+    /// The model markers (or joint-centre markers) IK fitted, in the column order of the array
+    /// `ik_marker_error`.
+    #[serde(default)]
+    pub ik_markers: Vec<String>,
     /// Largest floating-base residual force no contact explained, relative to body weight.
     pub residual_force_max_bw: f64,
     /// Largest residual moment (N·m) about the pelvis coordinates.
@@ -474,6 +478,11 @@ impl Chain {
             }
         }
         let mut quality = per_frame.quality(&model, &solution, frames, targets.rate_hz, clamped);
+        quality.ik_markers = tasks
+            .markers
+            .iter()
+            .map(|t| model.markers[t.marker].name.clone())
+            .collect();
         if !self.options.muscles {
             quality.so_unsolved_frames = 0;
             quality.reserve_share = 0.0;
@@ -504,6 +513,13 @@ impl Chain {
             name: "time",
             shape: vec![frames],
             values: times.iter().map(|&t| t as f32).collect(),
+        });
+        // per frame and IK marker: ‖model marker − target‖ of the IK solution (before the
+        // low-pass filter), NaN where the input had no target
+        arrays.push(Array {
+            name: "ik_marker_error",
+            shape: vec![frames, tasks.markers.len()],
+            values: solution.marker_error.iter().map(|&e| e as f32).collect(),
         });
         if !self.options.muscles {
             // nothing computed there (and `x` would carry its zeros)
@@ -1037,6 +1053,7 @@ impl FrameArrays {
                 .filter(|v| v.is_finite())
                 .fold(0.0, f64::max),
             ik_frames_at_bound: ik.frames_at_limit(),
+            ik_markers: Vec::new(),
             residual_force_max_bw: force / weight,
             residual_moment_max: moment,
             reserve_share: if self.joint_abs > 0.0 {

@@ -66,6 +66,10 @@ pub fn describe(chain: &chain::Chain) -> crate::Result<LayoutDescription> {
             "N m or N (floating-base rows no contact explained)",
         ),
         ("time", "s"),
+        (
+            "ik_marker_error",
+            "m (per IK marker, the clip record's ik_markers; NaN: no target)",
+        ),
     ];
     Ok(LayoutDescription {
         joints: layout.names.clone(),

@@ -6,8 +6,9 @@
 //! reaction forces and centres of pressure (with a reference clip's — measured loads — dashed
 //! beside them), the contact timeline of the contact spheres, a muscle-activation heat map
 //! (muscles grouped by the joint each moves most at the default pose, frames in time), the
-//! share of the joint moments the reserves carry over time, and the IK error figures of the
-//! clip's augmentation record when there is one (the tensor file holds no per-marker errors).
+//! share of the joint moments the reserves carry over time, the IK error per marker over time
+//! (the tensor file's `ik_marker_error`, named by the clip's augmentation record) and the IK
+//! figures of that record when there is one.
 //! Every plot is an `<svg>` inside `<figure class="plot" data-plot="…">`.
 
 mod plot;
@@ -249,7 +250,7 @@ pub fn clip_page(
             body,
             "<p>Inverse kinematics (augmentation record): median frame RMSE {:.1} mm, largest \
              marker error {:.1} mm, {} frame(s) at a coordinate bound; reserves carry {:.2} % \
-             of the joint moments. Per-marker errors are not in the tensor file.</p>",
+             of the joint moments.</p>",
             1e3 * r.ik_rmse_median,
             1e3 * r.ik_error_max,
             r.ik_frames_at_bound,
@@ -551,6 +552,45 @@ pub fn clip_page(
                 "reserve_share",
                 &svg,
                 "Σ|τ − R F| / Σ|τ| over the joint coordinates, per frame: what no muscle carried.",
+            );
+        }
+    }
+    // IK error per marker: the markers with the largest median error
+    if let Some((shape, error)) = extra_array(&arrays, "ik_marker_error")
+        && shape.len() == 2
+        && shape[0] == t_count
+        && shape[1] > 0
+    {
+        let k = shape[1];
+        let labels: Vec<String> = match record.and_then(|r| r.quality.as_ref()) {
+            Some(q) if q.ik_markers.len() == k => q.ik_markers.clone(),
+            _ => (0..k).map(|i| format!("marker {i}")).collect(),
+        };
+        let median = |v: &[f64]| {
+            let mut f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+            f.sort_by(f64::total_cmp);
+            f.get(f.len() / 2).copied().unwrap_or(0.0)
+        };
+        let scores: Vec<(usize, f64)> =
+            (0..k).map(|i| (i, median(&column(&error, k, i)))).collect();
+        let series: Vec<Series> = largest(&scores, MOST_LINES)
+            .into_iter()
+            .enumerate()
+            .map(|(c, i)| Series {
+                name: labels[i].clone(),
+                values: column(&error, k, i).iter().map(|e| 1e3 * e).collect(),
+                dashed: false,
+                color: c,
+            })
+            .collect();
+        if !series.is_empty() {
+            let svg = line_chart("IK error per marker", "error (mm)", &time, &series, 240)?;
+            figure(
+                &mut body,
+                "ik_marker_error",
+                &svg,
+                "‖model marker − target‖ of inverse kinematics for the markers (or joint \
+                 centres) with the largest median error; gaps where the input had no target.",
             );
         }
     }
