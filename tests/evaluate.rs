@@ -197,6 +197,26 @@ fn each_metric_responds_to_its_artefact_by_the_expected_amount() {
         );
         assert!(slide.skate > 0.9, "{}: skate {}", c.name, slide.skate);
         same_except(&base, &slide, &["skate", "skate_speed"], 1e-6);
+        // … on a treadmill whose belt runs at that 1 m/s, or with the floor's velocity taken
+        // from the clip itself, the slide is gone: the metrics of the clip at rest
+        let belt = EvaluateOptions {
+            floor_velocity: Some(musculo::spatial::Vec3::new(1.0, 0.0, 0.0)),
+            ..o.clone()
+        };
+        same_except(&base, &eval(&c, &slid, Some(&c.frames), &belt), &[], 1e-6);
+        let own = EvaluateOptions {
+            floor_velocity: None,
+            ..o.clone()
+        };
+        let (still, moving) = (
+            eval(&c, &c.frames, Some(&c.frames), &own),
+            eval(&c, &slid, Some(&c.frames), &own),
+        );
+        println!(
+            "{}: floor velocity from the clip — skate {:.3} → {:.3} (at rest {:.3}), slid {:.3}",
+            c.name, base.skate, still.skate, base.skate, moving.skate
+        );
+        same_except(&still, &moving, &[], 1e-6);
 
         // τ × 2: the error against the reference is RMS(τ_joints)/mass, and r = −τ
         let mut doubled = c.frames.clone();
@@ -674,4 +694,54 @@ fn the_chain_without_muscles_gives_the_same_dynamics() {
     for name in ["muscle_act", "muscle_force", "excitation", "x"] {
         assert!(b.arrays.iter().all(|x| x.name != name), "{name}");
     }
+}
+
+/// OpenSim's gait2392 walk was recorded on a treadmill: with the floor at rest its stance feet
+/// slide at the belt's speed; with the floor's velocity taken from the clip (`--floor-velocity
+/// clip`) or given, they stand still on the belt.
+#[test]
+fn a_treadmill_walk_skates_only_against_a_floor_at_rest() {
+    let dir = "opensim-models/Pipelines/Gait2392_Simbody";
+    let (Some(model), Some(trc)) = (
+        reference_file(&format!("{dir}/OutputReference/subject01_simbody.osim")),
+        reference_file(&format!("{dir}/subject01_walk1.trc")),
+    ) else {
+        return;
+    };
+    let out = std::env::temp_dir().join(format!("musculo-treadmill-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    let run = |velocity: &str| -> serde_json::Value {
+        let json = out.join("m.json");
+        let (ok, _, err) = musculo_cli(
+            &format!(
+                "evaluate --input {{}} --model {{}} --floor clip --floor-velocity {velocity} \
+                 --out {{}}"
+            ),
+            &[&trc, &model, &json],
+        );
+        assert!(ok, "{err}");
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        v["clips"][0].clone()
+    };
+    let (rest, own) = (run("0,0,0"), run("clip"));
+    let f = |c: &serde_json::Value, k: &str| c[k].as_f64().unwrap();
+    println!(
+        "gait2392 treadmill walk: floor at rest skate {:.3}, {:.3} m/s; floor velocity from the \
+         clip skate {:.3}, {:.3} m/s",
+        f(&rest, "skate"),
+        f(&rest, "skate_speed"),
+        f(&own, "skate"),
+        f(&own, "skate_speed")
+    );
+    assert!(f(&rest, "skate_speed") > 0.8, "{rest}");
+    assert!(f(&own, "skate_speed") < 0.1, "{own}");
+    assert!(f(&own, "skate") < 0.1 && f(&rest, "skate") > 0.2);
+    let (ok, _, err) = musculo_cli(
+        "evaluate --input {} --floor-velocity 1,2 --out {}",
+        &[&trc, &out.join("bad.json")],
+    );
+    assert!(!ok && err.contains("--floor-velocity"), "{err}");
+    let _ = std::fs::remove_dir_all(out);
 }

@@ -1133,10 +1133,11 @@ fn augment_file<'py>(
 /// format, e.g. written from `augment_clip`'s arrays or by a generator) and motion files,
 /// or folders of them: a dict with `clips` (one dict of metrics per clip), `failed`
 /// ([clip, reason] pairs) and `summary` (FlexMotion's columns). `floor` is a height in metres
-/// or "clip"; `model`, `reference` and `control` are paths as for the command; see the
+/// or "clip"; `floor_velocity` the floor's velocity (x, y, z) in m/s (a treadmill's belt) or
+/// "clip" (each clip's own), a floor at rest by default; `model`, `reference` and `control` are paths as for the command; see the
 /// documentation of `musculo::evaluate` for every metric's definition and unit.
 #[pyfunction]
-#[pyo3(signature = (inputs, model = None, reference = None, control = None, floor = None, muscles_per_frame = false, format = None, map = None, length_unit = None))]
+#[pyo3(signature = (inputs, model = None, reference = None, control = None, floor = None, floor_velocity = None, muscles_per_frame = false, format = None, map = None, length_unit = None))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -1145,6 +1146,7 @@ fn evaluate<'py>(
     reference: Option<PathBuf>,
     control: Option<PathBuf>,
     floor: Option<Bound<'py, PyAny>>,
+    floor_velocity: Option<Bound<'py, PyAny>>,
     muscles_per_frame: bool,
     format: Option<&str>,
     map: Option<&str>,
@@ -1160,6 +1162,16 @@ fn evaluate<'py>(
                 .map_err(|_| MusculoError::new_err("floor: give a height in metres or \"clip\""))?,
         ),
     };
+    let floor_velocity = match floor_velocity {
+        None => Some(musculo::spatial::Vec3::zeros()),
+        Some(v) if v.extract::<String>().is_ok_and(|s| s == "clip") => None,
+        Some(v) => {
+            let c: [f64; 3] = v.extract().map_err(|_| {
+                MusculoError::new_err("floor_velocity: give (x, y, z) in m/s or \"clip\"")
+            })?;
+            Some(musculo::spatial::Vec3::new(c[0], c[1], c[2]))
+        }
+    };
     let text = py
         .detach(|| -> musculo::Result<String> {
             let format = format.map(Format::parse).transpose()?;
@@ -1172,6 +1184,7 @@ fn evaluate<'py>(
                 control,
                 metrics: EvaluateOptions {
                     floor_height,
+                    floor_velocity,
                     muscles_per_frame,
                     ..EvaluateOptions::default()
                 },

@@ -428,6 +428,20 @@ def test_evaluate_a_motion_file_and_augmented_tensors(tmp_path):
         musculo.evaluate([str(tmp_path)], floor="ground")
 
 
+def test_evaluate_a_treadmill_walk_against_its_belt():
+    """The gait2392 walk was recorded on a treadmill: its feet skate at belt speed against a
+    floor at rest and stand on the belt with the floor's velocity taken from the clip."""
+    trc = os.path.join(GAIT2392_DIR, "subject01_walk1.trc")
+    model = os.path.join(GAIT2392_DIR, "OutputReference", "subject01_simbody.osim")
+    if not (os.path.exists(trc) and os.path.exists(model)):
+        pytest.skip("reference data not found")
+    rest = musculo.evaluate([trc], model=model, floor="clip")["clips"][0]
+    belt = musculo.evaluate([trc], model=model, floor="clip", floor_velocity="clip")["clips"][0]
+    assert rest["skate_speed"] > 0.8 and belt["skate_speed"] < 0.1, (rest, belt)
+    with pytest.raises(musculo.MusculoError, match="floor_velocity"):
+        musculo.evaluate([trc], model=model, floor_velocity=(1.0, 0.0))
+
+
 _AUGMENTED = {}
 
 

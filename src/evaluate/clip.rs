@@ -373,20 +373,38 @@ fn skating(
     let feet: Vec<usize> = (0..np)
         .filter(|&p| set.points[p].group.starts_with("foot"))
         .collect();
-    // v_p(t) = f ‖P(b_p(t+1) − b_p(t))‖
-    let mut speed = vec![0.0; pairs * feet.len()];
-    for t in 0..pairs {
-        for (i, &p) in feet.iter().enumerate() {
-            let d = lowest[(t + 1) * np + p] - lowest[t * np + p];
-            speed[t * feet.len() + i] = (d - normal * normal.dot(&d)).norm() * rate;
-        }
-    }
     // contact per frame: within the band of a supported frame, and either in contact in the
     // frame before or arriving there slowly (a foot lands; one passing at speed swings by);
     // the first frame's spheres within the band are in contact whatever their speed
     let within = |f: usize, p: usize| {
         support[f] && normal.dot(&lowest[f * np + p]) - ground <= options.contact_height
     };
+    // u_p(t) = f P(b_p(t+1) − b_p(t)), the horizontal velocity over a pair
+    let horizontal = |t: usize, p: usize| {
+        let d = lowest[(t + 1) * np + p] - lowest[t * np + p];
+        (d - normal * normal.dot(&d)) * rate
+    };
+    // the floor's velocity: given, or the clip's own (per axis, the median of u_p over the
+    // pairs with the sphere in the band at both frames: a treadmill's belt)
+    let floor = match options.floor_velocity {
+        Some(v) => v - normal * normal.dot(&v),
+        None => {
+            let low: Vec<Vec3> = (0..pairs)
+                .flat_map(|t| feet.iter().map(move |&p| (t, p)))
+                .filter(|&(t, p)| within(t, p) && within(t + 1, p))
+                .map(|(t, p)| horizontal(t, p))
+                .collect();
+            let axis = |k: usize| median(&low.iter().map(|u| u[k]).collect::<Vec<f64>>());
+            Vec3::new(axis(0), axis(1), axis(2))
+        }
+    };
+    // v_p(t) = ‖u_p(t) − P v_floor‖
+    let mut speed = vec![0.0; pairs * feet.len()];
+    for t in 0..pairs {
+        for (i, &p) in feet.iter().enumerate() {
+            speed[t * feet.len() + i] = (horizontal(t, p) - floor).norm();
+        }
+    }
     let mut in_contact = vec![false; t_count * feet.len()];
     for (i, &p) in feet.iter().enumerate() {
         in_contact[i] = within(0, p);

@@ -24,8 +24,11 @@
 //!   in contact over the frame pair (t, t+1) when both frames need support and at both its
 //!   height is within `contact_height` (5 cm) of the body's lowest height h_min (not of the
 //!   floor: a motion lifted off the floor floats, it does not stop its feet's contact — that is
-//!   Float's job); its horizontal speed over the pair is v_p(t) = f‖P(b_p(t+1) − b_p(t))‖ (P
-//!   removes the normal component), and its window speed v̄_p(t) the mean of v_p over the
+//!   Float's job); its horizontal speed over the pair, relative to the floor, is
+//!   v_p(t) = ‖f P(b_p(t+1) − b_p(t)) − P v_floor‖ (P removes the normal component; v_floor the
+//!   floor's velocity: zero by default, a treadmill's belt velocity when given, or the clip's
+//!   own — per axis the median of f P(b_p(t+1) − b_p(t)) over the pairs where the sphere is in
+//!   the contact band at both frames), and its window speed v̄_p(t) the mean of v_p over the
 //!   `skate_window` (5) pairs centred on t (pairs outside the clip count as 0, as
 //!   `scipy.ndimage.uniform_filter1d(mode="constant")` does in their code). A pair skates when
 //!   some in-contact sphere has v_p > `skate_speed` (0.5 m/s) and v̄_p > `skate_speed`;
@@ -90,6 +93,9 @@ pub struct EvaluateOptions {
     /// Floor height along the normal (m); None: the clip's own ground level. Default
     /// Some(0): the frame the data is in.
     pub floor_height: Option<f64>,
+    /// The floor's velocity (m/s, ground frame; its normal component is ignored): Some(0) by
+    /// default; a treadmill's belt velocity; None: the clip's own (module documentation).
+    pub floor_velocity: Option<crate::spatial::Vec3>,
     /// A foot sphere within this of the clip's ground level can be in contact (m).
     /// Default 0.02.
     pub contact_height: f64,
@@ -112,6 +118,7 @@ impl Default for EvaluateOptions {
     fn default() -> Self {
         EvaluateOptions {
             floor_height: Some(0.0),
+            floor_velocity: Some(crate::spatial::Vec3::zeros()),
             contact_height: 0.02,
             skate_speed: 0.5,
             skate_window: 5,
@@ -155,6 +162,15 @@ impl EvaluateOptions {
                     format!("{value} is out of range"),
                 ));
             }
+        }
+        if self
+            .floor_velocity
+            .is_some_and(|v| !v.iter().all(|x| x.is_finite()))
+        {
+            return Err(crate::Error::invalid(
+                "floor_velocity",
+                "a component is not finite",
+            ));
         }
         if self.skate_window == 0 || self.skate_window.is_multiple_of(2) {
             return Err(crate::Error::invalid(

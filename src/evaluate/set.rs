@@ -336,14 +336,13 @@ impl Shared<'_> {
                 "models/musculo_fullbody.osim".to_string(),
             ),
         };
-        Chain::new(
-            xml,
-            source,
-            ChainOptions {
-                muscles: false,
-                ..ChainOptions::default()
-            },
-        )
+        let mut options = ChainOptions {
+            muscles: false,
+            ..ChainOptions::default()
+        };
+        // the contact estimate on the same floor the metrics take (a treadmill's belt)
+        options.contact.floor_velocity = self.options.metrics.floor_velocity;
+        Chain::new(xml, source, options)
     }
 }
 

@@ -23,6 +23,11 @@ pub struct SetArgs {
     /// is not at 0.
     #[arg(long, default_value = "0", allow_hyphen_values = true)]
     pub floor: String,
+    /// Floor velocity X,Y,Z (m/s, ground frame; the belt of a treadmill walk), or `clip`: each
+    /// clip's own (per axis, the median horizontal velocity of its feet in contact). Skating is
+    /// measured relative to it; motion files' contacts are estimated on it too.
+    #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
+    pub floor_velocity: String,
     /// Format of motion files among the inputs (default: from each file's extension and
     /// array shape); they go through IK, inverse dynamics and contacts first (no muscles).
     #[arg(long, value_parser = musculo::motion::Format::parse)]
@@ -54,6 +59,24 @@ impl SetArgs {
                 )
             })?),
         };
+        let floor_velocity = match self.floor_velocity.as_str() {
+            "clip" => None,
+            text => {
+                let v: Vec<f64> = text
+                    .split(',')
+                    .map(|c| c.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .ok()
+                    .filter(|v: &Vec<f64>| v.len() == 3)
+                    .ok_or_else(|| {
+                        invalid(
+                            "--floor-velocity",
+                            format!("{text}: give X,Y,Z in m/s or `clip`"),
+                        )
+                    })?;
+                Some(musculo::spatial::Vec3::new(v[0], v[1], v[2]))
+            }
+        };
         let options = SetOptions {
             model: self.model.clone(),
             reference: self.reference.clone(),
@@ -66,6 +89,7 @@ impl SetArgs {
             },
             metrics: EvaluateOptions {
                 floor_height: floor,
+                floor_velocity,
                 ..EvaluateOptions::default()
             },
         };
