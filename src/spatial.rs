@@ -176,6 +176,24 @@ pub fn rotation_vector(r: &Mat3) -> Vec3 {
     axis * theta
 }
 
+/// A symmetric inertia matrix as the six numbers OpenSim and MJCF write,
+/// `Ixx Iyy Izz Ixy Ixz Iyz`.
+pub fn inertia_six(i: &Mat3) -> [f64; 6] {
+    [
+        i[(0, 0)],
+        i[(1, 1)],
+        i[(2, 2)],
+        i[(0, 1)],
+        i[(0, 2)],
+        i[(1, 2)],
+    ]
+}
+
+/// [`inertia_six`] as text, the numbers separated by spaces.
+pub fn inertia_text(i: &Mat3) -> String {
+    inertia_six(i).map(|v| v.to_string()).join(" ")
+}
+
 /// The cross-product matrix \[v\]× with \[v\]× w = v × w.
 pub fn skew(v: &Vec3) -> Mat3 {
     Mat3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)

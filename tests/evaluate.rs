@@ -745,3 +745,65 @@ fn a_treadmill_walk_skates_only_against_a_floor_at_rest() {
     assert!(!ok && err.contains("--floor-velocity"), "{err}");
     let _ = std::fs::remove_dir_all(out);
 }
+
+/// A variant that changes the body (mass scale, carried load) gets its own `.osim` with
+/// `--opensim-files`: its bodies weigh what the manifest says, and `evaluate` judges the clip on
+/// it (zero residual) where the base model would leave the load's weight unexplained.
+#[test]
+fn body_changing_variants_are_judged_on_their_own_model() {
+    let dir = std::env::temp_dir().join(format!("musculo-variants-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (out, json) = (dir.join("aug"), dir.join("m.json"));
+    let (ok, _, err) = musculo_cli(
+        "augment --demo --variants 2 --opensim-files --out {}",
+        &[&out],
+    );
+    assert!(ok, "{err}");
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let base = Model::default_fullbody();
+    let base_mass: f64 = base.bodies.iter().map(|b| b.mass).sum();
+    let mut variants = 0;
+    for clip in manifest["clips"].as_array().unwrap() {
+        let name = clip["clip"].as_str().unwrap();
+        let v = &clip["variant"];
+        let (scale, load) = (
+            v["mass_scale"].as_f64().unwrap(),
+            v["load_kg"].as_f64().unwrap(),
+        );
+        if scale == 1.0 && load == 0.0 {
+            continue;
+        }
+        variants += 1;
+        let xml = std::fs::read_to_string(out.join(format!("{name}.osim"))).unwrap();
+        let model = Model::from_osim_str(&xml, name).unwrap();
+        let mass: f64 = model.bodies.iter().map(|b| b.mass).sum();
+        assert!(
+            (mass - (base_mass * scale + load)).abs() < 1e-9 * mass,
+            "{name}: {mass} kg, expected {base_mass} × {scale} + {load}"
+        );
+    }
+    assert_eq!(variants, 3);
+    let (ok, _, err) = musculo_cli("evaluate --input {} --out {}", &[&out, &json]);
+    assert!(ok, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for clip in report["clips"].as_array().unwrap() {
+        let r = clip["el_residual"].as_f64().unwrap();
+        assert!(r < 1e-6, "{}: {r:e}", clip["clip"]);
+    }
+    // the same variant judged on the base model: its residual is the body change
+    let default_model = dir.join("default.osim");
+    std::fs::write(&default_model, musculo::DEFAULT_MODEL_OSIM).unwrap();
+    let (ok, _, err) = musculo_cli(
+        "evaluate --input {} --model {} --out {}",
+        &[&out.join("march_v1.npz"), &default_model, &json],
+    );
+    assert!(ok, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let on_base = report["clips"][0]["el_residual"].as_f64().unwrap();
+    println!("march_v1 on its own model: residual < 1e-6; on the base model {on_base:.3}");
+    assert!(on_base > 1e-3, "{on_base}");
+    let _ = std::fs::remove_dir_all(dir);
+}

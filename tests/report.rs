@@ -178,3 +178,38 @@ fn a_training_page_plots_every_nonzero_loss_column_on_a_log_scale() {
         .to_string();
     assert!(err.contains("loss.csv: line 3"), "{err}");
 }
+
+#[test]
+fn a_sharded_run_gets_its_dataset_page_from_merge() {
+    // two shards with --report write no page; `merge --report` writes the page an unsharded
+    // `augment --report` writes (the same bytes, but for the folder's name in the title)
+    let dir = temp_dir("shards");
+    let (one, out) = (dir.join("one"), dir.join("aug"));
+    let (ok, _, err) = musculo_cli("augment --demo --report --out {}", &[&one]);
+    assert!(ok, "{err}");
+    for shard in ["0/2", "1/2"] {
+        let (ok, _, err) = musculo_cli(
+            &format!("augment --demo --report --shard {shard} --out {{}}"),
+            &[&out],
+        );
+        assert!(ok, "{err}");
+        assert!(err.contains("musculo merge --report"), "{err}");
+    }
+    assert!(
+        !out.join("report/index.html").exists(),
+        "a shard wrote the page"
+    );
+    let (ok, _, err) = musculo_cli("merge --report {}", &[&out]);
+    assert!(ok, "{err}");
+    let page = |d: &Path| {
+        std::fs::read_to_string(d.join("report/index.html"))
+            .unwrap()
+            .replace(&d.display().to_string(), "OUT")
+    };
+    let merged = page(&out);
+    for clip in ["march", "squat", "reach"] {
+        assert!(merged.contains(clip), "{clip}");
+    }
+    assert_eq!(merged, page(&one));
+    let _ = std::fs::remove_dir_all(dir);
+}

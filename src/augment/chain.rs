@@ -152,8 +152,9 @@ pub struct ClipOutput {
     /// `_activation.sto` (muscle activations) and `_grf.mot` (per contact group: force,
     /// centre of pressure and free moment, in ExternalLoads' column naming).
     pub tables: Vec<(&'static str, Table)>,
-    /// With [`ChainOptions::opensim_files`], the model scaled to the clip as OpenSim XML
-    /// (only for variants that change neither mass nor load, which the XML would not show).
+    /// With [`ChainOptions::opensim_files`], the clip's model as OpenSim XML: scaled to the
+    /// clip, and with a variant's mass scaling and carried load in its bodies' mass
+    /// properties; None for an unscaled model that the variant leaves as it is.
     pub model_xml: Option<String>,
     pub warnings: Vec<String>,
 }
@@ -496,9 +497,20 @@ impl Chain {
         }
         let (tables, model_xml) = if self.options.opensim_files {
             let plain = variant.mass_scale == 1.0 && variant.load_kg == 0.0;
+            let xml = if plain {
+                scaled_xml
+            } else {
+                // the variant's body: the clip's (scaled) model text with its mass properties
+                let base = scaled_xml.as_deref().unwrap_or(&self.xml);
+                Some(crate::solve::scale::inertial::set_inertial_properties(
+                    base,
+                    &self.source,
+                    &model,
+                )?)
+            };
             (
                 opensim_tables(&model, &so, &set, &times, &q, &per_frame)?,
-                if plain { scaled_xml } else { None },
+                xml,
             )
         } else {
             (Vec::new(), None)

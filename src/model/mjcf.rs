@@ -413,14 +413,9 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
         if mass > 0.0 {
             let _ = writeln!(
                 out,
-                "<inertial pos=\"{}\" mass=\"{mass}\" fullinertia=\"{} {} {} {} {} {}\"/>",
+                "<inertial pos=\"{}\" mass=\"{mass}\" fullinertia=\"{}\"/>",
                 v3(&body.com_in_body),
-                i[(0, 0)],
-                i[(1, 1)],
-                i[(2, 2)],
-                i[(0, 1)],
-                i[(0, 2)],
-                i[(1, 2)]
+                crate::spatial::inertia_text(&i)
             );
         }
         for d in joint.dof_range.clone() {

@@ -79,7 +79,8 @@ pub struct Args {
     opensim_files: bool,
     /// At the end, evaluate the output (as `musculo evaluate` does) and write the dataset
     /// page OUT/report/index.html. Implies --opensim-files, so that each clip is judged on
-    /// its own scaled model.
+    /// its own scaled model. A shard writes no page: `musculo merge --report` does, once
+    /// every shard has finished.
     #[arg(long)]
     report: bool,
 }
@@ -88,6 +89,13 @@ pub struct Args {
 pub struct MergeArgs {
     /// The output folder the shards wrote into.
     out: PathBuf,
+    /// Then evaluate the merged output and write the dataset page OUT/report/index.html (as
+    /// `augment --report` does for an unsharded run).
+    #[arg(long)]
+    report: bool,
+    /// Threads of the evaluation (default: all cores).
+    #[arg(long)]
+    jobs: Option<usize>,
 }
 
 fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
@@ -266,7 +274,8 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     }
     match shard {
         Some((k, n)) => eprintln!(
-            "shard {k}/{n} done; when every shard has finished: musculo merge {}",
+            "shard {k}/{n} done; when every shard has finished: musculo merge {}{}",
+            if args.report { "--report " } else { "" },
             args.out.display()
         ),
         None => eprintln!("wrote {}", args.out.join("manifest.json").display()),
@@ -287,5 +296,13 @@ pub fn merge(args: &MergeArgs) -> Result<(), musculo::Error> {
         manifest.summary.frames,
         args.out.join("manifest.json").display()
     );
+    if args.report && manifest.summary.clips_ok > 0 {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(args.jobs.unwrap_or(0))
+            .build()
+            .map_err(|e| invalid("--jobs", e.to_string()))?;
+        let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
+        eprintln!("wrote {}", page.display());
+    }
     Ok(())
 }

@@ -248,13 +248,8 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
         );
         let _ = writeln!(
             w,
-            "\t\t\t\t\t<inertia>{} {} {} {} {} {}</inertia>",
-            i[(0, 0)],
-            i[(1, 1)],
-            i[(2, 2)],
-            i[(0, 1)],
-            i[(0, 2)],
-            i[(1, 2)]
+            "\t\t\t\t\t<inertia>{}</inertia>",
+            crate::spatial::inertia_text(i)
         );
         write_wrap_objects(w, tables, name, scales[name.as_str()])?;
         let _ = writeln!(w, "\t\t\t\t</Body>");

@@ -166,14 +166,7 @@ struct BodyMass {
 
 /// The numbers to write for an inertia matrix (`Ixx Iyy Izz Ixy Ixz Iyz`).
 fn inertia_values(i: &Mat3) -> Vec<f64> {
-    vec![
-        i[(0, 0)],
-        i[(1, 1)],
-        i[(2, 2)],
-        i[(0, 1)],
-        i[(0, 2)],
-        i[(1, 2)],
-    ]
+    crate::spatial::inertia_six(i).to_vec()
 }
 
 struct Scaler<'a, 'd, 'i> {

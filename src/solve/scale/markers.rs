@@ -65,7 +65,7 @@ fn line_range(xml: &str, r: Range<usize>) -> Range<usize> {
 }
 
 /// Replaces byte ranges (sorted, disjoint) by new text.
-fn splice(xml: &str, mut parts: Vec<(Range<usize>, String)>) -> String {
+pub(super) fn splice(xml: &str, mut parts: Vec<(Range<usize>, String)>) -> String {
     parts.sort_by_key(|p| p.0.start);
     let mut out = String::with_capacity(xml.len());
     let mut at = 0;

@@ -37,6 +37,7 @@
 
 mod apply;
 mod frames;
+pub mod inertial;
 pub mod markers;
 pub mod measure;
 pub mod place;
