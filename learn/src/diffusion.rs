@@ -320,20 +320,22 @@ fn normal(rng: &mut SplitMix64) -> f32 {
 }
 
 /// The latents of windows `(clip, start)` of `window` frames through the frozen autoencoder
-/// `ae` (inference device), from the clips' standardized frames `z` (T × D each); W × T/k × c
+/// `ae` (inference device), from the set's clips standardized by `normalizer`; W × T/k × c
 /// values out, windows in order.
 fn encode_windows(
     ae: &Autoencoder,
-    z: &[Vec<f32>],
+    set: &ClipSet,
+    normalizer: &crate::data::Normalizer,
     windows: &[(usize, usize)],
     window: usize,
-    d: usize,
     device: &Device,
 ) -> Vec<f32> {
+    let d = set.layout.width();
     let mut batch = Vec::with_capacity(windows.len() * window * d);
     for &(ci, s) in windows {
-        batch.extend_from_slice(&z[ci][s * d..(s + window) * d]);
+        batch.extend_from_slice(&set.clips[ci].y[s * d..(s + window) * d]);
     }
+    normalizer.normalize(&mut batch);
     let x = Tensor::<3>::from_data(TensorData::new(batch, [windows.len(), window, d]), device);
     ae.encode(x)
         .into_data()
@@ -418,15 +420,6 @@ pub fn continue_denoiser(
     // the frozen autoencoder runs on the training device without autodiff
     let inference = device.clone().inner();
     let ae = &ae.clone().to_device(&inference);
-    let standardized: Vec<Vec<f32>> = set
-        .clips
-        .iter()
-        .map(|clip| {
-            let mut z = clip.y.clone();
-            normalizer.normalize(&mut z);
-            z
-        })
-        .collect();
     // s: the latents' RMS over up to 256 windows spread evenly over the set's window starts
     let starts: Vec<(usize, usize)> = set
         .clips
@@ -439,7 +432,7 @@ pub fn continue_denoiser(
         .collect();
     let (mut sum, mut count) = (0.0f64, 0usize);
     for chunk in probe.chunks(32) {
-        let h = encode_windows(ae, &standardized, chunk, t, d, &inference);
+        let h = encode_windows(ae, set, normalizer, chunk, t, &inference);
         sum += h.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
         count += h.len();
     }
@@ -473,7 +466,7 @@ pub fn continue_denoiser(
                 (ci, s)
             })
             .collect();
-        let latents = encode_windows(ae, &standardized, &picks, t, d, &inference);
+        let latents = encode_windows(ae, set, normalizer, &picks, t, &inference);
         for (w, (ci, s)) in picks.iter().enumerate() {
             let h0 = &latents[w * tokens * c..(w + 1) * tokens * c];
             let ts = (rng.unit() * STEPS as f64) as usize;

@@ -177,15 +177,6 @@ pub fn continue_training(
     }
     let d = set.layout.width();
     let normalizer = Normalizer::of(set);
-    let clips: Vec<Vec<f32>> = set
-        .clips
-        .iter()
-        .map(|c| {
-            let mut z = c.y.clone();
-            normalizer.normalize(&mut z);
-            z
-        })
-        .collect();
     let physics = if train.physics.euler > 0.0 || train.physics.muscle > 0.0 {
         Some(Arc::new(Physics::new(
             model.clone(),
@@ -220,9 +211,11 @@ pub fn continue_training(
             }
             let clip = &set.clips[c];
             let s = (rng.unit() * (clip.frames - t + 1) as f64) as usize;
-            batch.extend_from_slice(&clips[c][s * d..(s + t) * d]);
+            batch.extend_from_slice(&clip.y[s * d..(s + t) * d]);
             include.push(clip.body_is_model);
         }
+        // standardized per batch: the set is held once, in SI units
+        normalizer.normalize(&mut batch);
         let z = Tensor::<3>::from_data(TensorData::new(batch, [b, t, d]), device);
         let z_hat = state.net.forward(z.clone());
         let reconstruction = (z_hat.clone() - z).powf_scalar(2.0).mean();
