@@ -16,6 +16,13 @@
 //! - `L_muscle+grad`: with ∂L/∂q (M by two RNEA VJPs, R by the exact moment-arm rates),
 //!   ∂L/∂q̈ and ∂L/∂a.
 //!
+//! And a motion in the per-joint layout (the demo squat as `musculo augment` writes it, its
+//! blocks taken as given), per frame on one core, beside one `dynamics::rnea` call:
+//! - `fit`: `augment::layout_inverse::coordinates_from_layout` (q, q̇, q̈, τ from the layout);
+//! - `L_euler+grad`: `loss::LayoutEulerLagrange` with gradients (contact forces at the joint
+//!   centres, the best couple on each foot);
+//! - `VJP`: `augment::layout_inverse_vjp` (those gradients back to every block of the layout).
+//!
 //! Run: `cargo bench --bench loss` (gait2392 and Rajagopal2016 from MUSCULO_REFERENCE or
 //! ../shared/reference when present).
 
@@ -265,6 +272,127 @@ fn bench_muscle(name: &str, model: &Model) {
     );
 }
 
+fn bench_layout() {
+    use musculo::augment::chain::{Chain, ChainOptions};
+    use musculo::augment::layout::JointLayout;
+    use musculo::augment::layout_inverse::{LayoutClip, coordinates_from_layout};
+    use musculo::augment::layout_inverse_vjp::{CoordinateGradient, coordinates_from_layout_vjp};
+    use musculo::augment::{demo, perturb::Variant};
+    use musculo::loss::{LayoutEulerLagrange, LayoutEulerLagrangeBatch, LayoutEulerLagrangeOutput};
+    let chain = Chain::default_model(ChainOptions::default()).unwrap();
+    let (_, motion) = demo::clips(&chain.model).unwrap().remove(1);
+    let v = Variant::identity();
+    let run = chain.run(&motion, None, &v).unwrap();
+    let model = chain.clip_model(&motion, None, &v).unwrap();
+    let get = |name: &str| -> Vec<f64> {
+        let a = run.arrays.iter().find(|a| a.name == name).unwrap();
+        a.values.iter().map(|&x| f64::from(x)).collect()
+    };
+    let blocks = [
+        "joint_pos",
+        "joint_rot",
+        "joint_vel",
+        "joint_acc",
+        "joint_torque",
+        "contact_force",
+    ]
+    .map(get);
+    let time = get("time");
+    let t = time.len();
+    let clip = LayoutClip {
+        frames: t,
+        rate_hz: (t - 1) as f64 / (time[t - 1] - time[0]),
+        joint_pos: &blocks[0],
+        joint_rot: &blocks[1],
+        joint_vel: &blocks[2],
+        joint_acc: &blocks[3],
+        joint_torque: &blocks[4],
+    };
+    let layout = JointLayout::new(&model, 0);
+    let set = musculo::augment::chain::contact_set(&model).unwrap();
+    let loss = LayoutEulerLagrange::from_contact_set(&model, &set, Vec::new()).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let runs = 7;
+    pool.install(|| {
+        let c = coordinates_from_layout(&model, &layout, &clip).unwrap();
+        let n = model.nq();
+        let mut data = Data::new(&model);
+        let id = time_n(
+            || {
+                for f in 0..t {
+                    let r = f * n..(f + 1) * n;
+                    black_box(
+                        dynamics::rnea(
+                            &model,
+                            &mut data,
+                            &c.q[r.clone()],
+                            &c.qd[r.clone()],
+                            &c.qdd[r],
+                        )
+                        .unwrap(),
+                    );
+                }
+            },
+            runs,
+            t,
+        );
+        let fit = time_n(
+            || {
+                black_box(coordinates_from_layout(&model, &layout, &clip).unwrap());
+            },
+            runs,
+            t,
+        );
+        let batch = LayoutEulerLagrangeBatch {
+            frames: t,
+            q: &c.q,
+            qd: &c.qd,
+            qdd: &c.qdd,
+            tau: &c.tau,
+            contact_force: &blocks[5],
+        };
+        let mut out = LayoutEulerLagrangeOutput::default();
+        let el = time_n(
+            || loss.evaluate(&model, &batch, true, &mut out).unwrap(),
+            runs,
+            t,
+        );
+        let bar = CoordinateGradient {
+            q: &out.grad_q,
+            qd: &out.grad_qd,
+            qdd: &out.grad_qdd,
+            tau: &out.grad_tau,
+        };
+        let vjp = time_n(
+            || {
+                black_box(coordinates_from_layout_vjp(&model, &layout, &clip, &c, &bar).unwrap());
+            },
+            runs,
+            t,
+        );
+        let cell = |x: (f64, f64, f64)| {
+            format!(
+                "{:>7.1} ({:.1}–{:.1}) = {:.0}× ID",
+                x.0,
+                x.1,
+                x.2,
+                x.0 / id.0
+            )
+        };
+        println!(
+            "layout, per frame, µs, one core, {t}-frame squat (median, min–max of {runs} runs):\n  \
+             ID {:.2}  fit {}  L_euler+grad {}  VJP {}",
+            id.0,
+            cell(fit),
+            cell(el),
+            cell(vjp)
+        );
+    });
+}
+
 fn main() {
     println!(
         "per frame, µs, one core: median (min–max) over {BATCHES} batches of {FRAMES} random states"
@@ -302,4 +430,5 @@ fn main() {
             bench_muscle(name, &Model::from_osim_file(&path).unwrap());
         }
     }
+    bench_layout();
 }

@@ -75,3 +75,151 @@ pub(crate) fn random_q(
         })
         .collect()
 }
+
+/// For unit tests: a clip in the per-joint layout, `t` frames at `rate` Hz, of a smooth
+/// motion — translational coordinates at constant speed (so that differences of the root's
+/// centre are exact), the others mid-range plus a sine of a quarter of their half-range —
+/// with random forces at `contacts` (ground axes, N), τ = τ_ID − Σ J_iᵀ λ_i; then, with
+/// `noise` > 0, every block disturbed so that they disagree as a generated motion's do.
+/// Returns the blocks [joint_pos, joint_rot, joint_vel, joint_acc, joint_torque,
+/// contact_force] (T × J × 3 each) and τ (T × n).
+#[cfg(test)]
+pub(crate) fn layout_motion(
+    model: &crate::Model,
+    t: usize,
+    rate: f64,
+    contacts: &[crate::loss::LossContact],
+    noise: f64,
+) -> ([Vec<f64>; 6], Vec<f64>) {
+    use crate::augment::layout::{JointFrame, JointLayout};
+    use crate::dynamics::{self, Data};
+    use crate::loss::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput};
+    use crate::model::MotionType;
+    use crate::random::SplitMix64;
+    use crate::spatial::Vec3;
+    let n = model.nq();
+    let layout = JointLayout::new(model, 0);
+    let mut rng = SplitMix64(7);
+    let waves: Vec<(f64, f64, f64, f64, bool)> = model
+        .reduction
+        .independent
+        .iter()
+        .map(|&c| {
+            let coordinate = &model.coordinates[c];
+            let [lo, hi] = coordinate.range;
+            let half = (0.5 * (hi - lo)).min(1.0);
+            (
+                0.5 * (lo + hi),
+                0.25 * half,
+                rng.uniform(1.0, 4.0),
+                rng.uniform(0.0, 6.0),
+                coordinate.motion_type == MotionType::Translational,
+            )
+        })
+        .collect();
+    let loss = EulerLagrange {
+        contacts: contacts.to_vec(),
+        weights: Vec::new(),
+    };
+    let mut data = Data::new(model);
+    let mut ws = layout.workspace(model);
+    let mut frame = JointFrame::new(&layout);
+    let mut blocks: [Vec<f64>; 6] = Default::default();
+    let mut taus = Vec::new();
+    for f in 0..t {
+        let s = f as f64 / rate;
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for (j, &(mid, amp, w, ph, linear)) in waves.iter().enumerate() {
+            if linear {
+                q[j] = mid + amp * w * s;
+                qd[j] = amp * w;
+            } else {
+                q[j] = mid + amp * (w * s + ph).sin();
+                qd[j] = amp * w * (w * s + ph).cos();
+                qdd[j] = -amp * w * w * (w * s + ph).sin();
+            }
+        }
+        let lambda: Vec<f64> = (0..3 * contacts.len())
+            .map(|i| {
+                if i % 3 == 1 {
+                    rng.uniform(50.0, 400.0)
+                } else {
+                    rng.uniform(-60.0, 60.0)
+                }
+            })
+            .collect();
+        // τ = τ_ID − Σ J_iᵀ λ_i: the residual of the loss at τ = 0
+        let zero = vec![0.0; n];
+        let mut out = EulerLagrangeOutput::default();
+        let batch = EulerLagrangeBatch {
+            frames: 1,
+            q: &q,
+            qd: &qd,
+            qdd: &qdd,
+            tau: &zero,
+            lambda: &lambda,
+        };
+        loss.evaluate(model, &batch, false, &mut out).unwrap();
+        let tau = out.residual;
+        let mut body_contact = vec![Vec3::zeros(); model.bodies.len()];
+        for (c, l) in contacts.iter().zip(lambda.chunks(3)) {
+            body_contact[c.body] += Vec3::new(l[0], l[1], l[2]);
+        }
+        dynamics::forward_kinematics_acceleration(model, &mut data, &q, &qd, &qdd).unwrap();
+        layout
+            .frame(model, &data, &tau, &body_contact, &mut ws, &mut frame)
+            .unwrap();
+        for (block, (values, scale)) in blocks.iter_mut().zip([
+            (&frame.pos, 0.005),
+            (&frame.rot, 0.03),
+            (&frame.vel, 0.1),
+            (&frame.acc, 0.5),
+            (&frame.torque, 1.0),
+            (&frame.contact, 5.0),
+        ]) {
+            for v in values {
+                block.extend(v.iter().map(|x| x + noise * scale * rng.uniform(-1.0, 1.0)));
+            }
+        }
+        taus.extend(tau);
+    }
+    (blocks, taus)
+}
+
+/// For unit tests: the first five blocks of [`layout_motion`] as a layout clip.
+#[cfg(test)]
+pub(crate) fn layout_clip(
+    t: usize,
+    rate: f64,
+    x: &[Vec<f64>],
+) -> crate::augment::layout_inverse::LayoutClip<'_> {
+    crate::augment::layout_inverse::LayoutClip {
+        frames: t,
+        rate_hz: rate,
+        joint_pos: &x[0],
+        joint_rot: &x[1],
+        joint_vel: &x[2],
+        joint_acc: &x[3],
+        joint_torque: &x[4],
+    }
+}
+
+/// For unit tests: two contact points under each foot body the model has (calcn, toes), in
+/// body coordinates.
+#[cfg(test)]
+pub(crate) fn foot_contacts(model: &crate::Model) -> Vec<crate::loss::LossContact> {
+    let mut out = Vec::new();
+    for (b, body) in model.bodies.iter().enumerate() {
+        if ["calcn_r", "calcn_l", "toes_r", "toes_l"].contains(&body.name.as_str()) {
+            for (k, x) in [-0.03, 0.06].into_iter().enumerate() {
+                out.push(crate::loss::LossContact {
+                    name: format!("{}_{k}", body.name),
+                    body: b,
+                    location_in_body: crate::spatial::Vec3::new(x, -0.01, 0.0),
+                    offset_in_ground: crate::spatial::Vec3::zeros(),
+                });
+            }
+        }
+    }
+    out
+}

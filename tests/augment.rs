@@ -831,6 +831,46 @@ fn the_joint_layout_maps_back_to_the_coordinates() {
             // discrete choice (an ellipsoid's plane, a contact point's side) at a few poses,
             // where the moment arms jump
             assert!((a - b).abs() <= 1e-2 * a, "{a} vs {b}");
+            // with the layout's contact forces (at the joint centres, the best couple on each
+            // foot: loss::layout) the residual is what the layout cannot carry — the root's
+            // translational generalized forces, which augment leaves in τ and the layout has
+            // no place for, and the root's accelerations by differences
+            let mut with_forces = views.clone();
+            let force = arrays.iter().find(|(k, _)| k == "contact_force").unwrap();
+            with_forces.push(("contact_force", force.1.view()));
+            let forces_file = out.join("squat_layout_forces.npz");
+            musculo::motion::npy::write_npz(&forces_file, &with_forces, false).unwrap();
+            let forces = report(&forces_file);
+            let median = |r: &serde_json::Value| r["relative_residual"]["median"].as_f64().unwrap();
+            let rms = |r: &serde_json::Value, name: &str| {
+                r["coordinates"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|c| c["name"] == name)
+                    .unwrap()["rms"]
+                    .as_f64()
+                    .unwrap()
+            };
+            eprintln!(
+                "squat: median ‖r‖/‖τ_ID‖ {:.2e} from q, {:.2e} from the layout with its contact \
+                 forces, {:.2e} without them; pelvis_ty residual RMS {:.1} / {:.1} N, \
+                 pelvis_tilt {:.2} / {:.1} N·m",
+                median(&full),
+                median(&forces),
+                median(&layout_only),
+                rms(&forces, "pelvis_ty"),
+                rms(&layout_only, "pelvis_ty"),
+                rms(&forces, "pelvis_tilt"),
+                rms(&layout_only, "pelvis_tilt"),
+            );
+            assert!(median(&forces) < 1e-3, "{}", median(&forces));
+            assert!(median(&layout_only) > 0.5, "{}", median(&layout_only));
+            assert!(
+                rms(&forces, "pelvis_ty") < 2.0,
+                "{}",
+                rms(&forces, "pelvis_ty")
+            );
         }
         assert!(
             eqd < 1e-5 * sqd.max(1.0) && eqdd < 1e-4 * sqdd.max(1.0),

@@ -591,7 +591,8 @@ fn strength_curves_equal_the_capacity_at_their_samples() {
 
 /// A generated motion often comes in the per-joint layout only: its coordinates are fitted
 /// from the joint rotations, and its kinematic metrics equal those of the full file; its
-/// residual is not formed (the layout's contact forces have no application point).
+/// residual is formed from the layout's contact forces (at the joint centres, the best couple
+/// on each foot: `loss::layout`), and not at all without them.
 #[test]
 fn a_layout_only_file_gives_the_kinematic_metrics_of_the_full_file() {
     let chain = Chain::new(
@@ -644,6 +645,28 @@ fn a_layout_only_file_gives_the_kinematic_metrics_of_the_full_file() {
         assert!((x - y).abs() < 1e-4 * (1.0 + x.abs()), "{what}: {x} vs {y}");
     }
     assert!((a.actuation_peak.unwrap() - b.actuation_peak.unwrap()).abs() < 1e-3);
+    let with_forces: Vec<_> = run
+        .arrays
+        .iter()
+        .filter(|a| keep.contains(&a.name) || a.name == "contact_force")
+        .cloned()
+        .collect();
+    output::write_clip(&dir, "layout_forces", &with_forces).unwrap();
+    let c = evaluate_clip(
+        &model,
+        "layout_forces",
+        &read("layout_forces"),
+        None,
+        None,
+        Capacity::PerFrame,
+        &o,
+    )
+    .unwrap();
+    println!(
+        "EL residual (median ‖r‖/‖τ_ID‖): {:?} full, {:?} layout with its contact forces",
+        a.el_residual, c.el_residual
+    );
+    assert!(c.el_residual.unwrap() < 1e-3, "{:?}", c.el_residual);
     let _ = std::fs::remove_dir_all(dir);
 }
 

@@ -14,6 +14,7 @@ True
 
 from ._musculo import (
     EulerLagrangeLoss,
+    LayoutEulerLagrangeLoss,
     Model,
     MuscleLoss,
     MusculoError,
@@ -27,6 +28,7 @@ from ._musculo import (
 __all__ = [
     "Model",
     "EulerLagrangeLoss",
+    "LayoutEulerLagrangeLoss",
     "MuscleLoss",
     "MusculoError",
     "augment_clip",

@@ -73,6 +73,85 @@ fn array<'py>(
     Ok(a.into_pyarray(py))
 }
 
+/// The values of an array of shape (lead..., `points`, 3), in C order.
+fn point_frames(name: &str, a: &Input, points: usize, lead: &[usize]) -> PyResult<Vec<f64>> {
+    let (v, lead_a) = frames(name, a, 3)?;
+    let expected: Vec<usize> = lead.iter().copied().chain([points]).collect();
+    if lead_a != expected {
+        return Err(MusculoError::new_err(format!(
+            "{name}: shape {:?}; expected {:?}",
+            a.as_array().shape(),
+            expected.iter().chain(&[3]).collect::<Vec<_>>()
+        )));
+    }
+    Ok(v)
+}
+
+/// Sets `grad_q`, `grad_qd`, `grad_qdd`, `grad_tau` (lead..., n) in `d`.
+fn set_coordinate_gradients(
+    py: Python<'_>,
+    d: &Bound<'_, PyDict>,
+    lead: &[usize],
+    n: usize,
+    grads: [Vec<f64>; 4],
+) -> PyResult<()> {
+    for (name, g) in ["grad_q", "grad_qd", "grad_qdd", "grad_tau"]
+        .into_iter()
+        .zip(grads)
+    {
+        d.set_item(name, array(py, lead, &[n], g)?)?;
+    }
+    Ok(())
+}
+
+/// The five T × J × 3 blocks of a clip in the per-joint layout (joint_pos, joint_rot,
+/// joint_vel, joint_acc, joint_torque), in C order.
+struct LayoutBlocks([Vec<f64>; 5]);
+
+impl LayoutBlocks {
+    fn clip(&self, frames: usize, fps: f64) -> musculo::augment::layout_inverse::LayoutClip<'_> {
+        musculo::augment::layout_inverse::LayoutClip {
+            frames,
+            rate_hz: fps,
+            joint_pos: &self.0[0],
+            joint_rot: &self.0[1],
+            joint_vel: &self.0[2],
+            joint_acc: &self.0[3],
+            joint_torque: &self.0[4],
+        }
+    }
+}
+
+/// Reads the layout blocks, each T × `nj` × 3 with the same T; returns them and T.
+fn layout_blocks(nj: usize, arrays: [Input; 5]) -> PyResult<(LayoutBlocks, usize)> {
+    let names = [
+        "joint_pos",
+        "joint_rot",
+        "joint_vel",
+        "joint_acc",
+        "joint_torque",
+    ];
+    let mut frames = None;
+    let mut out: [Vec<f64>; 5] = Default::default();
+    for ((name, a), v) in names.iter().zip(&arrays).zip(&mut out) {
+        let shape = a.as_array().shape().to_vec();
+        if shape.len() != 3 || shape[1] != nj || shape[2] != 3 {
+            return Err(MusculoError::new_err(format!(
+                "{name}: shape {shape:?}; expected T × {nj} × 3 (the model's joints)"
+            )));
+        }
+        let t = *frames.get_or_insert(shape[0]);
+        if shape[0] != t {
+            return Err(MusculoError::new_err(format!(
+                "{name}: {} frames; joint_pos has {t}",
+                shape[0]
+            )));
+        }
+        *v = a.as_array().iter().copied().collect();
+    }
+    Ok((LayoutBlocks(out), frames.unwrap_or(0)))
+}
+
 /// Runs `f(workspace, frame, row)` for every frame in parallel (one workspace per worker),
 /// each writing its `width` values of the result.
 fn per_frame<W, I, F>(frames: usize, width: usize, init: I, f: F) -> musculo::Result<Vec<f64>>
@@ -496,50 +575,14 @@ impl Model {
         fps: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         use musculo::augment::layout::JointLayout;
-        use musculo::augment::layout_inverse::{LayoutClip, coordinates_from_layout};
+        use musculo::augment::layout_inverse::coordinates_from_layout;
         let m = &*self.inner;
-        let nj = m.joints.len();
-        let block = |name: &str, a: &Input| -> PyResult<(Vec<f64>, usize)> {
-            let shape = a.as_array().shape().to_vec();
-            if shape.len() != 3 || shape[1] != nj || shape[2] != 3 {
-                return Err(MusculoError::new_err(format!(
-                    "{name}: shape {shape:?}; expected T × {nj} × 3 (the model's joints)"
-                )));
-            }
-            Ok((a.as_array().iter().copied().collect(), shape[0]))
-        };
-        let (pos, t) = block("joint_pos", &joint_pos)?;
-        let mut rest = Vec::new();
-        for (name, a) in [
-            ("joint_rot", &joint_rot),
-            ("joint_vel", &joint_vel),
-            ("joint_acc", &joint_acc),
-            ("joint_torque", &joint_torque),
-        ] {
-            let (v, tt) = block(name, a)?;
-            if tt != t {
-                return Err(MusculoError::new_err(format!(
-                    "{name}: {tt} frames; joint_pos has {t}"
-                )));
-            }
-            rest.push(v);
-        }
+        let (blocks, t) = layout_blocks(
+            m.joints.len(),
+            [joint_pos, joint_rot, joint_vel, joint_acc, joint_torque],
+        )?;
         let out = py
-            .detach(|| {
-                coordinates_from_layout(
-                    m,
-                    &JointLayout::new(m, 0),
-                    &LayoutClip {
-                        frames: t,
-                        rate_hz: fps,
-                        joint_pos: &pos,
-                        joint_rot: &rest[0],
-                        joint_vel: &rest[1],
-                        joint_acc: &rest[2],
-                        joint_torque: &rest[3],
-                    },
-                )
-            })
+            .detach(|| coordinates_from_layout(m, &JointLayout::new(m, 0), &blocks.clip(t, fps)))
             .map_err(to_py)?;
         let n = m.nq();
         let d = PyDict::new(py);
@@ -548,6 +591,87 @@ impl Model {
         d.set_item("qdd", array(py, &[t], &[n], out.qdd)?)?;
         d.set_item("tau", array(py, &[t], &[n], out.tau)?)?;
         d.set_item("rotation_error", array(py, &[t], &[], out.rotation_error)?)?;
+        Ok(d)
+    }
+
+    /// The gradient of a loss with respect to a clip in the per-joint layout, from its
+    /// gradient with respect to the coordinates `coordinates_from_layout` fits from it (same
+    /// arguments, then `grad_q`, `grad_qd`, `grad_qdd`, `grad_tau`, each T × n): exact, through
+    /// the fit by the implicit-function theorem, also where the layout's blocks disagree
+    /// (a generated motion). Returns a dict with `grad_joint_pos`, `grad_joint_rot`,
+    /// `grad_joint_vel`, `grad_joint_acc` and `grad_joint_torque` (T × J × 3; joint_pos is read
+    /// only at the root joints, joint_torque only on the angular coordinates: zero elsewhere).
+    #[allow(clippy::too_many_arguments)]
+    fn coordinates_from_layout_vjp<'py>(
+        &self,
+        py: Python<'py>,
+        joint_pos: Input<'py>,
+        joint_rot: Input<'py>,
+        joint_vel: Input<'py>,
+        joint_acc: Input<'py>,
+        joint_torque: Input<'py>,
+        fps: f64,
+        grad_q: Input<'py>,
+        grad_qd: Input<'py>,
+        grad_qdd: Input<'py>,
+        grad_tau: Input<'py>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use musculo::augment::layout::JointLayout;
+        use musculo::augment::layout_inverse::coordinates_from_layout;
+        use musculo::augment::layout_inverse_vjp::{
+            CoordinateGradient, coordinates_from_layout_vjp,
+        };
+        let m = &*self.inner;
+        let (n, nj) = (m.nq(), m.joints.len());
+        let (blocks, t) = layout_blocks(
+            nj,
+            [joint_pos, joint_rot, joint_vel, joint_acc, joint_torque],
+        )?;
+        let mut bars = Vec::new();
+        for (name, a) in [
+            ("grad_q", &grad_q),
+            ("grad_qd", &grad_qd),
+            ("grad_qdd", &grad_qdd),
+            ("grad_tau", &grad_tau),
+        ] {
+            let shape = a.as_array().shape().to_vec();
+            if shape != [t, n] {
+                return Err(MusculoError::new_err(format!(
+                    "{name}: shape {shape:?}; expected {t} × {n} (the layout's frames × the \
+                     model's coordinates)"
+                )));
+            }
+            bars.push(a.as_array().iter().copied().collect::<Vec<f64>>());
+        }
+        let g = py
+            .detach(|| {
+                let layout = JointLayout::new(m, 0);
+                let clip = blocks.clip(t, fps);
+                let coords = coordinates_from_layout(m, &layout, &clip)?;
+                coordinates_from_layout_vjp(
+                    m,
+                    &layout,
+                    &clip,
+                    &coords,
+                    &CoordinateGradient {
+                        q: &bars[0],
+                        qd: &bars[1],
+                        qdd: &bars[2],
+                        tau: &bars[3],
+                    },
+                )
+            })
+            .map_err(to_py)?;
+        let d = PyDict::new(py);
+        for (name, v) in [
+            ("grad_joint_pos", g.joint_pos),
+            ("grad_joint_rot", g.joint_rot),
+            ("grad_joint_vel", g.joint_vel),
+            ("grad_joint_acc", g.joint_acc),
+            ("grad_joint_torque", g.joint_torque),
+        ] {
+            d.set_item(name, array(py, &[t], &[nj, 3], v)?)?;
+        }
         Ok(d)
     }
 
@@ -765,18 +889,7 @@ impl EulerLagrangeLoss {
                     "lam: this loss has {p} contact points; give λ of shape (..., {p}, 3)"
                 )));
             }
-            (Some(l), _) => {
-                let (v, lead_l) = frames("lam", l, 3)?;
-                let expected: Vec<usize> = lead.iter().copied().chain([p]).collect();
-                if lead_l != expected {
-                    return Err(MusculoError::new_err(format!(
-                        "lam: shape {:?}; expected {:?}",
-                        l.as_array().shape(),
-                        expected.iter().chain(&[3]).collect::<Vec<_>>()
-                    )));
-                }
-                v
-            }
+            (Some(l), _) => point_frames("lam", l, p, &lead)?,
         };
         let mut out = EulerLagrangeOutput::default();
         py.detach(|| {
@@ -796,13 +909,152 @@ impl EulerLagrangeLoss {
         d.set_item("per_frame", array(py, &lead, &[], out.per_frame)?)?;
         d.set_item("residual", array(py, &lead, &[n], out.residual)?)?;
         if gradients {
-            d.set_item("grad_q", array(py, &lead, &[n], out.grad_q)?)?;
-            d.set_item("grad_qd", array(py, &lead, &[n], out.grad_qd)?)?;
-            d.set_item("grad_qdd", array(py, &lead, &[n], out.grad_qdd)?)?;
-            d.set_item("grad_tau", array(py, &lead, &[n], out.grad_tau)?)?;
+            let grads = [out.grad_q, out.grad_qd, out.grad_qdd, out.grad_tau];
+            set_coordinate_gradients(py, &d, &lead, n, grads)?;
             d.set_item("grad_lambda", array(py, &lead, &[p, 3], out.grad_lambda)?)?;
         }
         Ok(d)
+    }
+}
+
+/// L_euler of motions in the per-joint layout (`loss::layout`): the layout's contact forces
+/// (one per joint, T × J × 3) act at the joint centres, with a free couple on each body that
+/// touches the ground, the couple that best explains the motion; r = M q̈ + C q̇ + G − τ −
+/// Σ_j J_jᵀ λ_j − Σ_b J_ω,bᵀ μ_b at the best μ, L = Σ_t Σ_j w_j r_tj², with its gradients.
+#[pyclass(frozen, module = "musculo")]
+struct LayoutEulerLagrangeLoss {
+    model: Arc<musculo::Model>,
+    loss: musculo::loss::LayoutEulerLagrange,
+}
+
+#[pymethods]
+impl LayoutEulerLagrangeLoss {
+    /// `couples`: "model" (the bodies of the model's contact spheres, the default), None (no
+    /// couples) or a list of body names. `weights`: one w_j ≥ 0 per coordinate (default 1).
+    #[new]
+    #[pyo3(signature = (model, couples = Some("model".to_string()), weights = None))]
+    fn new(
+        model: &Model,
+        couples: Option<String>,
+        weights: Option<Vec<f64>>,
+    ) -> PyResult<LayoutEulerLagrangeLoss> {
+        let bodies = LayoutEulerLagrangeLoss::bodies(model, couples.as_deref(), None)?;
+        Self::build(model, bodies, weights)
+    }
+
+    /// The same with the couples on the bodies named in `bodies`.
+    #[staticmethod]
+    #[pyo3(signature = (model, bodies, weights = None))]
+    fn on_bodies(
+        model: &Model,
+        bodies: Vec<String>,
+        weights: Option<Vec<f64>>,
+    ) -> PyResult<LayoutEulerLagrangeLoss> {
+        let bodies = LayoutEulerLagrangeLoss::bodies(model, None, Some(&bodies))?;
+        Self::build(model, bodies, weights)
+    }
+
+    /// Names of the bodies that carry a couple, in the order of `couple`'s second-to-last
+    /// axis.
+    #[getter]
+    fn couple_bodies(&self) -> Vec<String> {
+        self.loss
+            .couple_bodies()
+            .iter()
+            .map(|&b| self.model.bodies[b].name.clone())
+            .collect()
+    }
+
+    /// L for q, q̇, q̈, τ (..., T, n; e.g. from `Model.coordinates_from_layout`) and the
+    /// layout's `contact_force` (..., T, J, 3): a dict with `loss`, `per_frame`, `residual`
+    /// (at the best couples), `couple` (..., T, B, 3) and, with `gradients`, `grad_q`,
+    /// `grad_qd`, `grad_qdd`, `grad_tau` (..., n) and `grad_contact_force` (..., J, 3).
+    #[pyo3(signature = (q, qd, qdd, tau, contact_force, gradients = true))]
+    #[allow(clippy::too_many_arguments)]
+    fn __call__<'py>(
+        &self,
+        py: Python<'py>,
+        q: Input<'py>,
+        qd: Input<'py>,
+        qdd: Input<'py>,
+        tau: Input<'py>,
+        contact_force: Input<'py>,
+        gradients: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use musculo::loss::{LayoutEulerLagrangeBatch, LayoutEulerLagrangeOutput};
+        let m = &*self.model;
+        let (n, nj, nb) = (m.nq(), m.joints.len(), self.loss.couple_bodies().len());
+        let (q, lead) = frames("q", &q, n)?;
+        let qd = frames_like("qd", &qd, n, &lead)?;
+        let qdd = frames_like("qdd", &qdd, n, &lead)?;
+        let tau = frames_like("tau", &tau, n, &lead)?;
+        let t = q.len() / n.max(1);
+        let lambda = point_frames("contact_force", &contact_force, nj, &lead)?;
+        let mut out = LayoutEulerLagrangeOutput::default();
+        py.detach(|| {
+            let batch = LayoutEulerLagrangeBatch {
+                frames: t,
+                q: &q,
+                qd: &qd,
+                qdd: &qdd,
+                tau: &tau,
+                contact_force: &lambda,
+            };
+            self.loss.evaluate(m, &batch, gradients, &mut out)
+        })
+        .map_err(to_py)?;
+        let d = PyDict::new(py);
+        d.set_item("loss", out.loss)?;
+        d.set_item("per_frame", array(py, &lead, &[], out.per_frame)?)?;
+        d.set_item("residual", array(py, &lead, &[n], out.residual)?)?;
+        d.set_item("couple", array(py, &lead, &[nb, 3], out.couple)?)?;
+        if gradients {
+            let grads = [out.grad_q, out.grad_qd, out.grad_qdd, out.grad_tau];
+            set_coordinate_gradients(py, &d, &lead, n, grads)?;
+            d.set_item(
+                "grad_contact_force",
+                array(py, &lead, &[nj, 3], out.grad_contact_force)?,
+            )?;
+        }
+        Ok(d)
+    }
+}
+
+impl LayoutEulerLagrangeLoss {
+    /// The couple bodies: by keyword ("model" or none) or by name.
+    fn bodies(model: &Model, word: Option<&str>, names: Option<&[String]>) -> PyResult<Vec<usize>> {
+        if let Some(names) = names {
+            return names.iter().map(|b| model.body(b)).collect();
+        }
+        match word {
+            None => Ok(vec![]),
+            Some("model") => Ok(ContactSet::from_model(&model.inner)
+                .map_err(to_py)?
+                .points
+                .iter()
+                .map(|p| p.body)
+                .collect()),
+            Some(w) => Err(MusculoError::new_err(format!(
+                "couples: \"{w}\" — give \"model\", None, or use LayoutEulerLagrangeLoss.on_bodies"
+            ))),
+        }
+    }
+
+    fn build(
+        model: &Model,
+        bodies: Vec<usize>,
+        weights: Option<Vec<f64>>,
+    ) -> PyResult<LayoutEulerLagrangeLoss> {
+        let loss = musculo::loss::LayoutEulerLagrange::new(
+            &model.inner,
+            &bodies,
+            weights.unwrap_or_default(),
+        )
+        .map_err(to_py)?;
+        Ok(LayoutEulerLagrangeLoss {
+            model: model.inner.clone(),
+            loss,
+        })
     }
 }
 
@@ -1238,6 +1490,7 @@ fn clip_output_dict(
 fn _musculo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<EulerLagrangeLoss>()?;
+    m.add_class::<LayoutEulerLagrangeLoss>()?;
     m.add_class::<MuscleLoss>()?;
     m.add_function(wrap_pyfunction!(augment_clip, m)?)?;
     m.add_function(wrap_pyfunction!(augment_file, m)?)?;

@@ -202,7 +202,7 @@ def test_readme_examples(monkeypatch):
         pytest.skip("README.md not beside the tests")
     text = open(readme, encoding="utf-8").read()
     section = text[text.index("## Python package"):]
-    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:4]]
+    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:5]]
     namespace = {}
     exec(blocks[0], namespace)
     assert namespace["out"]["grad_q"].shape == (16, 196, namespace["model"].nq)
@@ -218,6 +218,10 @@ def test_readme_examples(monkeypatch):
         return
     exec(blocks[2], namespace)
     assert namespace["q"].grad is not None
+    if os.path.exists(os.path.join("..", "shared", "reference", "humanml3d",
+                                   "new_joints_012314.npy")):
+        exec(blocks[3], namespace)
+        assert all(x.grad is not None for x in namespace["x"])
 
 
 def test_jax_wrapper_gives_the_loss_gradients_under_grad_and_jit(model):
@@ -263,6 +267,122 @@ def test_the_joint_layout_maps_back_to_the_coordinates():
     with pytest.raises(musculo.MusculoError, match="joint_rot"):
         scaled.coordinates_from_layout(out["joint_pos"], out["joint_rot"][:, :3], out["joint_vel"],
                                        out["joint_acc"], out["joint_torque"], fps=20.0)
+
+
+LAYOUT = ("joint_pos", "joint_rot", "joint_vel", "joint_acc", "joint_torque")
+
+
+def disturbed_layout(frames, seed):
+    """The first `frames` frames of the HumanML3D sample augmented, its layout blocks then
+    disturbed so that they disagree (as a generated motion's do); with the scaled model and
+    the activations."""
+    out = musculo.augment_clip(np.load(HUMANML3D)[:frames], fps=20.0)
+    model = musculo.Model.from_osim_string(out["model_xml"])
+    rng = np.random.default_rng(seed)
+    noise = dict(zip(LAYOUT, (0.005, 0.02, 0.1, 0.5, 1.0)))
+    blocks = [out[k].astype(np.float64) + noise[k] * rng.uniform(-1, 1, out[k].shape)
+              for k in LAYOUT]
+    return model, blocks, out["muscle_act"].astype(np.float64)
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_muscle_loss_gradient_with_respect_to_the_joint_layout():
+    model, blocks, a = disturbed_layout(10, 5)
+    muscle = musculo.MuscleLoss(model, beta=1e-3)
+
+    def loss(blocks):
+        c = model.coordinates_from_layout(*blocks, fps=20.0)
+        return muscle(c["q"], c["qdd"], a, gradients=True), c
+
+    value, c = loss(blocks)
+    assert c["rotation_error"].max() > 1e-3  # the fit leaves residuals
+    g = model.coordinates_from_layout_vjp(*blocks, 20.0, value["grad_q"],
+                                          np.zeros_like(c["qd"]), value["grad_qdd"],
+                                          np.zeros_like(c["tau"]))
+    rng = np.random.default_rng(6)
+    for k, name in enumerate(LAYOUT):
+        direction = rng.uniform(-1, 1, blocks[k].shape)
+        slope = float(np.sum(g["grad_" + name] * direction))
+        # the loss is large (~1e9) and the fit converges to 1e-12: steps that move it well
+        # above that noise
+        h = 1e-4
+
+        def at(s):
+            moved = [b + s * direction if i == k else b for i, b in enumerate(blocks)]
+            return loss(moved)[0]["loss"]
+
+        fd = (at(h) - at(-h)) / (2 * h)
+        assert slope == pytest.approx(fd, rel=1e-5, abs=1e-9 * abs(value["loss"])), name
+    with pytest.raises(musculo.MusculoError, match="grad_q"):
+        model.coordinates_from_layout_vjp(*blocks, 20.0, value["grad_q"][:3],
+                                          np.zeros_like(c["qd"]), value["grad_qdd"],
+                                          np.zeros_like(c["tau"]))
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_layout_physics_loss_and_its_gradient_with_respect_to_the_joint_layout():
+    out = musculo.augment_clip(np.load(HUMANML3D)[:12], fps=20.0)
+    model = musculo.Model.from_osim_string(out["model_xml"])
+    loss = musculo.LayoutEulerLagrangeLoss(model)
+    assert loss.couple_bodies and all(b.startswith(("calcn", "toes")) for b in loss.couple_bodies)
+    # the augmented clip's own layout: its contact forces explain the motion as augment's did
+    blocks = [out[k].astype(np.float64) for k in LAYOUT]
+    force = out["contact_force"].astype(np.float64)
+    c = model.coordinates_from_layout(*blocks, fps=20.0)
+    with_forces = loss(c["q"], c["qd"], c["qdd"], c["tau"], force, gradients=False)
+    without = loss(c["q"], c["qd"], c["qdd"], c["tau"], 0 * force, gradients=False)
+    assert with_forces["loss"] < 0.1 * without["loss"]
+    # what is left is the root's acceleration: the layout has no linear rates, so q̈ of the
+    # translations comes from differences of its centre (here up to ~2 m/s² off augment's)
+    names = model.coordinate_names
+    trans = [names.index(k) for k in ("pelvis_tx", "pelvis_ty", "pelvis_tz")]
+    moved = model.total_mass * (c["qdd"] - out["qdd"])[:, trans]
+    left = with_forces["residual"][:, trans] - moved
+    assert np.sqrt(np.mean(left**2)) < 0.05 * np.sqrt(np.mean(moved**2))
+    # gradients through the fit and the loss, on a disturbed layout
+    _, blocks, _ = disturbed_layout(12, 9)
+    rng = np.random.default_rng(10)
+    force = force + 20 * rng.uniform(-1, 1, force.shape)
+
+    def value(blocks, force, gradients=False):
+        c = model.coordinates_from_layout(*blocks, fps=20.0)
+        return loss(c["q"], c["qd"], c["qdd"], c["tau"], force, gradients=gradients), c
+
+    v, c = value(blocks, force, gradients=True)
+    g = model.coordinates_from_layout_vjp(*blocks, 20.0, v["grad_q"], v["grad_qd"],
+                                          v["grad_qdd"], v["grad_tau"])
+    grads = [g["grad_" + k] for k in LAYOUT] + [v["grad_contact_force"]]
+    for k, grad in enumerate(grads):
+        direction = rng.uniform(-1, 1, grad.shape)
+        h = 1e-4
+
+        def at(s):
+            moved = [b + s * direction if i == k else b for i, b in enumerate(blocks)]
+            return value(moved, force + s * direction if k == 5 else force)[0]["loss"]
+
+        fd = (at(h) - at(-h)) / (2 * h)
+        assert float(np.sum(grad * direction)) == pytest.approx(fd, rel=1e-5), k
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_torch_layout_coordinates_pass_gradcheck():
+    torch = pytest.importorskip("torch")
+    from musculo.torch import LayoutCoordinates, LayoutPhysicsLoss, MuscleLoss
+
+    model, blocks, a = disturbed_layout(5, 7)
+    layout = LayoutCoordinates(model, fps=20.0)
+    args = tuple(torch.tensor(b, requires_grad=True) for b in blocks)
+    assert torch.autograd.gradcheck(layout, args, eps=1e-6, atol=1e-5, rtol=1e-5)
+    # a batch of two clips, into the muscle loss, as a trainer composes them
+    batch = tuple(torch.stack([x.detach(), x.detach()]).requires_grad_() for x in args)
+    q, qd, qdd, tau = layout(*batch)
+    assert q.shape == (2, 5, model.nq)
+    total = MuscleLoss(model)(q, qdd, torch.tensor(np.stack([a, a])))
+    force = torch.zeros(2, 5, batch[0].shape[2], 3, dtype=torch.float64, requires_grad=True)
+    total = total + LayoutPhysicsLoss(model)(q, qd, qdd, tau, force)
+    total.backward()
+    assert all(x.grad is not None and torch.isfinite(x.grad).all() for x in batch)
+    assert torch.isfinite(force.grad).all() and force.grad.abs().max() > 0
 
 
 @pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")

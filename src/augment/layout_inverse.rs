@@ -36,6 +36,9 @@
 //! to the accuracy of the finite differences, and τ_K. The per-frame rotation error left by
 //! the fit (the largest |log(exp(r_j) R_j(q)ᵀ)| over the joints) is reported: zero up to
 //! rounding for a consistent layout, the inconsistency of a generated one otherwise.
+//!
+//! Gradients of a loss on these coordinates with respect to the layout itself:
+//! [`super::layout_inverse_vjp`]; the layout's contact forces in L_euler: [`crate::loss::layout`].
 
 use super::layout::{JointLayout, rotation_vector};
 use crate::dynamics::{self, Data};
@@ -50,7 +53,7 @@ const STEP_TOLERANCE: f64 = 1e-12;
 /// The largest Gauss–Newton step (max |δ|, rad or m); longer steps are shortened to it.
 const MAX_STEP: f64 = 0.3;
 /// Weight of the root joint centres against the rotations (rad per m).
-const POSITION_WEIGHT: f64 = 10.0;
+pub(super) const POSITION_WEIGHT: f64 = 10.0;
 
 /// A clip in the per-joint layout: every array T × J × 3, row-major, joints in
 /// `Model::joints` order, in the units and frames of [`super::layout`].
@@ -132,16 +135,7 @@ pub fn coordinates_from_layout(
         .filter(|&j| model.joints[j].parent_body == 0)
         .collect();
     let rows = 3 * nj + 3 * roots.len();
-    let mut ws = Solver {
-        data: Data::new(model),
-        jac: DMatrix::zeros(6, n),
-        point: DMatrix::zeros(3, n),
-        a: vec![0.0; rows * n],
-        e: vec![0.0; rows],
-        normal: vec![0.0; n * n],
-        rhs: vec![0.0; n],
-        frame_rot: vec![Mat3::identity(); nj],
-    };
+    let mut ws = Solver::new(model, rows);
     let mut out = LayoutCoordinates {
         q: vec![0.0; t * n],
         qd: vec![0.0; t * n],
@@ -150,40 +144,14 @@ pub fn coordinates_from_layout(
         rotation_error: vec![0.0; t],
     };
     let dt = 1.0 / clip.rate_hz;
-    // root centres' first and second differences: central inside, second-order one-sided
-    // at the ends (f′ ≈ (−3p₀ + 4p₁ − p₂)/2h, f″ ≈ (2p₀ − 5p₁ + 4p₂ − p₃)/h²)
+    // root centres' first and second differences over frames (see `root_stencil`)
     let root_rates = |f: usize, r: usize| -> (Vec3, Vec3) {
-        let p = |g: usize| vec3(clip.joint_pos, g, roots[r]);
-        if t < 2 {
-            return (Vec3::zeros(), Vec3::zeros());
-        }
-        if t < 4 {
-            let v = (p(t - 1) - p(0)) / ((t - 1) as f64 * dt);
-            let acc = if t == 3 {
-                (p(2) - p(1) * 2.0 + p(0)) / (dt * dt)
-            } else {
-                Vec3::zeros()
-            };
-            return (v, acc);
-        }
-        // (sign, i0, i1, i2, i3): the stencil read forwards from the first frame or
-        // backwards from the last
-        let end = |s: f64, i: [usize; 4]| {
-            (
-                (p(i[0]) * -3.0 + p(i[1]) * 4.0 - p(i[2])) * (s / (2.0 * dt)),
-                (p(i[0]) * 2.0 - p(i[1]) * 5.0 + p(i[2]) * 4.0 - p(i[3])) / (dt * dt),
-            )
-        };
-        if f == 0 {
-            end(1.0, [0, 1, 2, 3])
-        } else if f + 1 == t {
-            end(-1.0, [t - 1, t - 2, t - 3, t - 4])
-        } else {
-            (
-                (p(f + 1) - p(f - 1)) / (2.0 * dt),
-                (p(f + 1) - p(f) * 2.0 + p(f - 1)) / (dt * dt),
-            )
-        }
+        let [first, second] = root_stencil(f, t, dt);
+        let p = |(g, c): (usize, f64)| vec3(clip.joint_pos, g, roots[r]) * c;
+        (
+            first.into_iter().map(p).sum(),
+            second.into_iter().map(p).sum(),
+        )
     };
     let mut q = model.default_q();
     for f in 0..t {
@@ -296,6 +264,58 @@ pub fn coordinates_from_layout(
     Ok(out)
 }
 
+/// The root centres' first and second differences at frame `f` of `t` (step `dt`), as
+/// (frame, coefficient) terms: central inside, second-order one-sided at the ends
+/// (f′ ≈ (−3p₀ + 4p₁ − p₂)/2h, f″ ≈ (2p₀ − 5p₁ + 4p₂ − p₃)/h²); a clip of two or three
+/// frames has one mean velocity (and with three frames one second difference), a single
+/// frame none. Unused terms have coefficient 0.
+pub(super) fn root_stencil(f: usize, t: usize, dt: f64) -> [[(usize, f64); 4]; 2] {
+    let none = [(0, 0.0); 4];
+    if t < 2 {
+        return [none, none];
+    }
+    if t < 4 {
+        let h = 1.0 / ((t - 1) as f64 * dt);
+        let first = [(t - 1, h), (0, -h), (0, 0.0), (0, 0.0)];
+        let second = if t == 3 {
+            let h2 = 1.0 / (dt * dt);
+            [(2, h2), (1, -2.0 * h2), (0, h2), (0, 0.0)]
+        } else {
+            none
+        };
+        return [first, second];
+    }
+    let (h1, h2) = (1.0 / (2.0 * dt), 1.0 / (dt * dt));
+    // the one-sided stencils, read forwards from the first frame (s = 1) or backwards from
+    // the last (s = −1)
+    let end = |s: f64, i: [usize; 4]| {
+        [
+            [
+                (i[0], -3.0 * s * h1),
+                (i[1], 4.0 * s * h1),
+                (i[2], -s * h1),
+                (i[3], 0.0),
+            ],
+            [
+                (i[0], 2.0 * h2),
+                (i[1], -5.0 * h2),
+                (i[2], 4.0 * h2),
+                (i[3], -h2),
+            ],
+        ]
+    };
+    if f == 0 {
+        end(1.0, [0, 1, 2, 3])
+    } else if f + 1 == t {
+        end(-1.0, [t - 1, t - 2, t - 3, t - 4])
+    } else {
+        [
+            [(f + 1, h1), (f - 1, -h1), (0, 0.0), (0, 0.0)],
+            [(f + 1, h2), (f, -2.0 * h2), (f - 1, h2), (0, 0.0)],
+        ]
+    }
+}
+
 /// exp of a rotation vector.
 fn exp(r: &Vec3) -> Mat3 {
     Rotation3::new(*r).into_inner()
@@ -336,21 +356,35 @@ fn bias_joint_acceleration(
 
 /// The stacked Jacobian rows (A_j, then w_p J_p of the root centres), the error vector and
 /// the normal equations of one frame.
-struct Solver {
-    data: Data,
+pub(super) struct Solver {
+    pub(super) data: Data,
     jac: DMatrix<f64>,
     point: DMatrix<f64>,
     /// rows × n, row-major.
-    a: Vec<f64>,
-    e: Vec<f64>,
+    pub(super) a: Vec<f64>,
+    pub(super) e: Vec<f64>,
     normal: Vec<f64>,
-    rhs: Vec<f64>,
+    pub(super) rhs: Vec<f64>,
     frame_rot: Vec<Mat3>,
 }
 
 impl Solver {
+    pub(super) fn new(model: &Model, rows: usize) -> Solver {
+        let n = model.nq();
+        Solver {
+            data: Data::new(model),
+            jac: DMatrix::zeros(6, n),
+            point: DMatrix::zeros(3, n),
+            a: vec![0.0; rows * n],
+            e: vec![0.0; rows],
+            normal: vec![0.0; n * n],
+            rhs: vec![0.0; n],
+            frame_rot: vec![Mat3::identity(); model.joints.len()],
+        }
+    }
+
     /// A_j = R_Fᵀ (J_ω,child − J_ω,parent) for every joint and w_p J_p for the root centres.
-    fn jacobians(
+    pub(super) fn jacobians(
         &mut self,
         model: &Model,
         layout: &JointLayout,
@@ -413,7 +447,13 @@ impl Solver {
 
     /// The error vector e of the fit at the state of `data` (rotations log(exp(r_j) R_jᵀ),
     /// then the weighted root centre errors); returns the largest rotation error.
-    fn errors(&mut self, model: &Model, clip: &LayoutClip, f: usize, roots: &[usize]) -> f64 {
+    pub(super) fn errors(
+        &mut self,
+        model: &Model,
+        clip: &LayoutClip,
+        f: usize,
+        roots: &[usize],
+    ) -> f64 {
         let nj = model.joints.len();
         let vec3 = |a: &[f64], j: usize| {
             let i = (f * nj + j) * 3;
@@ -437,18 +477,32 @@ impl Solver {
         error
     }
 
-    /// The least-squares solution of A x = e into `rhs` (normal equations, a relative floor
-    /// on the diagonal against coordinates that move nothing at this pose); returns max |x|.
+    /// The least-squares solution of A x = e into `rhs` (normal equations, see
+    /// [`Solver::factor`]); returns max |x|.
     fn solve(&mut self, n: usize, rows: usize) -> crate::Result<f64> {
-        self.normal.fill(0.0);
+        self.factor(n, rows)?;
         self.rhs.fill(0.0);
+        for r in 0..rows {
+            let row = &self.a[r * n..(r + 1) * n];
+            for (x, &a) in self.rhs.iter_mut().zip(row) {
+                *x += a * self.e[r];
+            }
+        }
+        cholesky_solve_in_place(&self.normal, n, &mut self.rhs);
+        Ok(self.rhs.iter().fold(0.0, |m, v| m.max(v.abs())))
+    }
+
+    /// The Cholesky factor of N = AᵀA (with a relative floor of 1e-14 of its trace on the
+    /// diagonal against coordinates that move nothing at this pose), kept for
+    /// [`Solver::solve_normal`].
+    pub(super) fn factor(&mut self, n: usize, rows: usize) -> crate::Result<()> {
+        self.normal.fill(0.0);
         for r in 0..rows {
             let row = &self.a[r * n..(r + 1) * n];
             for a in 0..n {
                 if row[a] == 0.0 {
                     continue;
                 }
-                self.rhs[a] += row[a] * self.e[r];
                 for b in a..n {
                     self.normal[a * n + b] += row[a] * row[b];
                 }
@@ -464,7 +518,11 @@ impl Solver {
                 "the joint rotations do not determine the coordinates at this pose",
             ));
         }
-        cholesky_solve_in_place(&self.normal, n, &mut self.rhs);
-        Ok(self.rhs.iter().fold(0.0, |m, v| m.max(v.abs())))
+        Ok(())
+    }
+
+    /// x ← N⁻¹ x with the factor of the last [`Solver::factor`].
+    pub(super) fn solve_normal(&self, x: &mut [f64]) {
+        cholesky_solve_in_place(&self.normal, x.len(), x);
     }
 }

@@ -14,6 +14,7 @@ pub mod chain;
 pub mod demo;
 pub mod layout;
 pub mod layout_inverse;
+pub mod layout_inverse_vjp;
 pub mod output;
 pub mod perturb;
 pub mod runner;

@@ -252,10 +252,11 @@ pub fn evaluate_clip(
     }
     let depth: Vec<f64> = h_min.iter().map(|h| (-h).max(0.0)).collect();
     let (skate, skate_speed) = skating(&set, &lowest, ground, &support, rate, options);
-    // a layout-only file has no application points for its contact forces: no residual
-    let el_residual = match frames.layout_error {
-        Some(_) => None,
-        None => Some(median(&residual_of(model, frames)?.frame_relative)),
+    // a layout-only file without contact forces has no residual (the ground's forces missing)
+    let el_residual = if frames.layout_error.is_some() && frames.contact_force.is_empty() {
+        None
+    } else {
+        Some(median(&residual_of(model, frames)?.frame_relative))
     };
     let mut metrics = ClipMetrics {
         clip: name.to_string(),

@@ -64,8 +64,9 @@
 //!   ([`crate::loss::tensor_file`]); `el_residual` the median over frames of ‖r_t‖/‖τ_ID,t‖.
 //!   A file holding only the per-joint layout has its coordinates fitted from the joint
 //!   rotations (`layout_fit_error`: the largest rotation the fit leaves, rad — zero for a
-//!   consistent layout, the inconsistency of a generated one otherwise); its contact forces
-//!   carry no application point, so J_cᵀλ and the residual cannot be formed (None).
+//!   consistent layout, the inconsistency of a generated one otherwise); its residual is that
+//!   of [`crate::loss::layout`] (the layout's contact forces at the joint centres with the best
+//!   couple on each foot), None when the file has no `contact_force`.
 //! - **Trajectory** (with a control): at the controlled samples (frame, joint) of a control
 //!   file (`joint_pos` T × J × 3 targets, `mask` T × J, nonzero = controlled), the joint
 //!   centres' errors e = ‖p_j(q_t) − target‖ (m): `trajectory_failed` when any e exceeds

@@ -10,6 +10,10 @@
 //!   ∂L/∂q (through M and through R: the exact moment-arm rates of
 //!   [`crate::muscle::path::MomentArmRates`]), ∂L/∂q̈ and ∂L/∂a.
 //!
+//! - [`layout`]: L_euler of a motion in FlexMotion's per-joint layout, whose contact forces
+//!   act at the joint centres with a free couple on each body that touches the ground (with
+//!   [`crate::augment::layout_inverse_vjp`], gradients with respect to the layout itself).
+//!
 //! - [`tensor_file`]: the residual of an `.npz` tensor file (`musculo loss`).
 //!
 //! Batches are flat row-major arrays of frames (B × T frames, one row of n values per frame);
@@ -17,10 +21,12 @@
 //! independent of the thread count (sums over frames are taken in frame order afterwards).
 
 pub mod euler_lagrange;
+pub mod layout;
 pub mod muscle;
 pub mod tensor_file;
 
 pub use euler_lagrange::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
+pub use layout::{LayoutEulerLagrange, LayoutEulerLagrangeBatch, LayoutEulerLagrangeOutput};
 pub use muscle::{MuscleBatch, MuscleLoss, MuscleLossOutput};
 
 /// Per-coordinate loss weights: none (all 1) or one finite w_j ≥ 0 per coordinate.

@@ -8,6 +8,14 @@
 //! carrying whatever the contacts leave unexplained), so its files have r ≈ 0 up to the
 //! float32 rounding of the stored arrays.
 //!
+//! A file holding only the per-joint layout (`joint_pos` … `joint_torque`, `time`, optionally
+//! `contact_force`; a generated motion) has its coordinates fitted first
+//! ([`crate::augment::layout_inverse`]) and the residual of [`super::layout`]: the contact
+//! forces at the joint centres with the best couple on each foot. On a layout written by
+//! `musculo augment` that residual is what the layout cannot carry: the generalized forces
+//! on the root's translations (τ there is not in the layout) and the differences between the
+//! root's translation rates by differences and augment's.
+//!
 //! With `muscle_act` (T × m, the model's muscles in `Model::forces` order) the file also gets the
 //! muscle loss of [`super::MuscleLoss`] (unit weights, β = 0, γ = 1): e = q̈ − M⁻¹ R F_max a per
 //! frame. It is not zero for an augmented clip — its activations balance the torques with
@@ -15,8 +23,8 @@
 //! out — but it is what a trainer adding that term will see.
 
 use super::{
-    EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, MuscleBatch, MuscleLoss,
-    MuscleLossOutput,
+    EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LayoutEulerLagrange,
+    LayoutEulerLagrangeBatch, LayoutEulerLagrangeOutput, MuscleBatch, MuscleLoss, MuscleLossOutput,
 };
 use crate::model::Model;
 use crate::motion::npy::read_npz_as_f64;
@@ -53,9 +61,13 @@ pub struct TensorFrames {
     pub groups: usize,
     /// Set when the file holds only the per-joint layout (no `q`): the coordinates were
     /// fitted from it ([`crate::augment::layout_inverse`]) and this is the largest rotation
-    /// error the fit left (rad). Such a file has no contact points (the layout's contact
-    /// forces carry no application point), so its L_euler shows the ground's forces.
+    /// error the fit left (rad). Its L_euler is that of [`super::layout`]: the layout's
+    /// `contact_force` at the joint centres with the best couple on each body of the model's
+    /// contact set.
     pub layout_error: Option<f64>,
+    /// The layout's `contact_force` (T × J × 3, ground axes, N) of a layout-only file that
+    /// has one; empty otherwise.
+    pub contact_force: Vec<f64>,
 }
 
 impl TensorFrames {
@@ -134,6 +146,11 @@ impl TensorFrames {
             ))
         };
         let (lambda, contacts) = optional("contact_point_force", &[None, Some(3)])?;
+        let contact_force = if layout_only {
+            optional("contact_force", &[Some(model.joints.len()), Some(3)])?.0
+        } else {
+            Vec::new()
+        };
         let (muscle_act, muscles) = optional("muscle_act", &[None])?;
         let (external, _) = optional("external", &[Some(n)])?;
         let (grf, groups) = optional("grf", &[None, Some(3)])?;
@@ -150,6 +167,7 @@ impl TensorFrames {
             .chain(&time)
             .chain(&external)
             .chain(&grf)
+            .chain(&contact_force)
             .enumerate()
             .find(|(_, v)| !v.is_finite())
         {
@@ -171,6 +189,7 @@ impl TensorFrames {
             grf,
             groups,
             layout_error,
+            contact_force,
         })
     }
 
@@ -223,8 +242,39 @@ pub struct ResidualSummary {
 }
 
 /// The residual of `frames` against `model` and its contact spheres (none when the file has
-/// no contact forces); errors when the file's contact points do not match the model's.
+/// no contact forces); errors when the file's contact points do not match the model's. A
+/// layout-only file gets the residual of [`super::layout`] (its `contact_force` at the joint
+/// centres, a free couple on each body of the model's contact set, none if the model has no
+/// contact set; no contact forces without `contact_force`).
 pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<ResidualSummary> {
+    let mut out = EulerLagrangeOutput::default();
+    if frames.layout_error.is_some() {
+        let bodies: Vec<usize> = crate::augment::chain::contact_set(model)
+            .map(|set| set.points.iter().map(|p| p.body).collect())
+            .unwrap_or_default();
+        let loss = LayoutEulerLagrange::new(model, &bodies, Vec::new())?;
+        let zero;
+        let contact_force = if frames.contact_force.is_empty() {
+            zero = vec![0.0; frames.frames * model.joints.len() * 3];
+            &zero
+        } else {
+            &frames.contact_force
+        };
+        let mut layout_out = LayoutEulerLagrangeOutput::default();
+        let batch = LayoutEulerLagrangeBatch {
+            frames: frames.frames,
+            q: &frames.q,
+            qd: &frames.qd,
+            qdd: &frames.qdd,
+            tau: &frames.tau,
+            contact_force,
+        };
+        loss.evaluate(model, &batch, false, &mut layout_out)?;
+        out.loss = layout_out.loss;
+        out.residual = layout_out.residual;
+        out.tau_id_norm = layout_out.tau_id_norm;
+        return Ok(summary(model, frames, &out));
+    }
     let loss = if frames.contacts == 0 {
         EulerLagrange::new()
     } else {
@@ -242,7 +292,6 @@ pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<Residu
         }
         EulerLagrange::new().with_contact_set(&set)
     };
-    let mut out = EulerLagrangeOutput::default();
     if frames.external.is_empty() {
         loss.evaluate(model, &frames.batch(), false, &mut out)?;
     } else {
@@ -259,6 +308,11 @@ pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<Residu
         };
         loss.evaluate(model, &batch, false, &mut out)?;
     }
+    Ok(summary(model, frames, &out))
+}
+
+/// The per-frame and per-coordinate figures of a loss's residuals.
+fn summary(model: &Model, frames: &TensorFrames, out: &EulerLagrangeOutput) -> ResidualSummary {
     let n = model.nq();
     let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     let mut s = ResidualSummary {
@@ -283,7 +337,7 @@ pub fn residual_of(model: &Model, frames: &TensorFrames) -> crate::Result<Residu
     for v in &mut s.coordinate_rms {
         *v = (*v / frames.frames.max(1) as f64).sqrt();
     }
-    Ok(s)
+    s
 }
 
 /// The muscle loss of a tensor file's frames (see the module documentation).

@@ -87,11 +87,16 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             frames.layout_error.is_some(),
         );
         if let Some(e) = frames.layout_error {
+            let forces = if frames.contact_force.is_empty() {
+                "The file has no `contact_force`: L_euler above includes the ground's forces."
+            } else {
+                "Its contact forces act at the joint centres, with the couple on each foot that \
+                 best explains the motion (loss::layout)."
+            };
             println!(
                 "note: the file holds the per-joint layout only; its coordinates were fitted from the \
                  joint rotations (largest rotation error left {e:.2e} rad), the root's translation \
-                 rates from differences of its centre. The layout's contact forces have no \
-                 application point and are not used: L_euler above includes the ground's forces."
+                 rates from differences of its centre. {forces}"
             );
         }
         if let Some(m) = &muscle {
