@@ -43,7 +43,6 @@ use crate::dynamics;
 use crate::model::reduction::NodeKind;
 use crate::model::{DofKind, JointStep, Model};
 use crate::spatial::{Mat3, Vec3};
-use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::cell::RefCell;
 use std::ops::{Add, Mul, Sub};
@@ -275,6 +274,7 @@ impl Frames<'_> {
             qd_bar: qdb,
             z,
             table,
+            ht,
         } = scratch;
         e.copy_from_slice(&ws.e);
         // each joint's table over its coordinates l, k: ∂(A e_l)·e_k and ∂²(A e_l)[e_k, q̇]
@@ -382,7 +382,8 @@ impl Frames<'_> {
             }
         }
         // ---- q: the fit's stationarity, by the implicit-function theorem ----
-        let mut h = DMatrix::<f64>::zeros(n, n);
+        // Hᵀ, row-major (ht[k·n + l] = H_lk), solved in place for λ = H⁻ᵀ ∂L/∂q
+        ht.fill(0.0);
         for j in 0..nj {
             // (Aᵀ W A) over this joint's rows: W = J_r⁻¹(e_j) on the rotation rows
             let ej = Vec3::from_column_slice(&e[3 * j..3 * j + 3]);
@@ -392,14 +393,14 @@ impl Frames<'_> {
                 let al = column(&ws.a, n, 3 * j, l);
                 for &k in deps {
                     let ak = column(&ws.a, n, 3 * j, k);
-                    h[(l, k)] += al.dot(&(w * ak));
+                    ht[k * n + l] += al.dot(&(w * ak));
                 }
             }
             if let Some(r) = kin.root_of[j] {
                 for &l in deps {
                     let al = column(&ws.a, n, 3 * nj + 3 * r, l);
                     for &k in deps {
-                        h[(l, k)] += al.dot(&column(&ws.a, n, 3 * nj + 3 * r, k));
+                        ht[k * n + l] += al.dot(&column(&ws.a, n, 3 * nj + 3 * r, k));
                     }
                 }
             }
@@ -407,21 +408,18 @@ impl Frames<'_> {
             for (li, &l) in deps.iter().enumerate() {
                 for (ki, &k) in deps.iter().enumerate() {
                     let t = &table[kin.offset[j] + li * deps.len() + ki][0];
-                    h[(l, k)] -= kin.dot_rows(j, e, t);
+                    ht[k * n + l] -= kin.dot_rows(j, e, t);
                 }
             }
         }
-        let lambda = h
-            .transpose()
-            .lu()
-            .solve(&nalgebra::DVector::from_column_slice(qb))
-            .ok_or_else(|| {
-                crate::Error::invalid(
-                    "layout",
-                    format!("frame {f}: the fit's Hessian is singular (its q is not determined)"),
-                )
-            })?;
-        multiply(&ws.a, n, lambda.as_slice(), az);
+        if !lu_solve_in_place(ht, n, qb) {
+            return Err(crate::Error::invalid(
+                "layout",
+                format!("frame {f}: the fit's Hessian is singular (its q is not determined)"),
+            ));
+        }
+        let lambda = &*qb;
+        multiply(&ws.a, n, lambda, az);
         for j in 0..nj {
             let ej = Vec3::from_column_slice(&e[3 * j..3 * j + 3]);
             let rj = vec3(clip.joint_rot, f, j);
@@ -451,6 +449,8 @@ struct Scratch {
     z: Vec<f64>,
     /// Per joint, its table (see [`JointKinematics::offset`]).
     table: Vec<[(Vec3, Vec3); 2]>,
+    /// The fit's Hessian, transposed (n × n).
+    ht: Vec<f64>,
 }
 
 impl Scratch {
@@ -466,8 +466,46 @@ impl Scratch {
             qd_bar: vec![0.0; n],
             z: vec![0.0; n],
             table: vec![[(Vec3::zeros(), Vec3::zeros()); 2]; kin.table_len],
+            ht: vec![0.0; n * n],
         }
     }
+}
+
+/// Solves A x = b in place (LU with partial pivoting; A row-major n × n, overwritten; b
+/// becomes x); false when a pivot vanishes.
+fn lu_solve_in_place(a: &mut [f64], n: usize, b: &mut [f64]) -> bool {
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for c in 0..n {
+        // the row with the largest entry in column c, from c down
+        let p = (c..n)
+            .max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))
+            .unwrap_or(c);
+        if !(a[p * n + c].abs() > 1e-14 * scale) {
+            return false;
+        }
+        if p != c {
+            for k in 0..n {
+                a.swap(c * n + k, p * n + k);
+            }
+            b.swap(c, p);
+        }
+        let pivot = a[c * n + c];
+        for i in c + 1..n {
+            let factor = a[i * n + c] / pivot;
+            if factor == 0.0 {
+                continue;
+            }
+            for k in c..n {
+                a[i * n + k] -= factor * a[c * n + k];
+            }
+            b[i] -= factor * b[c];
+        }
+    }
+    for c in (0..n).rev() {
+        let s: f64 = (c + 1..n).map(|k| a[c * n + k] * b[k]).sum();
+        b[c] = (b[c] - s) / a[c * n + c];
+    }
+    true
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -904,6 +942,28 @@ mod tests {
     use crate::augment::layout_inverse::coordinates_from_layout;
     use crate::random::SplitMix64;
     use crate::reference::layout_clip;
+
+    /// The in-place LU solve equals nalgebra's on a random matrix whose first pivot is 0.
+    #[test]
+    fn lu_solve_in_place_matches_nalgebra() {
+        let n = 7;
+        let mut rng = SplitMix64(5);
+        let mut a: Vec<f64> = (0..n * n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        a[0] = 0.0;
+        let b: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let m = nalgebra::DMatrix::from_row_slice(n, n, &a);
+        let x = m
+            .lu()
+            .solve(&nalgebra::DVector::from_column_slice(&b))
+            .unwrap();
+        let mut ours = b.clone();
+        assert!(lu_solve_in_place(&mut a, n, &mut ours));
+        for (u, v) in ours.iter().zip(x.iter()) {
+            assert!((u - v).abs() < 1e-12 * (1.0 + v.abs()), "{u} vs {v}");
+        }
+        let mut singular = vec![1.0; 4];
+        assert!(!lu_solve_in_place(&mut singular, 2, &mut [1.0, 2.0]));
+    }
 
     /// On an inconsistent layout (the fit leaves residuals), the gradient of a random linear
     /// functional of the fitted q, q̇, q̈ and τ equals central differences of the forward map,
