@@ -569,3 +569,31 @@ def augment_file_cached():
     if "walking2" not in _AUGMENTED:
         _AUGMENTED["walking2"] = musculo.augment_file(C3D, map="c3d_lower_body")
     return _AUGMENTED["walking2"]
+
+
+@pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")
+def test_jax_layout_physics_loss_gives_the_composed_gradients():
+    jax = pytest.importorskip("jax")
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+
+    from musculo.jax import layout_physics_loss
+
+    model, blocks, _ = disturbed_layout(8, 12)
+    out = musculo.augment_clip(np.load(HUMANML3D)[:8], fps=20.0)
+    force = out["contact_force"].astype(np.float64)
+    f = layout_physics_loss(model, fps=20.0)
+    args = [jnp.asarray(b) for b in blocks] + [jnp.asarray(force)]
+    value, grads = jax.value_and_grad(f, argnums=tuple(range(6)))(*args)
+    # the same composition by hand: fit, loss, VJP
+    loss = musculo.LayoutEulerLagrangeLoss(model)
+    c = model.coordinates_from_layout(*blocks, fps=20.0)
+    ref = loss(c["q"], c["qd"], c["qdd"], c["tau"], force)
+    g = model.coordinates_from_layout_vjp(*blocks, 20.0, ref["grad_q"], ref["grad_qd"],
+                                          ref["grad_qdd"], ref["grad_tau"])
+    assert float(value) == pytest.approx(ref["loss"], rel=1e-12)
+    for k, name in enumerate(LAYOUT):
+        np.testing.assert_allclose(np.asarray(grads[k]), g["grad_" + name], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(np.asarray(grads[5]), ref["grad_contact_force"], rtol=1e-12)
+    jitted = jax.jit(jax.grad(f, argnums=(1,)))(*args)
+    np.testing.assert_allclose(np.asarray(jitted[0]), g["grad_joint_rot"], rtol=1e-12, atol=0)
