@@ -166,7 +166,7 @@ fn report(name: &str, model: &Model, targets: &Motion, tasks: &IkTasks) {
     .expect("IK runs");
     let q0 = first.frame(0).to_vec();
     let frames = targets.n_frames() as f64;
-    let (t_mus, f_mus) = best_of(5, || musculo_lm(model, targets, tasks, &q0));
+    let (t_mus, f_mus) = best_of(20, || musculo_lm(model, targets, tasks, &q0));
     if std::env::var_os("IK_BENCH_NO_PEER").is_some() {
         // For profiling musculo alone.
         let (t_mus, _) = best_of(50, || musculo_lm(model, targets, tasks, &q0));

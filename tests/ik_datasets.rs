@@ -319,7 +319,10 @@ fn humanml3d_both_forms_give_the_same_coordinates() {
     // the humerus' roll with a straight elbow, and frames 14–15 (both arms overhead at their
     // bounds), where one more iteration can move coordinates by ~6e-5 rad and f by < 1e-9 f.
     // Asserted: fitted joints ≤ 5 µm, objectives within their bound, every coordinate
-    // ≤ 2e-4 rad, and the others than those rolls and the elbow ≤ 1e-6 outside frames 14–15.
+    // ≤ 2e-4 rad, and the others than those rolls and the elbow ≤ 2e-6 outside frames 14–15
+    // (measured 1.6e-6: arm_add_r at frame 47, the last frame with the arms overhead; 9.5e-7
+    // with the dense Cholesky factorization the step used before the tree-sparse one — the
+    // same minimum, ended one rounding later).
     let (n, frames) = (a.solution.nq, a.solution.n_frames());
     let names = a.model().q_names();
     let mut worst = (0.0f64, 0, 0);
@@ -331,22 +334,28 @@ fn humanml3d_both_forms_give_the_same_coordinates() {
             }
         }
     }
+    // the largest difference of the other coordinates in frame f: (difference, coordinate)
     let firm = |f: usize| {
-        let mut d = 0.0f64;
+        let mut d = (0.0f64, 0);
         for j in (0..n).filter(|&j| {
             !["arm_rot", "elbow_flex", "pro_sup"]
                 .iter()
                 .any(|p| names[j].starts_with(p))
         }) {
-            d = d.max((a.solution.frame(f)[j] - b.solution.frame(f)[j]).abs());
+            let dj = (a.solution.frame(f)[j] - b.solution.frame(f)[j]).abs();
+            if dj > d.0 {
+                d = (dj, j);
+            }
         }
         d
     };
-    let firm_all = (0..frames).map(firm).fold(0.0, f64::max);
-    let firm_outside_14_15 = (0..frames)
-        .filter(|f| !(14..=15).contains(f))
-        .map(firm)
-        .fold(0.0, f64::max);
+    let largest = |it: &mut dyn Iterator<Item = usize>| {
+        it.map(|f| (firm(f), f))
+            .fold(((0.0f64, 0), 0), |a, b| if b.0.0 > a.0.0 { b } else { a })
+    };
+    let ((firm_all, _), _) = largest(&mut (0..frames));
+    let ((firm_outside_14_15, firm_j), firm_f) =
+        largest(&mut (0..frames).filter(|f| !(14..=15).contains(f)));
     let fit_gap = max_point_gap(&a.fitted(), &b.fitted());
     // Both are minima of their own objective, so with δ the largest target difference and
     // W = Σ w_i: |f_a − f_b| ≤ 2 √(f W) δ + W δ² (Cauchy–Schwarz on f_b(q_a) − f_a(q_a)).
@@ -364,15 +373,15 @@ fn humanml3d_both_forms_give_the_same_coordinates() {
         "two forms: fitted joints differ by ≤ {fit_gap:.2e} m, per-frame objectives by ≤ \
          {objective_gap:.2} of their bound; coordinates by ≤ {:.2e} ({} at frame {}); other than \
          arm_rot, elbow_flex and pro_sup by ≤ {firm_all:.2e}, and by ≤ {firm_outside_14_15:.2e} \
-         outside frames 14–15",
-        worst.0, names[worst.1], worst.2
+         outside frames 14–15 ({} at frame {firm_f})",
+        worst.0, names[worst.1], worst.2, names[firm_j]
     );
     assert!(
         fit_gap <= 5e-6 && objective_gap <= 1.0,
         "{fit_gap} {objective_gap}"
     );
     assert!(worst.0 <= 2e-4, "{worst:?}");
-    assert!(firm_outside_14_15 <= 1e-6, "{firm_outside_14_15}");
+    assert!(firm_outside_14_15 <= 2e-6, "{firm_outside_14_15}");
 }
 
 #[test]

@@ -93,6 +93,25 @@ pub fn forward_kinematics_full(
 
 /// Body poses from θ; then O, the motion subspaces s_d and the spatial inertias.
 pub(crate) fn poses(model: &Model, data: &mut Data) {
+    body_poses(model, data);
+    motion_subspaces(model, data);
+    spatial_inertias(model, data);
+}
+
+/// Body poses only (no motion subspaces, no spatial inertias), for solvers that evaluate
+/// many trial points ([`motion_subspaces`] completes a pose when needed); leaves `data` at
+/// `Stage::None`, so that no algorithm takes it for a full position stage.
+pub(crate) fn body_poses_only(model: &Model, data: &mut Data, q: &[f64]) -> crate::Result<()> {
+    data.fits(model)?;
+    check_len("q", q, model.nq())?;
+    evaluate_position(model, data, q);
+    data.stage = Stage::None;
+    body_poses(model, data);
+    Ok(())
+}
+
+/// X_GB of every body from θ (in the nodes), and the reference point O.
+fn body_poses(model: &Model, data: &mut Data) {
     let nc = model.reduction.n_coordinates;
     data.body_acc_bias_valid = false;
     data.body_rot[0] = Mat3::identity();
@@ -149,6 +168,12 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
         Vec3::zeros()
     };
     data.reference_point = o;
+}
+
+/// The motion subspaces s_d of the full coordinates and S̃_c of the reduced columns, in ground
+/// axes about O, from the body poses.
+pub(crate) fn motion_subspaces(model: &Model, data: &mut Data) {
+    let o = data.reference_point;
     for (d, dof) in model.dofs.iter().enumerate() {
         let w = data.dof_axis[d];
         data.dof_motion[d] = match dof.kind {
@@ -166,6 +191,11 @@ pub(crate) fn poses(model: &Model, data: &mut Data) {
         }
         data.col_motion[c] = m;
     }
+}
+
+/// Every body's spatial inertia about O, from the body poses.
+fn spatial_inertias(model: &Model, data: &mut Data) {
+    let o = data.reference_point;
     for (b, body) in model.bodies.iter().enumerate().skip(1) {
         let r = &data.body_rot[b];
         let c = r * body.com_in_body + data.body_pos[b] - o;

@@ -26,7 +26,7 @@ mod contact_force_derivatives;
 mod crba;
 mod energy;
 mod external_forces;
-mod forward_kinematics;
+pub(crate) mod forward_kinematics;
 mod gravity;
 mod jacobian;
 mod jacobian_time_variation;

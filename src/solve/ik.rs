@@ -11,7 +11,7 @@
 //! bound-constrained Levenberg–Marquardt (Gauss–Newton with Marquardt's diagonal damping,
 //! Moré 1978) with the projected-Newton active set of Bertsekas (1982):
 //!
-//!   J_i = ∂p_i/∂q (analytic: `dynamics::point_jacobian`, reduced coordinates),
+//!   J_i = ∂p_i/∂q (analytic, reduced coordinates),
 //!   H = Σ_i w_i J_iᵀ J_i + Σ_c w_c e_c e_cᵀ + s I,   g = Σ_i w_i J_iᵀ r_i + Σ_c w_c (q_c − q̂_c) e_c + s (q − q_prev),
 //!   free set F = { j : not (q_j = lo_j and g_j > 0) and not (q_j = hi_j and g_j < 0) },
 //!   (H_FF + μ diag H_FF) δ_F = −g_F,   q ← clamp(q + δ),
@@ -25,14 +25,23 @@
 //! model's default pose), so frames within a clip are sequential; clips run in parallel
 //! ([`solve_motions`]) and the result does not depend on the thread count.
 //!
+//! The marker term's H and g are never formed from Jacobians: Σ w_i J_iᵀ J_i is the inertia
+//! matrix of point masses w_i at the markers, built by one composite-rigid-body pass
+//! (`normal_equations`); it has the kinematic tree's branch-induced sparsity, which the
+//! damped step keeps and factors by [`super::ltl`] (Lᵀ L from the leaves, no fill). Trial
+//! points need body poses only.
+//!
 //! After the first frame no allocation happens: `IkWorkspace` holds every buffer.
 
-use crate::dynamics::{self, Data};
+use crate::dynamics::Data;
+use crate::dynamics::forward_kinematics::{body_poses_only, motion_subspaces};
 use crate::error::Error;
+use crate::model::reduction::NONE;
 use crate::model::{CoordinateRole, Model};
 use crate::motion::Motion;
+use crate::solve::ltl::{self, EliminationTree};
 use crate::solve::qp::linalg::dot;
-use crate::spatial::Vec3;
+use crate::spatial::{Force, Mat3, SpatialInertia, Vec3};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
@@ -268,11 +277,11 @@ fn check_tasks(model: &Model, targets: &Motion, tasks: &IkTasks) -> crate::Resul
 /// The buffers of one solve, reused frame after frame.
 pub struct IkWorkspace {
     data: Data,
-    jac: DMatrix<f64>,
     hessian: DMatrix<f64>,
     chol: Vec<f64>,
     inv_diag: Vec<f64>,
-    packed: Vec<f64>,
+    /// The elimination tree of H's pattern (the tasks' kinematic tree).
+    tree: EliminationTree,
     gradient: DVector<f64>,
     step: DVector<f64>,
     q: Vec<f64>,
@@ -280,8 +289,9 @@ pub struct IkWorkspace {
     q_prev: Vec<f64>,
     q_prev2: Vec<f64>,
     free: Vec<bool>,
-    cols: Vec<usize>,
-    jcols: Vec<[f64; 3]>,
+    /// Per body: the markers' point masses and forces, then their composites.
+    inertia: Vec<SpatialInertia>,
+    force: Vec<Force>,
     /// Marquardt's damping, carried from frame to frame.
     mu: f64,
     /// Evaluations of f in the current frame.
@@ -296,11 +306,10 @@ impl IkWorkspace {
         let (lo, hi) = coordinate_bounds(model, bounds);
         IkWorkspace {
             data: Data::new(model),
-            jac: DMatrix::zeros(3, n),
             hessian: DMatrix::zeros(n, n),
             chol: vec![0.0; n * n],
             inv_diag: vec![0.0; n],
-            packed: vec![0.0; n],
+            tree: EliminationTree::dense(n),
             gradient: DVector::zeros(n),
             step: DVector::zeros(n),
             q: vec![0.0; n],
@@ -308,14 +317,34 @@ impl IkWorkspace {
             q_prev: vec![0.0; n],
             q_prev2: vec![0.0; n],
             free: vec![true; n],
-            cols: Vec::with_capacity(n),
-            jcols: Vec::with_capacity(n),
+            inertia: vec![SpatialInertia::ZERO; model.bodies.len()],
+            force: vec![Force::ZERO; model.bodies.len()],
             mu: 1e-3,
             evaluations: 0,
             lo,
             hi,
         }
     }
+}
+
+/// The elimination tree of H = Σ w J_iᵀ J_i + diagonal terms: marker i's Jacobian has
+/// non-zero columns only for the coordinates on its body's path to ground.
+fn task_tree(model: &Model, tasks: &IkTasks) -> EliminationTree {
+    let cols = &model.reduction.columns;
+    let mut pairs = Vec::new();
+    let mut deps = Vec::new();
+    for t in &tasks.markers {
+        deps.clear();
+        let mut c = cols.body_last[model.markers[t.marker].body];
+        while c != NONE {
+            deps.push(cols.q[c]);
+            c = cols.parent[c];
+        }
+        for (a, &i) in deps.iter().enumerate() {
+            pairs.extend(deps[..a].iter().map(|&j| (i, j)));
+        }
+    }
+    EliminationTree::from_pattern(model.nq(), pairs)
 }
 
 /// One frame's inputs.
@@ -327,7 +356,7 @@ struct Frame<'a> {
     marker_scale: f64,
 }
 
-/// f(q) for one frame; leaves forward kinematics at q in `data`.
+/// f(q) for one frame; leaves the body poses at q in `data`.
 fn objective(
     model: &Model,
     data: &mut Data,
@@ -336,7 +365,7 @@ fn objective(
     q: &[f64],
     q_prev: &[f64],
 ) -> crate::Result<f64> {
-    dynamics::forward_kinematics(model, data, q)?;
+    body_poses_only(model, data, q)?;
     let mut f = 0.0;
     for t in &tasks.markers {
         let x = frame.targets[t.target];
@@ -362,7 +391,21 @@ fn objective(
     Ok(f)
 }
 
-/// H and g (of f/2) at the q whose forward kinematics `ws.data` holds.
+/// H and g (of f/2) at the q whose body poses `ws.data` holds.
+///
+/// The marker term's normal matrix is the joint-space inertia matrix of point masses wᵢ at
+/// the markers: column a of marker i's Jacobian is v_a + ω_a × pᵢ for the motion subspace
+/// s_a = (ω_a, v_a) of every column on its body's path to ground, so
+/// Σ wᵢ J_iaᵀ J_ib = s_aᵀ I s_b with I = Σ wᵢ (point mass at pᵢ), and likewise
+/// Σ wᵢ J_iaᵀ rᵢ = s_aᵀ F with the spatial force F = Σ (pᵢ × wᵢrᵢ, wᵢrᵢ). Both are summed per
+/// body, composed from the leaves to the root, and projected as the composite-rigid-body
+/// algorithm does (`dynamics::crba`):
+///
+///   I^c_b = I_b + Σ_children I^c,   F^c_b = F_b + Σ_children F^c,
+///   H[q_c][q_e] += s_eᵀ I^c_{body(c)} s_c  (e = c and every column e towards ground),
+///   g[q_c] += s_cᵀ F^c_{body(c)},
+///
+/// O(columns × depth) six-vector products instead of one 3 × n Jacobian per marker.
 fn normal_equations(
     model: &Model,
     ws: &mut IkWorkspace,
@@ -370,37 +413,54 @@ fn normal_equations(
     frame: &Frame,
 ) -> crate::Result<()> {
     let n = model.nq();
+    motion_subspaces(model, &mut ws.data);
     ws.hessian.fill(0.0);
     ws.gradient.fill(0.0);
+    ws.inertia.fill(SpatialInertia::ZERO);
+    ws.force.fill(Force::ZERO);
     for t in &tasks.markers {
         let x = frame.targets[t.target];
         if x.x.is_nan() || t.weight == 0.0 {
             continue;
         }
         let m = &model.markers[t.marker];
-        dynamics::point_jacobian(model, &ws.data, m.body, &m.location_in_body, &mut ws.jac)?;
-        let r = ws.data.point_position(m.body, &m.location_in_body) - x;
+        let p = ws.data.point_position(m.body, &m.location_in_body);
+        let off = p - ws.data.reference_point;
         let w = frame.marker_scale * t.weight;
-        // The columns this marker moves with (those of the joints between it and ground),
-        // gathered with their Jacobian columns.
-        let jac = ws.jac.as_slice(); // column-major 3 × n
-        ws.cols.clear();
-        ws.jcols.clear();
-        for a in 0..n {
-            let c = [jac[3 * a], jac[3 * a + 1], jac[3 * a + 2]];
-            if c != [0.0; 3] {
-                ws.cols.push(a);
-                ws.jcols.push(c);
-            }
+        let wr = (p - x) * w;
+        ws.inertia[m.body].add_assign(&SpatialInertia::from_mass_com_inertia(
+            w,
+            &off,
+            &Mat3::zeros(),
+        ));
+        ws.force[m.body].add_assign(&Force {
+            ang: off.cross(&wr),
+            lin: wr,
+        });
+    }
+    for joint in model.joints.iter().rev() {
+        if joint.parent_body != 0 {
+            let (i, f) = (ws.inertia[joint.child_body], ws.force[joint.child_body]);
+            ws.inertia[joint.parent_body].add_assign(&i);
+            ws.force[joint.parent_body].add_assign(&f);
         }
-        // H += w Jᵀ J (upper triangle),  g += w Jᵀ r
-        let h = ws.hessian.as_mut_slice();
-        for (i, (&a, ja)) in ws.cols.iter().zip(&ws.jcols).enumerate() {
-            ws.gradient[a] += w * (ja[0] * r.x + ja[1] * r.y + ja[2] * r.z);
-            let wa = [w * ja[0], w * ja[1], w * ja[2]];
-            for (&b, jb) in ws.cols[i..].iter().zip(&ws.jcols[i..]) {
-                h[a + b * n] += wa[0] * jb[0] + wa[1] * jb[1] + wa[2] * jb[2];
-            }
+    }
+    let cols = &model.reduction.columns;
+    let motion = &ws.data.col_motion;
+    let h = ws.hessian.as_mut_slice(); // column-major: (i, j) at i + j n
+    for c in 0..cols.len() {
+        let body = cols.body[c];
+        let j = cols.q[c];
+        ws.gradient[j] += motion[c].dot(&ws.force[body]);
+        let f = ws.inertia[body].mul_motion(&motion[c]);
+        h[j + j * n] += motion[c].dot(&f);
+        let mut e = cols.parent[c];
+        while e != NONE {
+            let k = cols.q[e];
+            let v = motion[e].dot(&f);
+            h[j + k * n] += v;
+            h[k + j * n] += v;
+            e = cols.parent[e];
         }
     }
     for t in &tasks.coordinates {
@@ -414,73 +474,46 @@ fn normal_equations(
             ws.gradient[j] += frame.smoothness * (ws.q[j] - ws.q_prev[j]);
         }
     }
-    for a in 0..n {
-        for b in 0..a {
-            ws.hessian[(a, b)] = ws.hessian[(b, a)];
-        }
-    }
     Ok(())
 }
 
-/// Solves (H_FF + μ D_FF + ε I) δ_F = −g_F by Cholesky (L Lᵀ) on the free
-/// coordinates packed together (`chol`, m × m row-major), δ = 0 off the free set; false when
-/// the damped matrix is not positive definite.
+/// Solves (H_FF + μ D_FF + ε I) δ_F = −g_F, δ = 0 off the free set: the held coordinates'
+/// rows and columns are replaced by the identity's (right-hand side 0), so that the matrix
+/// keeps the tasks' tree pattern and is factored as Lᵀ L by [`ltl`] (branch-induced sparsity:
+/// each limb's coordinates couple only with their own chain). False when the damped matrix
+/// is not positive definite.
 fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     let n = ws.gradient.len();
-    ws.cols.clear();
-    ws.cols.extend((0..n).filter(|&j| ws.free[j]));
-    let m = ws.cols.len();
     let h = ws.hessian.as_slice(); // column-major n × n, symmetric
     // Marquardt's scaling D = diag H, floored at 10⁻² of its largest entry so that poorly
     // determined coordinates (a forearm's roll seen by one joint centre) cannot take long
     // steps that the next iterations must walk back.
     let floor = 1e-2 * (0..n).map(|j| h[j + j * n]).fold(0.0f64, f64::max);
-    let l = &mut ws.chol[..m * m];
-    // L_ik = (A_ik − Σ_{p<k} L_ip L_kp) / L_kk,  L_ii = √(A_ii − Σ_{p<i} L_ip²)
-    // (row-major L; the reciprocals 1/L_kk kept in `inv_diag` to avoid divisions)
-    let inv = &mut ws.inv_diag[..m];
-    for i in 0..m {
-        let gi = ws.cols[i];
-        let (done, row) = l.split_at_mut(i * m);
-        let row = &mut row[..m];
-        for k in 0..=i {
-            let gk = ws.cols[k];
-            let a = h[gi + gk * n];
-            let lk: &[f64] = if k == i {
-                &row[..k]
+    let l = &mut ws.chol[..n * n]; // row-major; row k holds k and its ancestors
+    for k in 0..n {
+        let a = h[k + k * n];
+        l[k * n + k] = if ws.free[k] {
+            a + mu * a.max(floor) + 1e-12 * (1.0 + a)
+        } else {
+            1.0
+        };
+        let mut i = ws.tree.parent(k);
+        while i != ltl::NONE {
+            l[k * n + i] = if ws.free[k] && ws.free[i] {
+                h[i + k * n]
             } else {
-                &done[k * m..k * m + k]
+                0.0
             };
-            let dot = dot(&row[..k], lk);
-            if k == i {
-                let s = a + mu * a.max(floor) + 1e-12 * (1.0 + a) - dot;
-                if !(s > 0.0 && s.is_finite()) {
-                    return false;
-                }
-                row[i] = s.sqrt();
-                inv[i] = 1.0 / row[i];
-            } else {
-                row[k] = (a - dot) * inv[k];
-            }
+            i = ws.tree.parent(i);
         }
     }
-    // L y = −g,  Lᵀ δ = y (y and δ packed in `packed`)
-    let y = &mut ws.packed[..m];
-    for i in 0..m {
-        let d = dot(&l[i * m..i * m + i], &y[..i]);
-        y[i] = (-ws.gradient[ws.cols[i]] - d) * inv[i];
+    if !ws.tree.factor(l, &mut ws.inv_diag) {
+        return false;
     }
-    for i in (0..m).rev() {
-        let mut s = y[i];
-        for p in i + 1..m {
-            s -= l[p * m + i] * y[p];
-        }
-        y[i] = s * inv[i];
+    for k in 0..n {
+        ws.step[k] = if ws.free[k] { -ws.gradient[k] } else { 0.0 };
     }
-    ws.step.fill(0.0);
-    for (i, &g) in ws.cols.iter().enumerate() {
-        ws.step[g] = y[i];
-    }
+    ws.tree.solve(l, &ws.inv_diag, ws.step.as_mut_slice());
     true
 }
 
@@ -599,8 +632,8 @@ fn solve_frame(
         }
         normal_equations(model, ws, tasks, frame)?;
     }
-    // Leave forward kinematics at the solution.
-    dynamics::forward_kinematics(model, &mut ws.data, &ws.q)?;
+    // Leave the body poses at the solution.
+    body_poses_only(model, &mut ws.data, &ws.q)?;
     Ok((f, iterations))
 }
 
@@ -660,6 +693,7 @@ fn solve(
     check_tasks(model, targets, tasks)?;
     let n = model.nq();
     let mut ws = IkWorkspace::new(model, settings.bounds);
+    ws.tree = task_tree(model, tasks);
     let start = match &settings.initial_q {
         Some(q) if q.len() == n && q.iter().all(|v| v.is_finite()) => q.clone(),
         Some(q) => {
@@ -830,5 +864,150 @@ pub fn independent_index(model: &Model, name: &str) -> Option<usize> {
     match model.coordinates[c].role {
         CoordinateRole::Independent(j) => Some(j),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::{forward_kinematics, point_jacobian};
+    use crate::random::SplitMix64;
+    use crate::reference::{random_q, test_models};
+
+    /// Tasks on every model marker (random weights) and targets near them.
+    fn marker_problem(model: &Model, rng: &mut SplitMix64) -> (IkTasks, Vec<Vec3>) {
+        let markers = (0..model.markers.len())
+            .map(|i| MarkerTask {
+                marker: i,
+                target: i,
+                weight: rng.uniform(0.5, 2.0),
+            })
+            .collect();
+        let targets = (0..model.markers.len())
+            .map(|_| {
+                Vec3::new(
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(0.0, 1.5),
+                    rng.uniform(-1.0, 1.0),
+                )
+            })
+            .collect();
+        (
+            IkTasks {
+                markers,
+                coordinates: Vec::new(),
+            },
+            targets,
+        )
+    }
+
+    #[test]
+    fn normal_equations_equal_the_sum_over_marker_jacobians() {
+        let mut rng = SplitMix64(5);
+        for (name, model) in test_models() {
+            if model.markers.is_empty() {
+                continue;
+            }
+            let n = model.nq();
+            let (tasks, targets) = marker_problem(&model, &mut rng);
+            let frame = Frame {
+                targets: &targets,
+                index: 0,
+                smoothness: 0.0,
+                marker_scale: 1.0,
+            };
+            let mut ws = IkWorkspace::new(&model, Bounds::None);
+            ws.q = random_q(&model, &mut rng, 0.1);
+            objective(&model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
+            normal_equations(&model, &mut ws, &tasks, &frame).unwrap();
+            // reference: H = Σ w JᵀJ and g = Σ w Jᵀr from `point_jacobian`
+            let mut data = Data::new(&model);
+            forward_kinematics(&model, &mut data, &ws.q).unwrap();
+            let (mut h, mut g) = (DMatrix::<f64>::zeros(n, n), DVector::<f64>::zeros(n));
+            let mut jac = DMatrix::zeros(3, n);
+            for t in &tasks.markers {
+                let m = &model.markers[t.marker];
+                point_jacobian(&model, &data, m.body, &m.location_in_body, &mut jac).unwrap();
+                let r = data.point_position(m.body, &m.location_in_body) - targets[t.target];
+                let r = DVector::from_column_slice(r.as_slice());
+                h += jac.transpose() * &jac * t.weight;
+                g += jac.transpose() * r * t.weight;
+            }
+            let scale = h.amax();
+            let dh = (&ws.hessian - &h).amax() / scale;
+            let dg = (&ws.gradient - &g).amax() / g.amax();
+            assert!(dh < 1e-13 && dg < 1e-13, "{name}: H {dh:e}, g {dg:e}");
+            // every structural non-zero lies on the task tree's ancestor chains
+            let tree = task_tree(&model, &tasks);
+            for i in 0..n {
+                for j in 0..i {
+                    let mut a = tree.parent(i);
+                    while a != NONE && a != j {
+                        a = tree.parent(a);
+                    }
+                    assert!(
+                        a == j || h[(i, j)].abs() <= 1e-14 * scale,
+                        "{name}: H[{i}][{j}] = {} off the tree",
+                        h[(i, j)]
+                    );
+                }
+            }
+            let dense = n * n * n / 6;
+            eprintln!(
+                "{name}: LᵀL factorization {} multiply–adds, dense Cholesky ~{dense}",
+                tree.factor_cost()
+            );
+        }
+    }
+
+    #[test]
+    fn the_damped_step_solves_the_damped_system_with_bounds_held() {
+        let mut rng = SplitMix64(9);
+        for (name, model) in test_models() {
+            if model.markers.is_empty() {
+                continue;
+            }
+            let n = model.nq();
+            let (tasks, targets) = marker_problem(&model, &mut rng);
+            let frame = Frame {
+                targets: &targets,
+                index: 0,
+                smoothness: 0.0,
+                marker_scale: 1.0,
+            };
+            let mut ws = IkWorkspace::new(&model, Bounds::None);
+            ws.tree = task_tree(&model, &tasks);
+            ws.q = random_q(&model, &mut rng, 0.1);
+            objective(&model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
+            normal_equations(&model, &mut ws, &tasks, &frame).unwrap();
+            for j in 0..n {
+                ws.free[j] = j % 4 != 1;
+            }
+            let mu = 1e-2;
+            assert!(damped_step(&mut ws, mu), "{name}");
+            // reference: the free block solved densely by nalgebra
+            let free: Vec<usize> = (0..n).filter(|&j| ws.free[j]).collect();
+            let h = &ws.hessian;
+            let floor = 1e-2 * (0..n).map(|j| h[(j, j)]).fold(0.0f64, f64::max);
+            let a = DMatrix::from_fn(free.len(), free.len(), |r, c| {
+                let (i, j) = (free[r], free[c]);
+                let mut v = h[(i, j)];
+                if i == j {
+                    v += mu * v.max(floor) + 1e-12 * (1.0 + v);
+                }
+                v
+            });
+            let b = DVector::from_fn(free.len(), |r, _| -ws.gradient[free[r]]);
+            let x = a.cholesky().expect("SPD").solve(&b);
+            for (r, &j) in free.iter().enumerate() {
+                assert!(
+                    (ws.step[j] - x[r]).abs() <= 1e-9 * (1.0 + x.amax()),
+                    "{name}: step[{j}] {} vs {}",
+                    ws.step[j],
+                    x[r]
+                );
+            }
+            assert!((0..n).filter(|&j| !ws.free[j]).all(|j| ws.step[j] == 0.0));
+        }
     }
 }

@@ -10,6 +10,7 @@ pub mod ik;
 pub mod ik_tool;
 pub mod inverse_dynamics;
 pub mod kinematics;
+pub mod ltl;
 pub mod qp;
 pub mod scale;
 pub mod scale_from_clip;

@@ -1,0 +1,274 @@
+//! The LTL factorization of a symmetric positive-definite matrix with branch-induced
+//! sparsity (Featherstone, *Rigid Body Dynamics Algorithms*, 2008, §6.5).
+//!
+//! A matrix whose rows and columns are indexed by a kinematic tree's coordinates — the mass
+//! matrix, or the normal matrix Σ wᵢ Jᵢᵀ Jᵢ of point targets — has A_ij ≠ 0 only where one of
+//! i, j lies on the other's path to the root. Factored from the leaves towards the root as
+//! A = Lᵀ L (L lower triangular), such a matrix fills in nothing: row k of L has entries only
+//! at k and at k's ancestors λ(k), λ(λ(k)), …, and the factorization costs Σ_k d_k²/2
+//! multiply–adds (d_k the depth of k) instead of n³/6.
+//!
+//! For any other pattern the same code applies with λ the *elimination tree* of the pattern
+//! under this order (Liu 1990): eliminating k (from n − 1 down to 0) joins every pair of its
+//! remaining neighbours, and λ(k) is its largest remaining neighbour. The rows of L then lie
+//! within the ancestor chains, and a dense pattern degrades gracefully to a chain
+//! (λ(k) = k − 1), i.e. a dense Cholesky factorization.
+//!
+//! With L stored in the lower triangle of a row-major n × n array:
+//!
+//!   for k = n−1 … 0:   L_kk = √A_kk,   L_ki = A_ki / L_kk  (i ∈ anc(k)),
+//!                      A_ij −= L_ki L_kj  (i ∈ anc(k), j ∈ anc(i) ∪ {i});
+//!   Lᵀ y = b:  for k = n−1 … 0:  y_k /= L_kk,  y_i −= L_ki y_k  (i ∈ anc(k));
+//!   L x = y:   for k = 0 … n−1:  x_k = (y_k − Σ_{i ∈ anc(k)} L_ki x_i) / L_kk.
+
+/// Marks the root's absent parent.
+pub const NONE: usize = usize::MAX;
+
+/// The elimination tree λ of a symmetric pattern (`parent[k] < k`, or [`NONE`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EliminationTree {
+    parent: Vec<usize>,
+}
+
+impl EliminationTree {
+    /// The tree of an n × n pattern given as its off-diagonal non-zero pairs (i, j), in any
+    /// order and either orientation; indices must be below n. O(n³) in the worst case, once.
+    pub fn from_pattern(n: usize, pairs: impl IntoIterator<Item = (usize, usize)>) -> Self {
+        let mut nz = vec![false; n * n];
+        for (i, j) in pairs {
+            assert!(i < n && j < n, "pattern index out of range");
+            if i != j {
+                nz[i * n + j] = true;
+                nz[j * n + i] = true;
+            }
+        }
+        let mut parent = vec![NONE; n];
+        let mut neighbours = Vec::with_capacity(n);
+        for k in (0..n).rev() {
+            neighbours.clear();
+            neighbours.extend((0..k).filter(|&i| nz[k * n + i]));
+            parent[k] = neighbours.last().copied().unwrap_or(NONE);
+            // eliminating k connects its remaining neighbours pairwise (fill)
+            for (a, &i) in neighbours.iter().enumerate() {
+                for &j in &neighbours[..a] {
+                    nz[i * n + j] = true;
+                    nz[j * n + i] = true;
+                }
+            }
+        }
+        EliminationTree { parent }
+    }
+
+    /// The tree of a dense pattern: the chain λ(k) = k − 1.
+    pub fn dense(n: usize) -> Self {
+        EliminationTree {
+            parent: (0..n).map(|k| k.checked_sub(1).unwrap_or(NONE)).collect(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.parent.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.parent.is_empty()
+    }
+
+    /// λ(k), or [`NONE`] at a root.
+    pub fn parent(&self, k: usize) -> usize {
+        self.parent[k]
+    }
+
+    /// Multiply–adds of one factorization (Σ over k of the ancestor pairs of k).
+    pub fn factor_cost(&self) -> usize {
+        (0..self.len())
+            .map(|k| {
+                let d = self.ancestors(k).count();
+                d * (d + 1) / 2 + d
+            })
+            .sum()
+    }
+
+    fn ancestors(&self, k: usize) -> impl Iterator<Item = usize> + '_ {
+        std::iter::successors(Some(self.parent[k]).filter(|&i| i != NONE), move |&i| {
+            Some(self.parent[i]).filter(|&p| p != NONE)
+        })
+    }
+
+    /// Factors A = Lᵀ L in place: `a` is row-major n × n and holds A_kk and A_ki for every
+    /// i ∈ anc(k) (other entries are neither read nor written); on return it holds L there,
+    /// and `inv_diag` the reciprocals 1/L_kk. False when a pivot is not positive and finite
+    /// (A not positive definite).
+    pub fn factor(&self, a: &mut [f64], inv_diag: &mut [f64]) -> bool {
+        let n = self.len();
+        assert!(a.len() >= n * n && inv_diag.len() >= n);
+        for k in (0..n).rev() {
+            let d = a[k * n + k];
+            if !(d > 0.0 && d.is_finite()) {
+                return false;
+            }
+            let lkk = d.sqrt();
+            a[k * n + k] = lkk;
+            let inv = 1.0 / lkk;
+            inv_diag[k] = inv;
+            let mut i = self.parent[k];
+            while i != NONE {
+                a[k * n + i] *= inv;
+                i = self.parent[i];
+            }
+            // A_ij −= L_ki L_kj for i ∈ anc(k), j ∈ {i} ∪ anc(i)
+            let mut i = self.parent[k];
+            while i != NONE {
+                let lki = a[k * n + i];
+                let mut j = i;
+                while j != NONE {
+                    a[i * n + j] -= lki * a[k * n + j];
+                    j = self.parent[j];
+                }
+                i = self.parent[i];
+            }
+        }
+        true
+    }
+
+    /// Solves Lᵀ L x = b in place (`x` holds b on entry), with L and `inv_diag` from
+    /// [`EliminationTree::factor`].
+    pub fn solve(&self, l: &[f64], inv_diag: &[f64], x: &mut [f64]) {
+        let n = self.len();
+        for k in (0..n).rev() {
+            let yk = x[k] * inv_diag[k];
+            x[k] = yk;
+            let mut i = self.parent[k];
+            while i != NONE {
+                x[i] -= l[k * n + i] * yk;
+                i = self.parent[i];
+            }
+        }
+        for k in 0..n {
+            let mut s = x[k];
+            let mut i = self.parent[k];
+            while i != NONE {
+                s -= l[k * n + i] * x[i];
+                i = self.parent[i];
+            }
+            x[k] = s * inv_diag[k];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::random::SplitMix64;
+    use nalgebra::{DMatrix, DVector};
+
+    /// A random SPD matrix with the pattern of a tree given by parents (A = Σ over random
+    /// "bodies" k of v vᵀ with v supported on k's path to the root, plus a diagonal).
+    fn tree_matrix(parents: &[usize], rng: &mut SplitMix64) -> DMatrix<f64> {
+        let n = parents.len();
+        let mut a = DMatrix::<f64>::identity(n, n) * 0.1;
+        for _ in 0..3 {
+            for k in 0..n {
+                let mut v = DVector::<f64>::zeros(n);
+                let mut i = k;
+                while i != NONE {
+                    v[i] = rng.uniform(-1.0, 1.0);
+                    i = parents[i];
+                }
+                a += &v * v.transpose();
+            }
+        }
+        a
+    }
+
+    fn pairs_of(a: &DMatrix<f64>) -> Vec<(usize, usize)> {
+        let n = a.nrows();
+        (0..n)
+            .flat_map(|i| (0..i).map(move |j| (i, j)))
+            .filter(|&(i, j)| a[(i, j)] != 0.0)
+            .collect()
+    }
+
+    fn solve_with(tree: &EliminationTree, a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
+        let n = a.nrows();
+        // row-major copy (A is symmetric)
+        let mut l: Vec<f64> = (0..n * n).map(|e| a[(e / n, e % n)]).collect();
+        let mut inv = vec![0.0; n];
+        assert!(tree.factor(&mut l, &mut inv));
+        let mut x = b.as_slice().to_vec();
+        tree.solve(&l, &inv, &mut x);
+        DVector::from_vec(x)
+    }
+
+    #[test]
+    fn a_tree_pattern_is_its_own_elimination_tree_and_solves_as_nalgebra_cholesky() {
+        // a floating base (0–5 chained), two legs and a trunk with two arms
+        let mut parents = vec![NONE, 0, 1, 2, 3, 4];
+        parents.extend([5, 6, 7, 8, 9]); // leg 6–10
+        parents.extend([5, 11, 12, 13, 14]); // leg 11–15
+        parents.extend([5, 16, 17]); // trunk 16–18
+        parents.extend([18, 19, 20, 21, 22]); // arm 19–23
+        parents.extend([18, 24, 25, 26, 27]); // arm 24–28
+        let mut rng = SplitMix64(7);
+        let a = tree_matrix(&parents, &mut rng);
+        let tree = EliminationTree::from_pattern(a.nrows(), pairs_of(&a));
+        for (k, &p) in parents.iter().enumerate() {
+            assert_eq!(tree.parent(k), p, "node {k}");
+        }
+        let dense = 29 * 29 * 29 / 6;
+        assert!(
+            tree.factor_cost() * 2 < dense,
+            "{} vs {dense}",
+            tree.factor_cost()
+        );
+        let b = DVector::from_fn(29, |i, _| rng.uniform(-1.0, 1.0) + i as f64 * 0.01);
+        let x = solve_with(&tree, &a, &b);
+        let reference = a.clone().cholesky().expect("SPD").solve(&b);
+        let err = (&x - &reference).amax() / reference.amax();
+        assert!(err < 1e-12, "{err}");
+        assert!((&a * &x - &b).amax() < 1e-10);
+    }
+
+    #[test]
+    fn arbitrary_patterns_fill_in_along_the_elimination_tree() {
+        let mut rng = SplitMix64(11);
+        for trial in 0..50 {
+            let n = 1 + trial % 12;
+            // random sparse symmetric pattern, SPD by diagonal dominance
+            let mut a = DMatrix::<f64>::zeros(n, n);
+            for i in 0..n {
+                for j in 0..i {
+                    if rng.uniform(0.0, 1.0) < 0.25 {
+                        let v = rng.uniform(-1.0, 1.0);
+                        a[(i, j)] = v;
+                        a[(j, i)] = v;
+                    }
+                }
+            }
+            for i in 0..n {
+                a[(i, i)] = 1.0 + (0..n).map(|j| a[(i, j)].abs()).sum::<f64>();
+            }
+            let tree = EliminationTree::from_pattern(n, pairs_of(&a));
+            let b = DVector::from_fn(n, |_, _| rng.uniform(-1.0, 1.0));
+            let x = solve_with(&tree, &a, &b);
+            let reference = a.clone().cholesky().expect("SPD").solve(&b);
+            assert!(
+                (&x - &reference).amax() < 1e-12 * (1.0 + reference.amax()),
+                "trial {trial}"
+            );
+            // the dense chain gives the same solution
+            let y = solve_with(&EliminationTree::dense(n), &a, &b);
+            assert!((&y - &reference).amax() < 1e-12 * (1.0 + reference.amax()));
+        }
+    }
+
+    #[test]
+    fn a_matrix_that_is_not_positive_definite_is_refused() {
+        let tree = EliminationTree::dense(2);
+        let mut a = vec![1.0, 2.0, 2.0, 1.0]; // eigenvalues 3, −1
+        let mut inv = [0.0; 2];
+        assert!(!tree.factor(&mut a, &mut inv));
+        let mut nan = vec![f64::NAN, 0.0, 0.0, 1.0];
+        assert!(!tree.factor(&mut nan, &mut inv));
+    }
+}
