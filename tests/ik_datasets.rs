@@ -153,6 +153,31 @@ fn evaluate(title: &str, run: &Run, bounds: Bounds) -> (Fit, f64) {
     let (mut errors, mut scratch) = (Vec::new(), Vec::new());
     let (mut probe_decrease, mut outside) = (0.0f64, vec![0usize; n]);
     let mut at_bound = vec![0usize; n];
+    // The coordinates that move some task's marker (probed at frame 0's pose): only those
+    // are reported at a bound.
+    let moves: Vec<bool> = {
+        let mut errors = Vec::new();
+        objective(
+            run,
+            &mut data,
+            run.targets.frame(0),
+            sol.frame(0),
+            &mut errors,
+        );
+        let base = errors.clone();
+        (0..n)
+            .map(|j| {
+                let mut q = sol.frame(0).to_vec();
+                q[j] += if q[j] + 1e-3 <= range(j)[1] {
+                    1e-3
+                } else {
+                    -1e-3
+                };
+                objective(run, &mut data, run.targets.frame(0), &q, &mut errors);
+                errors.iter().zip(&base).any(|(a, b)| (a - b).abs() > 1e-12)
+            })
+            .collect()
+    };
     for f in 0..frames {
         let (q, x) = (sol.frame(f), run.targets.frame(f));
         let f0 = objective(run, &mut data, x, q, &mut errors);
@@ -171,7 +196,7 @@ fn evaluate(title: &str, run: &Run, bounds: Bounds) -> (Fit, f64) {
         for j in 0..n {
             let [lo, hi] = range(j);
             outside[j] += usize::from(q[j] < lo || q[j] > hi);
-            if q[j] == lo || q[j] == hi {
+            if (q[j] == lo || q[j] == hi) && moves[j] {
                 at_bound[j] += 1;
                 bound_here.push(j);
             }

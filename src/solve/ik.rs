@@ -162,7 +162,11 @@ pub struct IkSolution {
     pub rmse: Vec<f64>,
     /// Per frame: the largest marker error (m).
     pub max_error: Vec<f64>,
-    /// Per frame: the indices in q of the coordinates that ended at a bound.
+    /// Per frame: the indices in q of the coordinates that ended at a bound, among those
+    /// that some task moves (a marker task of positive weight on a body the coordinate
+    /// moves, or a coordinate task): a coordinate that no task determines — an arm's
+    /// elbow when only the legs have markers — rests where it starts, at a bound or not,
+    /// and is not listed.
     pub at_limit: Vec<Vec<usize>>,
     /// Per frame: iterations used.
     pub iterations: Vec<u32>,
@@ -180,7 +184,7 @@ impl IkSolution {
         &self.q[f * self.nq..(f + 1) * self.nq]
     }
 
-    /// The frames at which at least one coordinate ended at a bound.
+    /// The frames at which at least one coordinate that a task moves ended at a bound.
     pub fn frames_at_limit(&self) -> usize {
         self.at_limit.iter().filter(|l| !l.is_empty()).count()
     }
@@ -345,6 +349,24 @@ fn task_tree(model: &Model, tasks: &IkTasks) -> EliminationTree {
         }
     }
     EliminationTree::from_pattern(model.nq(), pairs)
+}
+
+/// Per coordinate: whether a task moves it (a marker task of positive weight on a body on
+/// whose path to ground the coordinate acts, or a coordinate task of positive weight).
+fn moved_by_tasks(model: &Model, tasks: &IkTasks) -> Vec<bool> {
+    let cols = &model.reduction.columns;
+    let mut moved = vec![false; model.nq()];
+    for t in tasks.markers.iter().filter(|t| t.weight > 0.0) {
+        let mut c = cols.body_last[model.markers[t.marker].body];
+        while c != NONE {
+            moved[cols.q[c]] = true;
+            c = cols.parent[c];
+        }
+    }
+    for t in tasks.coordinates.iter().filter(|t| t.weight > 0.0) {
+        moved[t.q] = true;
+    }
+    moved
 }
 
 /// One frame's inputs.
@@ -694,6 +716,7 @@ fn solve(
     let n = model.nq();
     let mut ws = IkWorkspace::new(model, settings.bounds);
     ws.tree = task_tree(model, tasks);
+    let moved = moved_by_tasks(model, tasks);
     let start = match &settings.initial_q {
         Some(q) if q.len() == n && q.iter().all(|v| v.is_finite()) => q.clone(),
         Some(q) => {
@@ -803,7 +826,7 @@ fn solve(
         out.max_error.push(if count > 0 { worst } else { f64::NAN });
         out.at_limit.push(
             (0..n)
-                .filter(|&j| ws.q[j] <= ws.lo[j] || ws.q[j] >= ws.hi[j])
+                .filter(|&j| moved[j] && (ws.q[j] <= ws.lo[j] || ws.q[j] >= ws.hi[j]))
                 .collect(),
         );
         std::mem::swap(&mut ws.q_prev, &mut ws.q_prev2);
