@@ -334,16 +334,10 @@ impl IkWorkspace {
 /// The elimination tree of H = Σ w J_iᵀ J_i + diagonal terms: marker i's Jacobian has
 /// non-zero columns only for the coordinates on its body's path to ground.
 fn task_tree(model: &Model, tasks: &IkTasks) -> EliminationTree {
-    let cols = &model.reduction.columns;
     let mut pairs = Vec::new();
     let mut deps = Vec::new();
     for t in &tasks.markers {
-        deps.clear();
-        let mut c = cols.body_last[model.markers[t.marker].body];
-        while c != NONE {
-            deps.push(cols.q[c]);
-            c = cols.parent[c];
-        }
+        path_coordinates(model, model.markers[t.marker].body, &mut deps);
         for (a, &i) in deps.iter().enumerate() {
             pairs.extend(deps[..a].iter().map(|&j| (i, j)));
         }
@@ -351,16 +345,27 @@ fn task_tree(model: &Model, tasks: &IkTasks) -> EliminationTree {
     EliminationTree::from_pattern(model.nq(), pairs)
 }
 
+/// The coordinates of the reduced columns on `body`'s path to ground (a point on the body
+/// moves with these), into `out`.
+fn path_coordinates(model: &Model, body: usize, out: &mut Vec<usize>) {
+    let cols = &model.reduction.columns;
+    out.clear();
+    let mut c = cols.body_last[body];
+    while c != NONE {
+        out.push(cols.q[c]);
+        c = cols.parent[c];
+    }
+}
+
 /// Per coordinate: whether a task moves it (a marker task of positive weight on a body on
 /// whose path to ground the coordinate acts, or a coordinate task of positive weight).
 fn moved_by_tasks(model: &Model, tasks: &IkTasks) -> Vec<bool> {
-    let cols = &model.reduction.columns;
     let mut moved = vec![false; model.nq()];
+    let mut deps = Vec::new();
     for t in tasks.markers.iter().filter(|t| t.weight > 0.0) {
-        let mut c = cols.body_last[model.markers[t.marker].body];
-        while c != NONE {
-            moved[cols.q[c]] = true;
-            c = cols.parent[c];
+        path_coordinates(model, model.markers[t.marker].body, &mut deps);
+        for &j in &deps {
+            moved[j] = true;
         }
     }
     for t in tasks.coordinates.iter().filter(|t| t.weight > 0.0) {
@@ -897,8 +902,9 @@ mod tests {
     use crate::random::SplitMix64;
     use crate::reference::{random_q, test_models};
 
-    /// Tasks on every model marker (random weights) and targets near them.
-    fn marker_problem(model: &Model, rng: &mut SplitMix64) -> (IkTasks, Vec<Vec3>) {
+    /// Tasks on every model marker (random weights), random targets, and a workspace with H
+    /// and g assembled at random coordinates (the task tree set, as `solve` sets it).
+    fn assembled(model: &Model, rng: &mut SplitMix64) -> (IkTasks, Vec<Vec3>, IkWorkspace) {
         let markers = (0..model.markers.len())
             .map(|i| MarkerTask {
                 marker: i,
@@ -906,7 +912,7 @@ mod tests {
                 weight: rng.uniform(0.5, 2.0),
             })
             .collect();
-        let targets = (0..model.markers.len())
+        let targets: Vec<Vec3> = (0..model.markers.len())
             .map(|_| {
                 Vec3::new(
                     rng.uniform(-1.0, 1.0),
@@ -915,13 +921,22 @@ mod tests {
                 )
             })
             .collect();
-        (
-            IkTasks {
-                markers,
-                coordinates: Vec::new(),
-            },
-            targets,
-        )
+        let tasks = IkTasks {
+            markers,
+            coordinates: Vec::new(),
+        };
+        let frame = Frame {
+            targets: &targets,
+            index: 0,
+            smoothness: 0.0,
+            marker_scale: 1.0,
+        };
+        let mut ws = IkWorkspace::new(model, Bounds::None);
+        ws.tree = task_tree(model, &tasks);
+        ws.q = random_q(model, rng, 0.1);
+        objective(model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
+        normal_equations(model, &mut ws, &tasks, &frame).unwrap();
+        (tasks, targets, ws)
     }
 
     #[test]
@@ -932,17 +947,7 @@ mod tests {
                 continue;
             }
             let n = model.nq();
-            let (tasks, targets) = marker_problem(&model, &mut rng);
-            let frame = Frame {
-                targets: &targets,
-                index: 0,
-                smoothness: 0.0,
-                marker_scale: 1.0,
-            };
-            let mut ws = IkWorkspace::new(&model, Bounds::None);
-            ws.q = random_q(&model, &mut rng, 0.1);
-            objective(&model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
-            normal_equations(&model, &mut ws, &tasks, &frame).unwrap();
+            let (tasks, targets, ws) = assembled(&model, &mut rng);
             // reference: H = Σ w JᵀJ and g = Σ w Jᵀr from `point_jacobian`
             let mut data = Data::new(&model);
             forward_kinematics(&model, &mut data, &ws.q).unwrap();
@@ -961,7 +966,7 @@ mod tests {
             let dg = (&ws.gradient - &g).amax() / g.amax();
             assert!(dh < 1e-13 && dg < 1e-13, "{name}: H {dh:e}, g {dg:e}");
             // every structural non-zero lies on the task tree's ancestor chains
-            let tree = task_tree(&model, &tasks);
+            let tree = &ws.tree;
             for i in 0..n {
                 for j in 0..i {
                     let mut a = tree.parent(i);
@@ -991,18 +996,7 @@ mod tests {
                 continue;
             }
             let n = model.nq();
-            let (tasks, targets) = marker_problem(&model, &mut rng);
-            let frame = Frame {
-                targets: &targets,
-                index: 0,
-                smoothness: 0.0,
-                marker_scale: 1.0,
-            };
-            let mut ws = IkWorkspace::new(&model, Bounds::None);
-            ws.tree = task_tree(&model, &tasks);
-            ws.q = random_q(&model, &mut rng, 0.1);
-            objective(&model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
-            normal_equations(&model, &mut ws, &tasks, &frame).unwrap();
+            let (_, _, mut ws) = assembled(&model, &mut rng);
             for j in 0..n {
                 ws.free[j] = j % 4 != 1;
             }
