@@ -39,7 +39,7 @@ use crate::error::Error;
 use crate::model::reduction::NONE;
 use crate::model::{CoordinateRole, Model};
 use crate::motion::Motion;
-use crate::solve::ltl::{self, EliminationTree};
+use crate::solve::ltl::EliminationTree;
 use crate::solve::qp::linalg::dot;
 use crate::spatial::{Force, Mat3, SpatialInertia, Vec3};
 use nalgebra::{DMatrix, DVector};
@@ -293,6 +293,10 @@ pub struct IkWorkspace {
     q_prev: Vec<f64>,
     q_prev2: Vec<f64>,
     free: Vec<bool>,
+    /// Per reduced column c: (column e, its coordinate) for every column e towards ground,
+    /// flattened (`column_path[column_path_start[c]..column_path_start[c + 1]]`).
+    column_path: Vec<(usize, usize)>,
+    column_path_start: Vec<usize>,
     /// Per body: the markers' point masses and forces, then their composites.
     inertia: Vec<SpatialInertia>,
     force: Vec<Force>,
@@ -308,7 +312,19 @@ impl IkWorkspace {
     pub fn new(model: &Model, bounds: Bounds) -> IkWorkspace {
         let n = model.nq();
         let (lo, hi) = coordinate_bounds(model, bounds);
+        let cols = &model.reduction.columns;
+        let (mut column_path, mut column_path_start) = (Vec::new(), vec![0]);
+        for c in 0..cols.len() {
+            let mut e = cols.parent[c];
+            while e != NONE {
+                column_path.push((e, cols.q[e]));
+                e = cols.parent[e];
+            }
+            column_path_start.push(column_path.len());
+        }
         IkWorkspace {
+            column_path,
+            column_path_start,
             data: Data::new(model),
             hessian: DMatrix::zeros(n, n),
             chol: vec![0.0; n * n],
@@ -481,13 +497,10 @@ fn normal_equations(
         ws.gradient[j] += motion[c].dot(&ws.force[body]);
         let f = ws.inertia[body].mul_motion(&motion[c]);
         h[j + j * n] += motion[c].dot(&f);
-        let mut e = cols.parent[c];
-        while e != NONE {
-            let k = cols.q[e];
+        for &(e, k) in &ws.column_path[ws.column_path_start[c]..ws.column_path_start[c + 1]] {
             let v = motion[e].dot(&f);
             h[j + k * n] += v;
             h[k + j * n] += v;
-            e = cols.parent[e];
         }
     }
     for t in &tasks.coordinates {
@@ -524,14 +537,12 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
         } else {
             1.0
         };
-        let mut i = ws.tree.parent(k);
-        while i != ltl::NONE {
+        for &i in ws.tree.ancestors(k) {
             l[k * n + i] = if ws.free[k] && ws.free[i] {
                 h[i + k * n]
             } else {
                 0.0
             };
-            i = ws.tree.parent(i);
         }
     }
     if !ws.tree.factor(l, &mut ws.inv_diag) {

@@ -28,6 +28,10 @@ pub const NONE: usize = usize::MAX;
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EliminationTree {
     parent: Vec<usize>,
+    /// anc(k) = λ(k), λ(λ(k)), … flattened: `ancestors[start[k]..start[k + 1]]` (so that the
+    /// loops read indices instead of chasing parents; anc(i) is the tail of anc(k) after i).
+    ancestors: Vec<usize>,
+    start: Vec<usize>,
 }
 
 impl EliminationTree {
@@ -56,14 +60,29 @@ impl EliminationTree {
                 }
             }
         }
-        EliminationTree { parent }
+        EliminationTree::with_parents(parent)
+    }
+
+    fn with_parents(parent: Vec<usize>) -> Self {
+        let (mut ancestors, mut start) = (Vec::new(), vec![0]);
+        for k in 0..parent.len() {
+            let mut i = parent[k];
+            while i != NONE {
+                ancestors.push(i);
+                i = parent[i];
+            }
+            start.push(ancestors.len());
+        }
+        EliminationTree {
+            parent,
+            ancestors,
+            start,
+        }
     }
 
     /// The tree of a dense pattern: the chain λ(k) = k − 1.
     pub fn dense(n: usize) -> Self {
-        EliminationTree {
-            parent: (0..n).map(|k| k.checked_sub(1).unwrap_or(NONE)).collect(),
-        }
+        EliminationTree::with_parents((0..n).map(|k| k.checked_sub(1).unwrap_or(NONE)).collect())
     }
 
     pub fn len(&self) -> usize {
@@ -83,16 +102,15 @@ impl EliminationTree {
     pub fn factor_cost(&self) -> usize {
         (0..self.len())
             .map(|k| {
-                let d = self.ancestors(k).count();
+                let d = self.ancestors(k).len();
                 d * (d + 1) / 2 + d
             })
             .sum()
     }
 
-    fn ancestors(&self, k: usize) -> impl Iterator<Item = usize> + '_ {
-        std::iter::successors(Some(self.parent[k]).filter(|&i| i != NONE), move |&i| {
-            Some(self.parent[i]).filter(|&p| p != NONE)
-        })
+    /// anc(k), nearest first.
+    pub fn ancestors(&self, k: usize) -> &[usize] {
+        &self.ancestors[self.start[k]..self.start[k + 1]]
     }
 
     /// Factors A = Lᵀ L in place: `a` is row-major n × n and holds A_kk and A_ki for every
@@ -111,21 +129,16 @@ impl EliminationTree {
             a[k * n + k] = lkk;
             let inv = 1.0 / lkk;
             inv_diag[k] = inv;
-            let mut i = self.parent[k];
-            while i != NONE {
+            let anc = self.ancestors(k);
+            for &i in anc {
                 a[k * n + i] *= inv;
-                i = self.parent[i];
             }
-            // A_ij −= L_ki L_kj for i ∈ anc(k), j ∈ {i} ∪ anc(i)
-            let mut i = self.parent[k];
-            while i != NONE {
+            // A_ij −= L_ki L_kj for i ∈ anc(k), j ∈ {i} ∪ anc(i) (anc(i): the tail after i)
+            for (p, &i) in anc.iter().enumerate() {
                 let lki = a[k * n + i];
-                let mut j = i;
-                while j != NONE {
+                for &j in &anc[p..] {
                     a[i * n + j] -= lki * a[k * n + j];
-                    j = self.parent[j];
                 }
-                i = self.parent[i];
             }
         }
         true
@@ -138,18 +151,14 @@ impl EliminationTree {
         for k in (0..n).rev() {
             let yk = x[k] * inv_diag[k];
             x[k] = yk;
-            let mut i = self.parent[k];
-            while i != NONE {
+            for &i in self.ancestors(k) {
                 x[i] -= l[k * n + i] * yk;
-                i = self.parent[i];
             }
         }
         for k in 0..n {
             let mut s = x[k];
-            let mut i = self.parent[k];
-            while i != NONE {
+            for &i in self.ancestors(k) {
                 s -= l[k * n + i] * x[i];
-                i = self.parent[i];
             }
             x[k] = s * inv_diag[k];
         }
