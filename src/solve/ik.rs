@@ -297,6 +297,10 @@ pub struct IkWorkspace {
     /// flattened (`column_path[column_path_start[c]..column_path_start[c + 1]]`).
     column_path: Vec<(usize, usize)>,
     column_path_start: Vec<usize>,
+    /// The coordinate pairs j < k that H couples (a column and one towards ground, distinct
+    /// coordinates), each once: H is zero elsewhere off the diagonal, so only these and the
+    /// diagonal are cleared and read.
+    pattern: Vec<(usize, usize)>,
     /// Per body: the markers' point masses and forces, then their composites.
     inertia: Vec<SpatialInertia>,
     force: Vec<Force>,
@@ -322,9 +326,19 @@ impl IkWorkspace {
             }
             column_path_start.push(column_path.len());
         }
+        let mut pattern: Vec<(usize, usize)> = column_path_start
+            .windows(2)
+            .enumerate()
+            .flat_map(|(c, w)| column_path[w[0]..w[1]].iter().map(move |&(_, k)| (c, k)))
+            .map(|(c, k)| (cols.q[c].min(k), cols.q[c].max(k)))
+            .filter(|(j, k)| j != k)
+            .collect();
+        pattern.sort_unstable();
+        pattern.dedup();
         IkWorkspace {
             column_path,
             column_path_start,
+            pattern,
             data: Data::new(model),
             hessian: DMatrix::zeros(n, n),
             chol: vec![0.0; n * n],
@@ -457,7 +471,15 @@ fn normal_equations(
 ) -> crate::Result<()> {
     let n = model.nq();
     motion_subspaces(model, &mut ws.data);
-    ws.hessian.fill(0.0);
+    // Only H's pattern is ever written (the rest stays zero from `IkWorkspace::new`).
+    let h = ws.hessian.as_mut_slice();
+    for j in 0..n {
+        h[j + j * n] = 0.0;
+    }
+    for &(j, k) in &ws.pattern {
+        h[j + k * n] = 0.0;
+        h[k + j * n] = 0.0;
+    }
     ws.gradient.fill(0.0);
     ws.inertia.fill(SpatialInertia::ZERO);
     ws.force.fill(Force::ZERO);
@@ -626,19 +648,16 @@ fn solve_frame(
                     largest = largest.max(ws.step[j].abs());
                 }
                 // Decrease of f the Gauss–Newton model predicts for the (projected) step:
-                // −2 (gᵀδ + ½ δᵀHδ)  (g and H are those of f/2)
+                // −2 (gᵀδ + ½ δᵀHδ)  (g and H are those of f/2), δᵀHδ over H's pattern
                 let h = ws.hessian.as_slice();
+                let d = ws.step.as_slice();
+                let linear = dot(ws.gradient.as_slice(), d);
                 let mut quadratic = 0.0;
-                let mut linear = 0.0;
                 for b in 0..n {
-                    let db = ws.step[b];
-                    if db == 0.0 {
-                        continue;
-                    }
-                    linear += ws.gradient[b] * db;
-                    let column = &h[b * n..(b + 1) * n];
-                    let hd = dot(column, ws.step.as_slice());
-                    quadratic += db * hd;
+                    quadratic += h[b + b * n] * d[b] * d[b];
+                }
+                for &(j, k) in &ws.pattern {
+                    quadratic += 2.0 * h[j + k * n] * d[j] * d[k];
                 }
                 let predicted = -2.0 * (linear + 0.5 * quadratic);
                 let f_trial =
@@ -944,6 +963,10 @@ mod tests {
         };
         let mut ws = IkWorkspace::new(model, Bounds::None);
         ws.tree = task_tree(model, &tasks);
+        // assembled twice: the second must clear every entry the first wrote
+        ws.q = random_q(model, rng, 0.1);
+        objective(model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
+        normal_equations(model, &mut ws, &tasks, &frame).unwrap();
         ws.q = random_q(model, rng, 0.1);
         objective(model, &mut ws.data, &tasks, &frame, &ws.q, &ws.q_prev).unwrap();
         normal_equations(model, &mut ws, &tasks, &frame).unwrap();
