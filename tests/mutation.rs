@@ -554,4 +554,13 @@ fn skeleton_map_errors_name_the_line_of_the_entry() {
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("m.json:3:") && e.contains("axes[2]"), "{e}");
+    // a landmark that is not placed would never be used as one
+    let e = SkeletonMap::parse(
+        &map.replace("-2", "2")
+            .replace("\"weight\": 1}", "\"weight\": 1, \"landmark\": true}"),
+        "m.json",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.starts_with("m.json:5:") && e.contains("landmark"), "{e}");
 }

@@ -77,9 +77,13 @@ add_joint("ground_pelvis", "ground", "pelvis", p, ch, HG, SG)
 for slot, name, ax in [("rotation1", "pelvis_tilt", (0, 0, 1)), ("rotation2", "pelvis_list", (1, 0, 0)), ("rotation3", "pelvis_rotation", (0, 1, 0)),
                        ("translation1", "pelvis_tx", (1, 0, 0)), ("translation2", "pelvis_ty", (0, 1, 0)), ("translation3", "pelvis_tz", (0, 0, 1))]:
     d, rng = c[name]
+    src = SG
     if name == "pelvis_ty":
         d = d * 1.75 / HG  # the default standing height of the pelvis scales with the model
-    add_axis("ground_pelvis", slot, name, ax, "identity", (d, rng))
+    if name == "pelvis_rotation":
+        rng = [-6.2831853, 6.2831853]
+        src = SG + "; range a full turn either way (gait2392: ±90 deg; musculo check allows at most 2π): the heading of the free-floating pelvis has no anatomical limit, and motion datasets turn round (IK follows the heading continuously from frame to frame)"
+    add_axis("ground_pelvis", slot, name, ax, "identity", (d, rng), src=src)
 for s in "rl":
     j = joint(G, f"hip_{s}"); c = coords(j); p, ch = frames(j)
     add_joint(f"hip_{s}", "pelvis", f"femur_{s}", p, ch, HG, SG)
@@ -271,6 +275,16 @@ for s, side, Side, m in (("r", "right", "Right", 1.0), ("l", "left", "Left", -1.
     ]:
         mark(f"{side}_{smpl}", body, p, SM)
         mark(f"{Side}{cmu}", body, p, SB)
+# Pelvis landmarks of gait marker sets (Plug-in Gait names, as in the C3D trials), so that
+# marker data fixes the pelvis tilt: gait2392's ASIS (its pelvis frame is this model's), the
+# PSIS placed from them by Rajagopal2016's ASIS -> PSIS vector (-0.16453, 0.016918; its
+# pelvis frame differs, its marker set has both landmarks).
+SASI = "anterior superior iliac spine: OpenSim gait2392_Scale_MarkerSet.xml R.ASIS / L.ASIS (gait2392 pelvis frame = this model's)"
+SPSI = "posterior superior iliac spine: the ASIS moved by Rajagopal2016's RASI -> RPSI vector (-0.16453, 0.016918; z 0.045 as there)"
+for side, m in (("R", 1.0), ("L", -1.0)):
+    asis = np.array([0.02, 0.03, 0.128 * m])
+    mark(f"{side}ASI", "pelvis", asis, SASI)
+    mark(f"{side}PSI", "pelvis", asis + [-0.16453047, 0.0169184, 0.045 * m - asis[2]], SPSI)
 with open(os.path.join(out, "markers.csv"), "w") as f:
     print("marker,body,x,y,z,source_height,source", file=f)
     w(markers, f)

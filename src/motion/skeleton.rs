@@ -28,6 +28,11 @@
 //!   of its own (SMPL's pelvis joint lies above the hip centres, its spine joints are not the
 //!   model's vertebral joints), so fitting the model to a clip moves the model marker to the
 //!   clip's average position on the marker's body, as OpenSim's marker placement does.
+//! - `landmark` (optional, default false, with `placed`): the model marker sits at the
+//!   anatomical landmark the input names (the default model's pelvis landmarks RASI, LASI,
+//!   RPSI, LPSI), so the first placement round fits it at full weight: where only such
+//!   markers fix a body's pose, that pose comes from the model's anatomy rather than from
+//!   the first round's guess.
 //! - `segments` (optional): `{ "name", "bodies": [model bodies], "pairs": [[a, b], …] }`,
 //!   where a and b are target (model marker) names: scaling a model to a clip multiplies
 //!   the bodies' dimensions by the median over frames of ‖x_a − x_b‖ divided by the same
@@ -64,6 +69,12 @@ pub struct MapTarget {
     /// the clip puts it on its body (see `solve::scale_from_clip`).
     #[serde(default)]
     pub placed: bool,
+    /// With `placed`: the model carries this marker at the anatomical landmark the input
+    /// names (not a re-used joint-centre marker), so the first placement round weighs it
+    /// fully and the pose it fixes (a pelvis' tilt about the hip axis) is the one the
+    /// placement keeps.
+    #[serde(default)]
+    pub landmark: bool,
 }
 
 /// A group of model bodies scaled together from target distances (for scaling a model to a
@@ -212,6 +223,16 @@ impl SkeletonMap {
                     format!(
                         "target {i} (`{}`): weight {} must be ≥ 0",
                         t.marker, t.weight
+                    ),
+                ));
+            }
+            if t.landmark && !t.placed {
+                return Err(table_error(
+                    at,
+                    format!(
+                        "target {i} (`{}`): \"landmark\" applies to placed targets only (add \
+                         \"placed\": true, or leave the marker where the model has it)",
+                        t.marker
                     ),
                 ));
             }

@@ -18,7 +18,8 @@
 //! where the clip puts them, as OpenSim's marker placement moves markers onto a static
 //! trial, by block-coordinate descent on the IK objective over (poses, placed markers):
 //!
-//!   1. IK over the clip with the placed targets at a tenth of their weight;
+//!   1. IK over the clip with the placed targets at a tenth of their weight (landmark
+//!      targets, whose model markers sit at the anatomical landmark, at their full weight);
 //!   2. each placed marker ← the per-component median over frames of R_bᵀ (x(t) − o_b(t)),
 //!      the target in its body's frame at the solved pose;
 //!   3. IK with every weight, and step 2 again, [`PLACEMENT_ROUNDS`] times in all.
@@ -313,7 +314,7 @@ pub fn place_markers(
     let mut previous: Option<ik::IkSolution> = None;
     for round in 0..PLACEMENT_ROUNDS {
         for (k, t) in tasks.markers.iter_mut().enumerate() {
-            t.weight = if round == 0 && map.targets[k].placed {
+            t.weight = if round == 0 && map.targets[k].placed && !map.targets[k].landmark {
                 0.1 * full_weights[k]
             } else {
                 full_weights[k]
