@@ -489,6 +489,12 @@ fn ik_settings_and_tasks_out_of_range_are_invalid_arguments() {
         (with(&|s| s.smoothness = f64::NAN), "smoothness"),
         (with(&|s| s.max_iterations = 0), "max_iterations"),
         (with(&|s| s.tolerance = 0.0), "tolerance"),
+        (with(&|s| s.relative_decrease = 0.0), "relative_decrease"),
+        (with(&|s| s.relative_decrease = 1.0), "relative_decrease"),
+        (
+            with(&|s| s.relative_decrease = f64::NAN),
+            "relative_decrease",
+        ),
         (with(&|s| s.initial_q = Some(vec![0.0; n - 1])), "initial_q"),
         (
             with(&|s| s.initial_q = Some(vec![f64::NAN; n])),
