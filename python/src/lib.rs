@@ -1210,15 +1210,17 @@ fn motion_from_array(
 /// augment` (`q`, `qd`, `qdd`, `tau`, `contact_point_force`, `muscle_act`, `x`, …), with
 /// `quality` (the manifest's per-clip figures) and `model_xml` (the scaled model as OpenSim
 /// XML, None when not scaled: `Model.from_osim_string(out["model_xml"])` is the model the
-/// arrays belong to).
+/// arrays belong to). `muscle_strength` multiplies every muscle's maximum isometric force
+/// (`musculo augment --muscle-strength`; 1: the model as built).
 #[pyfunction]
-#[pyo3(signature = (joints, fps = None, format = "humanml3d", scale_to_clip = true))]
+#[pyo3(signature = (joints, fps = None, format = "humanml3d", scale_to_clip = true, muscle_strength = 1.0))]
 fn augment_clip<'py>(
     py: Python<'py>,
     joints: Input<'py>,
     fps: Option<f64>,
     format: &str,
     scale_to_clip: bool,
+    muscle_strength: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     use musculo::augment::perturb::Variant;
     use musculo::motion::skeleton::SkeletonMap;
@@ -1227,7 +1229,11 @@ fn augment_clip<'py>(
         .detach(|| -> musculo::Result<_> {
             let (motion, map_name) = motion_from_array(array.view(), format, fps)?;
             let map = SkeletonMap::builtin(map_name)?;
-            default_chain(scale_to_clip)?.run(&motion, Some(&map), &Variant::identity())
+            default_chain(scale_to_clip, muscle_strength)?.run(
+                &motion,
+                Some(&map),
+                &Variant::identity(),
+            )
         })
         .map_err(to_py)?;
     clip_output_dict(py, output)
@@ -1340,9 +1346,11 @@ fn read_motion<'py>(
 /// [`augment_clip`] on a motion file, read and mapped as `musculo augment` reads it (see
 /// `Model.inverse_kinematics_file` for `format`, `map`, `length_unit`); with
 /// `force_plates=True` a C3D file's own force platforms are the ground reactions instead of
-/// the estimate from kinematics. Returns the same dict as `augment_clip`.
+/// the estimate from kinematics; `muscle_strength` as for `augment_clip`. Returns the same
+/// dict as `augment_clip`.
 #[pyfunction]
-#[pyo3(signature = (path, format = None, map = None, length_unit = None, scale_to_clip = true, force_plates = false))]
+#[pyo3(signature = (path, format = None, map = None, length_unit = None, scale_to_clip = true, force_plates = false, muscle_strength = 1.0))]
+#[allow(clippy::too_many_arguments)]
 fn augment_file<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -1351,6 +1359,7 @@ fn augment_file<'py>(
     length_unit: Option<&str>,
     scale_to_clip: bool,
     force_plates: bool,
+    muscle_strength: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     use musculo::augment::chain::MeasuredLoads;
     use musculo::motion::Format;
@@ -1370,7 +1379,7 @@ fn augment_file<'py>(
                     });
                 }
             };
-            default_chain(scale_to_clip)?.run_with_loads(
+            default_chain(scale_to_clip, muscle_strength)?.run_with_loads(
                 &motion,
                 map.as_ref(),
                 &musculo::augment::perturb::Variant::identity(),
@@ -1454,7 +1463,10 @@ fn evaluate<'py>(
 }
 
 /// The augmentation chain on the built-in default model.
-fn default_chain(scale_to_clip: bool) -> musculo::Result<musculo::augment::chain::Chain> {
+fn default_chain(
+    scale_to_clip: bool,
+    muscle_strength: f64,
+) -> musculo::Result<musculo::augment::chain::Chain> {
     use musculo::augment::chain::{Chain, ChainOptions};
     Chain::new(
         musculo::DEFAULT_MODEL_OSIM.to_string(),
@@ -1462,6 +1474,7 @@ fn default_chain(scale_to_clip: bool) -> musculo::Result<musculo::augment::chain
         ChainOptions {
             scale_to_clip,
             opensim_files: true,
+            muscle_strength,
             ..ChainOptions::default()
         },
     )

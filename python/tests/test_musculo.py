@@ -401,6 +401,13 @@ def test_augment_clip_gives_tensors_that_satisfy_the_equations_of_motion():
     assert relative.max() < 1e-6, relative.max()
     with pytest.raises(musculo.MusculoError):
         musculo.augment_clip(joints[:, :5])
+    # the jump asks more than the model's muscles give (12.7 % of the joint moments on the
+    # reserves); with every muscle twice as strong they carry it (4.0 %)
+    strong = musculo.augment_clip(joints, fps=20.0, muscle_strength=2.0)
+    assert strong["quality"]["reserve_share"] < 0.05, strong["quality"]["reserve_share"]
+    assert strong["quality"]["reserve_share"] < out["quality"]["reserve_share"]
+    with pytest.raises(musculo.MusculoError, match="muscle_strength"):
+        musculo.augment_clip(joints, muscle_strength=0.0)
 
 
 @pytest.mark.skipif(not os.path.exists(HUMANML3D), reason="reference data not found")

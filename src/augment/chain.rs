@@ -61,6 +61,11 @@ pub struct ChainOptions {
     pub opensim_files: bool,
     /// Static optimization's options (OpenSim's defaults: exponent 2, force–length–velocity).
     pub static_optimization: StaticOptimizationOptions,
+    /// Every muscle's maximum isometric force × this factor, applied to the model's text when
+    /// the chain is made ([`crate::solve::scale::strength`]), so that the model hash, the
+    /// scaling to each clip and the OpenSim files all see the strengthened model. Default 1
+    /// (the model as given).
+    pub muscle_strength: f64,
     /// Run static optimization and activation dynamics. Default true. Without them (what
     /// `musculo evaluate` needs of a motion file: kinematics, torques, contacts) the muscle
     /// arrays (`muscle_act`, `muscle_force`, fibre states, `excitation`) are left out of the
@@ -78,6 +83,7 @@ impl Default for ChainOptions {
             reserve_optimal_force: 1.0,
             opensim_files: false,
             static_optimization: StaticOptimizationOptions::default(),
+            muscle_strength: 1.0,
             muscles: true,
         }
     }
@@ -187,6 +193,22 @@ impl Chain {
                 format!("must be positive, got {}", options.reserve_optimal_force),
             ));
         }
+        let xml = if options.muscle_strength == 1.0 {
+            xml
+        } else {
+            crate::solve::scale::strength::scale_muscle_strength(
+                &xml,
+                &source,
+                options.muscle_strength,
+            )
+            .map_err(|e| match e {
+                Error::InvalidArgument { message, .. } => {
+                    Error::invalid("muscle_strength", message)
+                }
+                other => other,
+            })?
+            .0
+        };
         let model = Model::from_osim_str(&xml, &source)?;
         contact_set(&model)?;
         Ok(Chain {

@@ -55,6 +55,14 @@ pub struct RunDescription {
     pub perturbation: PerturbationRanges,
     pub lowpass_hz: Option<f64>,
     pub scale_to_clip: bool,
+    /// Factor on every muscle's maximum isometric force (1 in manifests written before it
+    /// existed).
+    #[serde(default = "unit_strength")]
+    pub muscle_strength: f64,
+}
+
+fn unit_strength() -> f64 {
+    1.0
 }
 
 /// One clip's record.

@@ -429,6 +429,7 @@ pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
         perturbation: options.perturbation.clone(),
         lowpass_hz: chain.options.lowpass_hz,
         scale_to_clip: chain.options.scale_to_clip,
+        muscle_strength: chain.options.muscle_strength,
     }
 }
 

@@ -59,6 +59,15 @@ pub struct Args {
     /// Do not scale the model to each clip's bone lengths.
     #[arg(long)]
     no_scale: bool,
+    /// Multiply every muscle's maximum isometric force by K (as OpenSim users strengthen a
+    /// model for tasks beyond walking); recorded in the manifest. Default 1: the model as given.
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
+    muscle_strength: f64,
     /// The clips were recorded on a treadmill: contact speeds are taken relative to the belt,
     /// whose velocity is estimated per clip (default: a floor at rest).
     #[arg(long)]
@@ -145,12 +154,19 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             format!("{} must be ≥ 0 (0: no filter)", args.lowpass),
         ));
     }
+    if !(args.muscle_strength > 0.0 && args.muscle_strength.is_finite()) {
+        return Err(invalid(
+            "--muscle-strength",
+            format!("{} must be positive and finite", args.muscle_strength),
+        ));
+    }
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;
     let (xml, source) = model_text(args.model.as_deref())?;
     let options = ChainOptions {
         lowpass_hz: (args.lowpass > 0.0).then_some(args.lowpass),
         scale_to_clip: !args.no_scale,
         opensim_files: args.opensim_files || args.report,
+        muscle_strength: args.muscle_strength,
         ..ChainOptions::default()
     };
     let mut options = options;

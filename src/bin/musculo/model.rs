@@ -26,6 +26,24 @@ pub enum Command {
     /// mass (FX … MZ, as OpenSim's gait examples), one CoordinateActuator per other
     /// independent coordinate; controls unbounded, so every frame can be balanced.
     Reserves(ReservesArgs),
+    /// Multiply every muscle's maximum isometric force by one factor (nothing else in the
+    /// file changes), as OpenSim users strengthen a model for tasks beyond walking.
+    Strengthen(StrengthenArgs),
+}
+
+#[derive(clap::Args)]
+pub struct StrengthenArgs {
+    /// OpenSim 4.x model file (.osim).
+    model: PathBuf,
+    /// The factor on every muscle's maximum isometric force.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    factor: f64,
+    /// Model file to write; a path ending in `/` is a folder (the input's file name in it).
+    /// It may not be the input model.
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    strict: crate::warnings::Strict,
 }
 
 #[derive(clap::Args)]
@@ -122,9 +140,36 @@ fn reserves(args: &ReservesArgs) -> Result<(), musculo::Error> {
     Ok(())
 }
 
+fn strengthen(args: &StrengthenArgs) -> Result<(), musculo::Error> {
+    let xml = musculo::io::text::read_text(&args.model)?;
+    let source = args.model.display().to_string();
+    args.strict.load_str(&xml, &source)?;
+    let (text, count) =
+        musculo::solve::scale::strength::scale_muscle_strength(&xml, &source, args.factor)
+            .map_err(|e| match e {
+                musculo::Error::InvalidArgument { message, .. } => {
+                    musculo::Error::InvalidArgument {
+                        argument: "--factor",
+                        message,
+                    }
+                }
+                other => other,
+            })?;
+    let default_name = args.model.file_name().unwrap_or_default().to_string_lossy();
+    let output = name_in_folder(&args.output, &default_name);
+    crate::tool::write_output(&output, text.as_bytes(), &[&args.model])?;
+    println!(
+        "wrote {}: the maximum isometric force of {count} muscles × {}",
+        output.display(),
+        args.factor
+    );
+    Ok(())
+}
+
 pub fn run(command: &Command) -> Result<(), musculo::Error> {
     match command {
         Command::Reserves(args) => reserves(args),
+        Command::Strengthen(args) => strengthen(args),
         Command::Build(args) => {
             let tables =
                 ModelTables::read(&args.data).map_err(musculo::model::builder::BuildError::from)?;

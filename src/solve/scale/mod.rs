@@ -41,6 +41,7 @@ pub mod inertial;
 pub mod markers;
 pub mod measure;
 pub mod place;
+pub mod strength;
 pub mod tool;
 
 pub use apply::scale_inertia;
