@@ -6,7 +6,7 @@
 mod common;
 
 use common::{reference_file, run_musculo};
-use musculo::augment::chain::{Chain, ChainOptions, MeasuredLoads};
+use musculo::augment::chain::{Chain, ChainOptions, ClipQuality, MeasuredLoads};
 use musculo::augment::output::{self, ClipStatus};
 use musculo::augment::perturb::Variant;
 use musculo::augment::runner::{self, ClipInput, ClipSource, RunOptions};
@@ -391,34 +391,55 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
 }
 
 /// The dataset clips in ../shared/reference end to end, each checked from its file.
-#[test]
-fn reference_clips_end_to_end() {
-    let mut inputs: Vec<(PathBuf, Format, Option<&str>)> = Vec::new();
-    for (rel, format, unit) in [
-        ("humanml3d/new_joints_012314.npy", Format::HumanMl3d, None),
-        ("bvh/131_01.bvh", Format::Bvh, Some("0.056444")),
-        ("bvh/cmu_01_01.bvh", Format::Bvh, Some("0.056444")),
-    ] {
-        match reference_file(rel) {
-            Some(p) => inputs.push((p, format, unit)),
-            None => return,
-        }
-    }
-    let chain = chain();
-    for (path, format, unit) in inputs {
+/// The reference clips at `rels` (path, format, BVH unit), or None when one is missing.
+fn reference_clips(
+    rels: &[(&str, Format, Option<&str>)],
+) -> Option<Vec<(PathBuf, Motion, SkeletonMap)>> {
+    let mut out = Vec::new();
+    for &(rel, format, unit) in rels {
+        let path = reference_file(rel)?;
         let read = ReadOptions {
             length_unit: unit.map(|u| motion::LengthUnit::parse(u).unwrap()),
         };
         let clip: Motion = motion::read(&path, Some(format), &read).unwrap();
         let map = SkeletonMap::builtin(format.default_map().unwrap()).unwrap();
-        let out = chain.run(&clip, Some(&map), &Variant::identity()).unwrap();
-        let dir = temp_dir("ref");
-        output::write_clip(&dir, "clip", &out.arrays).unwrap();
-        let model = chain
-            .clip_model(&clip, Some(&map), &Variant::identity())
-            .unwrap();
-        let worst = check_clip(&model, &output::npz_path(&dir, "clip"));
-        let q = &out.quality;
+        out.push((path, clip, map));
+    }
+    Some(out)
+}
+
+/// Runs `chain` on a clip and checks its arrays from the written `.npz` ([`check_clip`], on the
+/// clip's model) in a scratch folder named by `test`; returns the quality figures and the
+/// worst frame's relative residual.
+fn run_and_check(
+    test: &str,
+    chain: &Chain,
+    clip: &Motion,
+    map: &SkeletonMap,
+) -> (ClipQuality, f64) {
+    let out = chain.run(clip, Some(map), &Variant::identity()).unwrap();
+    let dir = temp_dir(test);
+    output::write_clip(&dir, "clip", &out.arrays).unwrap();
+    let model = chain
+        .clip_model(clip, Some(map), &Variant::identity())
+        .unwrap();
+    let worst = check_clip(&model, &output::npz_path(&dir, "clip"));
+    let _ = std::fs::remove_dir_all(dir);
+    (out.quality, worst)
+}
+
+#[test]
+fn reference_clips_end_to_end() {
+    let Some(clips) = reference_clips(&[
+        ("humanml3d/new_joints_012314.npy", Format::HumanMl3d, None),
+        ("bvh/131_01.bvh", Format::Bvh, Some("0.056444")),
+        ("bvh/cmu_01_01.bvh", Format::Bvh, Some("0.056444")),
+    ]) else {
+        return;
+    };
+    let chain = chain();
+    for (path, clip, map) in clips {
+        let (q, worst) = run_and_check("reference", &chain, &clip, &map);
         println!(
             "{}: {} frames, IK RMSE median {:.1} mm, EL identity {worst:.2e}, reserves {:.2} % \
              of joint moments, unexplained force ≤ {:.3} BW, {} clamped excitation(s)",
@@ -430,7 +451,6 @@ fn reference_clips_end_to_end() {
             q.clamped_excitations
         );
         assert!(worst <= 1e-6, "{}: {worst:e}", path.display());
-        let _ = std::fs::remove_dir_all(dir);
     }
 }
 
@@ -442,16 +462,12 @@ fn reference_clips_end_to_end() {
 /// strengthened text).
 #[test]
 fn strengthened_muscles_carry_the_dataset_clips() {
-    let mut inputs = Vec::new();
-    for (rel, format, unit) in [
+    let Some(clips) = reference_clips(&[
         ("humanml3d/new_joints_012314.npy", Format::HumanMl3d, None),
         ("bvh/131_01.bvh", Format::Bvh, Some("0.056444")),
-    ] {
-        match reference_file(rel) {
-            Some(p) => inputs.push((p, format, unit)),
-            None => return,
-        }
-    }
+    ]) else {
+        return;
+    };
     let strong = Chain::default_model(ChainOptions {
         muscle_strength: 2.0,
         ..ChainOptions::default()
@@ -464,20 +480,8 @@ fn strengthened_muscles_carry_the_dataset_clips() {
     );
     assert_eq!((a.muscle_strength, b.muscle_strength), (1.0, 2.0));
     assert_ne!(a.model_hash, b.model_hash);
-    for (path, format, unit) in inputs {
-        let read = ReadOptions {
-            length_unit: unit.map(|u| motion::LengthUnit::parse(u).unwrap()),
-        };
-        let clip: Motion = motion::read(&path, Some(format), &read).unwrap();
-        let map = SkeletonMap::builtin(format.default_map().unwrap()).unwrap();
-        let out = strong.run(&clip, Some(&map), &Variant::identity()).unwrap();
-        let dir = temp_dir("strong");
-        output::write_clip(&dir, "clip", &out.arrays).unwrap();
-        let model = strong
-            .clip_model(&clip, Some(&map), &Variant::identity())
-            .unwrap();
-        let worst = check_clip(&model, &output::npz_path(&dir, "clip"));
-        let q = &out.quality;
+    for (path, clip, map) in clips {
+        let (q, worst) = run_and_check("strong", &strong, &clip, &map);
         println!(
             "{}, muscles × 2: reserves {:.2} % of joint moments, EL identity {worst:.2e}",
             path.display(),
@@ -490,7 +494,6 @@ fn strengthened_muscles_carry_the_dataset_clips() {
             path.display(),
             q.reserve_share
         );
-        let _ = std::fs::remove_dir_all(dir);
     }
     let bad = Chain::default_model(ChainOptions {
         muscle_strength: 0.0,
