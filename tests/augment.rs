@@ -495,6 +495,31 @@ fn strengthened_muscles_carry_the_dataset_clips() {
             q.reserve_share
         );
     }
+    // The command says when clips leave more than 5 % to the reserves, and not once they don't;
+    // the manifest records the factor.
+    let sample = reference_file("humanml3d/new_joints_012314.npy").unwrap();
+    for (k, hint) in [("1", true), ("2", false)] {
+        let out = temp_dir(&format!("strength-cli-{k}"));
+        let (ok, _, stderr) = run_musculo(&[
+            "augment".as_ref(),
+            "--input".as_ref(),
+            sample.as_os_str(),
+            "--muscle-strength".as_ref(),
+            k.as_ref(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ]);
+        assert!(ok, "{stderr}");
+        let said = stderr.contains("1 clip(s) leave more than 5 % of the joint moments");
+        assert_eq!(said, hint, "× {k}: {stderr}");
+        let manifest: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(
+            manifest["run"]["muscle_strength"],
+            k.parse::<f64>().unwrap()
+        );
+        let _ = std::fs::remove_dir_all(out);
+    }
     let bad = Chain::default_model(ChainOptions {
         muscle_strength: 0.0,
         ..ChainOptions::default()

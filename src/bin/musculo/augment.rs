@@ -288,6 +288,15 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             q.clamped_excitations
         );
     }
+    let over = worst.iter().filter(|(_, q)| q.reserve_share > 0.05).count();
+    if over > 0 {
+        eprintln!(
+            "{over} clip(s) leave more than 5 % of the joint moments to the reserves: the motion \
+             asks more than the model's muscles give (the manifest names the coordinates; \
+             --muscle-strength K multiplies every muscle's force, this run × {})",
+            args.muscle_strength
+        );
+    }
     match shard {
         Some((k, n)) => eprintln!(
             "shard {k}/{n} done; when every shard has finished: musculo merge {}{}",
