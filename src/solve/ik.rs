@@ -564,20 +564,20 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     // determined coordinates (a forearm's roll seen by one joint centre) cannot take long
     // steps that the next iterations must walk back.
     let floor = 1e-2 * (0..n).map(|j| h[j + j * n]).fold(0.0f64, f64::max);
-    let l = &mut ws.chol[..n * n]; // row-major; row k holds k and its ancestors
+    // packed rows (`ltl`): row k holds k and its ancestors (n² ≥ any tree's storage)
+    let l = &mut ws.chol[..ws.tree.storage_len()];
     for k in 0..n {
         let a = h[k + k * n];
-        l[k * n + k] = if ws.free[k] {
-            a + mu * a.max(floor) + 1e-12 * (1.0 + a)
+        let r = ws.tree.row_start(k);
+        if ws.free[k] {
+            l[r] = a + mu * a.max(floor) + 1e-12 * (1.0 + a);
+            for (v, &i) in l[r + 1..].iter_mut().zip(ws.tree.ancestors(k)) {
+                *v = if ws.free[i] { h[i + k * n] } else { 0.0 };
+            }
         } else {
-            1.0
-        };
-        for &i in ws.tree.ancestors(k) {
-            l[k * n + i] = if ws.free[k] && ws.free[i] {
-                h[i + k * n]
-            } else {
-                0.0
-            };
+            l[r] = 1.0;
+            let d = ws.tree.ancestors(k).len();
+            l[r + 1..r + 1 + d].fill(0.0);
         }
     }
     if !ws.tree.factor(l, &mut ws.inv_diag) {

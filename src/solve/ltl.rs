@@ -14,12 +14,17 @@
 //! within the ancestor chains, and a dense pattern degrades gracefully to a chain
 //! (λ(k) = k − 1), i.e. a dense Cholesky factorization.
 //!
-//! With L stored in the lower triangle of a row-major n × n array:
-//!
 //!   for k = n−1 … 0:   L_kk = √A_kk,   L_ki = A_ki / L_kk  (i ∈ anc(k)),
 //!                      A_ij −= L_ki L_kj  (i ∈ anc(k), j ∈ anc(i) ∪ {i});
 //!   Lᵀ y = b:  for k = n−1 … 0:  y_k /= L_kk,  y_i −= L_ki y_k  (i ∈ anc(k));
 //!   L x = y:   for k = 0 … n−1:  x_k = (y_k − Σ_{i ∈ anc(k)} L_ki x_i) / L_kk.
+//!
+//! Storage is by rows, each packed: row k holds (A_kk, A_k,a₀, A_k,a₁, …) for its ancestors
+//! a₀ = λ(k), a₁ = λ(a₀), … at `row_start(k)`. Since anc(i) for i = a_p is the tail a_{p+1}, …
+//! of the same list, row i's packed entries {i} ∪ anc(i) line up with row k's entries from
+//! a_p on, and the update of row i is one contiguous axpy:
+//!
+//!   row_i[0 .. d−p] −= L_k,a_p · row_k[1+p .. 1+d]   (d = |anc(k)|).
 
 /// Marks the root's absent parent.
 pub const NONE: usize = usize::MAX;
@@ -32,6 +37,8 @@ pub struct EliminationTree {
     /// loops read indices instead of chasing parents; anc(i) is the tail of anc(k) after i).
     ancestors: Vec<usize>,
     start: Vec<usize>,
+    /// Packed row k at `row[k]..row[k + 1]`: its diagonal, then its ancestors' entries.
+    row: Vec<usize>,
 }
 
 impl EliminationTree {
@@ -73,10 +80,12 @@ impl EliminationTree {
             }
             start.push(ancestors.len());
         }
+        let row = start.iter().enumerate().map(|(k, &s)| s + k).collect();
         EliminationTree {
             parent,
             ancestors,
             start,
+            row,
         }
     }
 
@@ -113,52 +122,69 @@ impl EliminationTree {
         &self.ancestors[self.start[k]..self.start[k + 1]]
     }
 
-    /// Factors A = Lᵀ L in place: `a` is row-major n × n and holds A_kk and A_ki for every
-    /// i ∈ anc(k) (other entries are neither read nor written); on return it holds L there,
-    /// and `inv_diag` the reciprocals 1/L_kk. False when a pivot is not positive and finite
-    /// (A not positive definite).
+    /// Length of the packed storage: n diagonal entries plus every (k, ancestor) pair.
+    pub fn storage_len(&self) -> usize {
+        self.row[self.len()]
+    }
+
+    /// Where packed row k begins: A_kk there, then A_k,i for i ∈ anc(k) in the order of
+    /// [`EliminationTree::ancestors`].
+    pub fn row_start(&self, k: usize) -> usize {
+        self.row[k]
+    }
+
+    /// Factors A = Lᵀ L in place: `a` holds A in packed rows (see
+    /// [`EliminationTree::row_start`]), and on return L in the same places, with
+    /// `inv_diag` the reciprocals 1/L_kk. False when a pivot is not positive and finite (A
+    /// not positive definite).
     pub fn factor(&self, a: &mut [f64], inv_diag: &mut [f64]) -> bool {
         let n = self.len();
-        assert!(a.len() >= n * n && inv_diag.len() >= n);
+        assert!(a.len() >= self.storage_len() && inv_diag.len() >= n);
         for k in (0..n).rev() {
-            let d = a[k * n + k];
+            let (head, tail) = a.split_at_mut(self.row[k]);
+            let row_k = &mut tail[..self.row[k + 1] - self.row[k]];
+            let d = row_k[0];
             if !(d > 0.0 && d.is_finite()) {
                 return false;
             }
             let lkk = d.sqrt();
-            a[k * n + k] = lkk;
+            row_k[0] = lkk;
             let inv = 1.0 / lkk;
             inv_diag[k] = inv;
-            let anc = self.ancestors(k);
-            for &i in anc {
-                a[k * n + i] *= inv;
+            for v in &mut row_k[1..] {
+                *v *= inv;
             }
-            // A_ij −= L_ki L_kj for i ∈ anc(k), j ∈ {i} ∪ anc(i) (anc(i): the tail after i)
-            for (p, &i) in anc.iter().enumerate() {
-                let lki = a[k * n + i];
-                for &j in &anc[p..] {
-                    a[i * n + j] -= lki * a[k * n + j];
+            // A_ij −= L_ki L_kj for i = a_p ∈ anc(k), j ∈ {i} ∪ anc(i) = a_p, a_{p+1}, …;
+            // ancestors have smaller indices, so their rows lie in `head`.
+            for (p, &i) in self.ancestors(k).iter().enumerate() {
+                let lki = row_k[1 + p];
+                let src = &row_k[1 + p..];
+                let dst = &mut head[self.row[i]..self.row[i] + src.len()];
+                for (x, &l) in dst.iter_mut().zip(src) {
+                    *x -= lki * l;
                 }
             }
         }
         true
     }
 
-    /// Solves Lᵀ L x = b in place (`x` holds b on entry), with L and `inv_diag` from
-    /// [`EliminationTree::factor`].
+    /// Solves Lᵀ L x = b in place (`x` holds b on entry), with L (packed rows) and
+    /// `inv_diag` from [`EliminationTree::factor`].
     pub fn solve(&self, l: &[f64], inv_diag: &[f64], x: &mut [f64]) {
         let n = self.len();
         for k in (0..n).rev() {
             let yk = x[k] * inv_diag[k];
             x[k] = yk;
-            for &i in self.ancestors(k) {
-                x[i] -= l[k * n + i] * yk;
+            let row = &l[self.row[k] + 1..self.row[k + 1]];
+            for (&i, &lki) in self.ancestors(k).iter().zip(row) {
+                x[i] -= lki * yk;
             }
         }
         for k in 0..n {
+            let row = &l[self.row[k] + 1..self.row[k + 1]];
             let mut s = x[k];
-            for &i in self.ancestors(k) {
-                s -= l[k * n + i] * x[i];
+            for (&i, &lki) in self.ancestors(k).iter().zip(row) {
+                s -= lki * x[i];
             }
             x[k] = s * inv_diag[k];
         }
@@ -198,10 +224,22 @@ mod tests {
             .collect()
     }
 
+    /// A's entries in the tree's packed rows.
+    fn packed(tree: &EliminationTree, a: &DMatrix<f64>) -> Vec<f64> {
+        let mut l = vec![0.0; tree.storage_len()];
+        for k in 0..tree.len() {
+            let r = tree.row_start(k);
+            l[r] = a[(k, k)];
+            for (p, &i) in tree.ancestors(k).iter().enumerate() {
+                l[r + 1 + p] = a[(k, i)];
+            }
+        }
+        l
+    }
+
     fn solve_with(tree: &EliminationTree, a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
         let n = a.nrows();
-        // row-major copy (A is symmetric)
-        let mut l: Vec<f64> = (0..n * n).map(|e| a[(e / n, e % n)]).collect();
+        let mut l = packed(tree, a);
         let mut inv = vec![0.0; n];
         assert!(tree.factor(&mut l, &mut inv));
         let mut x = b.as_slice().to_vec();
@@ -274,10 +312,10 @@ mod tests {
     #[test]
     fn a_matrix_that_is_not_positive_definite_is_refused() {
         let tree = EliminationTree::dense(2);
-        let mut a = vec![1.0, 2.0, 2.0, 1.0]; // eigenvalues 3, −1
+        let a = DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0]); // eigenvalues 3, −1
         let mut inv = [0.0; 2];
-        assert!(!tree.factor(&mut a, &mut inv));
-        let mut nan = vec![f64::NAN, 0.0, 0.0, 1.0];
-        assert!(!tree.factor(&mut nan, &mut inv));
+        assert!(!tree.factor(&mut packed(&tree, &a), &mut inv));
+        let nan = DMatrix::from_row_slice(2, 2, &[f64::NAN, 0.0, 0.0, 1.0]);
+        assert!(!tree.factor(&mut packed(&tree, &nan), &mut inv));
     }
 }
