@@ -66,6 +66,11 @@ impl Frames {
         let mut defs = HashMap::new();
         for n in doc.descendants().filter(Node::is_element) {
             let tag = n.tag_name().name();
+            if !matches!(tag, "Ground" | "Body" | "PhysicalOffsetFrame") {
+                continue;
+            }
+            // (built only for frames: walking every element's ancestors cost more than the
+            // rest of this pass)
             let path = component_path(n);
             match tag {
                 "Ground" => {
