@@ -72,12 +72,7 @@ fn timed_run(
         .install(|| runner::run(chain, layout, clips, &options, &|_| {}))
         .expect("run");
     let seconds = start.elapsed().as_secs_f64();
-    let frames: usize = report
-        .records
-        .iter()
-        .filter_map(|r| r.quality.as_ref())
-        .map(|q| q.frames)
-        .sum();
+    let frames = report.frames();
     let _ = std::fs::remove_dir_all(&out);
     (frames, seconds)
 }

@@ -73,12 +73,7 @@ fn main() {
         .install(|| runner::run(&chain, &layout, &clips, &RunOptions::new(&out), &|_| {}))
         .expect("augment");
     let augment_s = start.elapsed().as_secs_f64();
-    let frames: usize = report
-        .records
-        .iter()
-        .filter_map(|r| r.quality.as_ref())
-        .map(|q| q.frames)
-        .sum();
+    let frames = report.frames();
     let files = evaluate::collect(std::slice::from_ref(&out), None).expect("clips");
     let run = |files: &[evaluate::ClipFile], per_frame: bool| {
         let options = SetOptions {

@@ -102,6 +102,17 @@ pub struct RunReport {
     pub temporaries_removed: usize,
 }
 
+impl RunReport {
+    /// Frames of the clips that produced output (computed or resumed).
+    pub fn frames(&self) -> usize {
+        self.records
+            .iter()
+            .filter_map(|r| r.quality.as_ref())
+            .map(|q| q.frames)
+            .sum()
+    }
+}
+
 /// The clips under `inputs`: files as given, folders searched recursively for the motion
 /// formats (`.npy`, `.bvh`, `.c3d`, `.trc`), names relative to the folder. Sorted by name; two
 /// inputs with one output name are an error.

@@ -229,12 +229,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         .iter()
         .filter(|r| r.reason.is_some())
         .collect();
-    let frames: usize = report
-        .records
-        .iter()
-        .filter_map(|r| r.quality.as_ref())
-        .map(|q| q.frames)
-        .sum();
+    let frames = report.frames();
     if report.temporaries_removed > 0 {
         eprintln!(
             "removed {} partial file(s) left by an interrupted run",
