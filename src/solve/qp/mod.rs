@@ -66,7 +66,7 @@ pub(crate) mod linalg;
 #[cfg(test)]
 mod tests;
 
-use linalg::{cholesky_in_place, cholesky_solve_in_place, dot, symmetric_rank_update};
+use linalg::{SparseColumns, cholesky_in_place, cholesky_solve_in_place, dot};
 use nalgebra::DMatrixView;
 
 /// The line search accepts t when |φ′(t)| ≤ η φ′(0) (or t = 1 when φ′(1) ≥ −η φ′(0)).
@@ -295,6 +295,8 @@ pub struct QpWorkspace {
     center: Vec<f64>,
     gradient: Vec<f64>,
     step: Vec<f64>,
+    /// A of the current problem by its nonzero entries.
+    columns: SparseColumns,
     /// Rank-1 terms applied to `hessian` since it was last formed from scratch.
     updates_since_rebuild: usize,
 }
@@ -304,17 +306,6 @@ struct Slope {
     psi: f64,
     step_norm2: f64,
     mu: f64,
-}
-
-/// Column access to A as contiguous slices (a view has unit row stride).
-#[derive(Clone, Copy)]
-struct Columns<'a>(DMatrixView<'a, f64>);
-
-impl Columns<'_> {
-    #[inline]
-    fn get(&self, i: usize) -> &[f64] {
-        self.0.column(i).data.into_slice()
-    }
 }
 
 /// The per-coordinate power law w|x|ᵖ and its conjugate map s ↦ ξ(s).
@@ -369,11 +360,14 @@ impl PowerLaw {
     /// The box minimiser of w|x|ᵖ − s x and its slope dx/ds: (clamp(ξ(s), l, u), D).
     /// D is dξ/ds = ξ/((p − 1) s) when ξ is within the bounds (boundary included) and 0 when
     /// clamped; for p ≠ 2 it is kept within [SLOPE_FLOOR, SLOPE_CAP] × `slope_reference`.
+    /// `slope_reference` is [`PowerLaw::reference_slope`] of w: 1/(2w) for p = 2, where it
+    /// is also the slope.
     #[inline]
     fn minimiser(&self, s: f64, w: f64, l: f64, u: f64, slope_reference: f64) -> (f64, f64) {
-        // ξ: p w |ξ|^{p−1} sgn ξ = s
+        // ξ: p w |ξ|^{p−1} sgn ξ = s (for p = 2, ξ = s/(2w) with the reference slope
+        // D_ref = 1/(2w) computed once per solve)
         let xi = if self.quadratic {
-            s * (0.5 / w)
+            s * slope_reference
         } else {
             (s.abs() / (self.p * w))
                 .powf(self.inverse_p_minus_1)
@@ -384,7 +378,7 @@ impl PowerLaw {
         } else if xi > u {
             (u, 0.0)
         } else if self.quadratic {
-            (xi, 0.5 / w)
+            (xi, slope_reference)
         } else {
             let d = if s == 0.0 {
                 if self.p < 2.0 { 0.0 } else { f64::INFINITY }
@@ -425,6 +419,7 @@ impl QpWorkspace {
             center: vec![0.0; n],
             gradient: vec![0.0; n],
             step: vec![0.0; n],
+            columns: SparseColumns::with_capacity(n, m),
             updates_since_rebuild: 0,
         }
     }
@@ -455,8 +450,7 @@ impl QpWorkspace {
         settings.validate()?;
         self.check_arguments(problem)?;
         let law = PowerLaw::new(settings.exponent);
-        let cols = Columns(problem.a);
-        let h_reference = self.prepare_columns(cols, problem, &law)?;
+        let h_reference = self.prepare_columns(problem, &law)?;
         let (n, m) = (self.n, self.m);
 
         let cold = !(settings.warm_start && self.warm);
@@ -466,7 +460,7 @@ impl QpWorkspace {
         self.warm = false;
         // s = Aᵀλ, x = x(s)
         for i in 0..m {
-            self.s[i] = dot(cols.get(i), &self.multipliers);
+            self.s[i] = self.columns.dot(i, &self.multipliers);
             (self.x[i], self.slope[i]) = law.minimiser(
                 self.s[i],
                 problem.weights[i],
@@ -476,7 +470,7 @@ impl QpWorkspace {
             );
         }
         let b_max = problem.b.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
-        let (mut r_max, mut scale, mut r_norm) = self.update_residual(cols, problem.b, b_max);
+        let (mut r_max, mut scale, mut r_norm) = self.update_residual(problem.b, b_max);
         let mut r_norm_previous = f64::INFINITY;
         let mut boost = 1.0;
         let mut iterations = 0;
@@ -496,7 +490,7 @@ impl QpWorkspace {
                 break QpStatus::Solved;
             }
             if r_norm > STALL_RATIO * r_norm_previous
-                && self.least_squares_stationary(cols, problem, settings, r_norm)
+                && self.least_squares_stationary(problem, settings, r_norm)
             {
                 break QpStatus::Infeasible;
             }
@@ -507,7 +501,7 @@ impl QpWorkspace {
             // Newton matrix A D Aᵀ: at a cold start the reference slopes of every column
             // (at λ = 0 the exact slope is 0 or ∞ for p ≠ 2, and muscles sit on a bound).
             let use_reference = cold && iterations == 0;
-            self.update_hessian(cols, iterations == 0, use_reference);
+            self.update_hessian(iterations == 0, use_reference);
             // A D Aᵀ + μI = L Lᵀ; should rounding make it indefinite, μ is raised (a new ψ)
             let mut attempts = 0;
             while !self.factor_newton_matrix(mu) {
@@ -536,7 +530,7 @@ impl QpWorkspace {
                 break QpStatus::NumericalError;
             }
             for i in 0..m {
-                self.a_step[i] = dot(cols.get(i), &self.step);
+                self.a_step[i] = self.columns.dot(i, &self.step);
             }
 
             let accepted = self.line_search(problem, &law, &slope);
@@ -551,7 +545,7 @@ impl QpWorkspace {
             }
             iterations += 1;
             r_norm_previous = r_norm;
-            (r_max, scale, r_norm) = self.update_residual(cols, problem.b, b_max);
+            (r_max, scale, r_norm) = self.update_residual(problem.b, b_max);
 
             if accepted.is_none() {
                 boost *= 100.0;
@@ -634,14 +628,10 @@ impl QpWorkspace {
     /// One pass over A: the column norms ‖aᵢ‖, the reference slopes D_ref,i, and
     /// h = maxᵣ Σᵢ A_ri² D_ref,i, the largest diagonal entry of A D_ref Aᵀ (the scale of μ).
     /// A non-finite entry is an error naming it.
-    fn prepare_columns(
-        &mut self,
-        cols: Columns<'_>,
-        problem: &QpProblem<'_>,
-        law: &PowerLaw,
-    ) -> Result<f64, QpError> {
+    fn prepare_columns(&mut self, problem: &QpProblem<'_>, law: &PowerLaw) -> Result<f64, QpError> {
         // Σᵢ A_ri² D_ref,i accumulates in `magnitude` (overwritten by the first residual).
         self.magnitude.fill(0.0);
+        self.columns.clear();
         for i in 0..self.m {
             let (l, u) = (problem.lower[i], problem.upper[i]);
             let size = [l, u]
@@ -653,7 +643,8 @@ impl QpWorkspace {
             self.slope_reference[i] = d_ref;
             self.s_at_lower[i] = law.s_at(l, problem.weights[i]);
             self.s_at_upper[i] = law.s_at(u, problem.weights[i]);
-            let column = cols.get(i);
+            let column = problem.a.column(i).data.into_slice();
+            self.columns.push(column);
             let mut sum = 0.0;
             for (acc, &v) in self.magnitude.iter_mut().zip(column) {
                 let v2 = v * v;
@@ -677,7 +668,7 @@ impl QpWorkspace {
     }
 
     /// r = A x − b and Σᵢ |A_ri xᵢ|; returns (‖r‖∞, max(‖b‖∞, maxᵣ Σᵢ|A_ri xᵢ|), ‖r‖₂).
-    fn update_residual(&mut self, cols: Columns<'_>, b: &[f64], b_max: f64) -> (f64, f64, f64) {
+    fn update_residual(&mut self, b: &[f64], b_max: f64) -> (f64, f64, f64) {
         for ((r, mag), &br) in self.residual.iter_mut().zip(&mut self.magnitude).zip(b) {
             *r = -br;
             *mag = 0.0;
@@ -686,11 +677,11 @@ impl QpWorkspace {
             if xi == 0.0 {
                 continue;
             }
-            let rows = self.residual.iter_mut().zip(&mut self.magnitude);
-            for ((r, mag), &a) in rows.zip(cols.get(i)) {
+            let (rows, values) = self.columns.column(i);
+            for (&row, &a) in rows.iter().zip(values) {
                 let t = a * xi;
-                *r += t;
-                *mag += t.abs();
+                self.residual[row] += t;
+                self.magnitude[row] += t.abs();
             }
         }
         let r_max = self
@@ -714,7 +705,7 @@ impl QpWorkspace {
     /// Brings `hessian` to A D Aᵀ for the current slopes (or the reference slopes): from
     /// scratch when asked, when more columns changed than are free, or after many updates;
     /// otherwise by rank-1 terms (D_new − D_old) aᵢaᵢᵀ for the columns whose slope changed.
-    fn update_hessian(&mut self, cols: Columns<'_>, rebuild: bool, use_reference: bool) {
+    fn update_hessian(&mut self, rebuild: bool, use_reference: bool) {
         let n = self.n;
         let target = if use_reference {
             &self.slope_reference
@@ -729,17 +720,18 @@ impl QpWorkspace {
             rebuild || changed > free || self.updates_since_rebuild + changed > 2 * self.m;
         if rebuild {
             self.hessian.fill(0.0);
-            let terms = (0..self.m)
-                .filter(|&i| target[i] != 0.0)
-                .map(|i| (cols.get(i), target[i]));
-            symmetric_rank_update(&mut self.hessian, n, terms);
+            for (i, &d) in target.iter().enumerate() {
+                if d != 0.0 {
+                    self.columns.rank_update(&mut self.hessian, n, i, d);
+                }
+            }
             self.updates_since_rebuild = 0;
         } else if changed > 0 {
-            let in_hessian = &self.slope_in_hessian;
-            let terms = (0..self.m)
-                .filter(|&i| target[i] != in_hessian[i])
-                .map(|i| (cols.get(i), target[i] - in_hessian[i]));
-            symmetric_rank_update(&mut self.hessian, n, terms);
+            for (i, (&d, &d_in)) in target.iter().zip(&self.slope_in_hessian).enumerate() {
+                if d != d_in {
+                    self.columns.rank_update(&mut self.hessian, n, i, d - d_in);
+                }
+            }
             self.updates_since_rebuild += changed;
         }
         self.slope_in_hessian.copy_from_slice(target);
@@ -776,7 +768,13 @@ impl QpWorkspace {
                 continue;
             }
             for threshold in [self.s_at_lower[i], self.s_at_upper[i]] {
-                let t = (threshold - self.s[i]) / delta;
+                // t = gap/δ is in (0, 1) only if gap and δ share their sign and |gap| < |δ|:
+                // most thresholds fail that test, and it spares their divisions
+                let gap = threshold - self.s[i];
+                if (gap > 0.0) != (delta > 0.0) || !(gap.abs() < delta.abs()) {
+                    continue;
+                }
+                let t = gap / delta;
                 if t > 0.0 && t < 1.0 {
                     self.breakpoints.push(t);
                 }
@@ -864,7 +862,6 @@ impl QpWorkspace {
     /// ε_inf ‖aᵢ‖ ‖r‖ in magnitude.
     fn least_squares_stationary(
         &self,
-        cols: Columns<'_>,
         problem: &QpProblem<'_>,
         settings: &QpSettings,
         r_norm: f64,
@@ -875,7 +872,7 @@ impl QpWorkspace {
             if l == u {
                 return true;
             }
-            let g = dot(cols.get(i), &self.residual);
+            let g = self.columns.dot(i, &self.residual);
             let projected = if x <= l {
                 g.min(0.0)
             } else if x >= u {
