@@ -13,6 +13,7 @@ use crate::muscle::path::{PathData, PathSet, compute_paths};
 use crate::spatial::{Mat3, Vec3, rotation_body_fixed_xyz};
 use roxmltree::{Document, Node};
 use std::collections::HashMap;
+use std::fmt::Write;
 use std::ops::Range;
 
 /// How an element's numbers change.
@@ -208,9 +209,16 @@ impl<'a, 'd, 'i> Scaler<'a, 'd, 'i> {
         let Some(socket) = socket.and_then(|s| s.text()).map(str::trim) else {
             return Ok(None);
         };
+        // an absolute socket path does not depend on the owner's (whose formatting walks all
+        // its ancestors: most sockets of a model are absolute)
+        let owner_path = if socket.starts_with('/') {
+            String::new()
+        } else {
+            component_path(owner)
+        };
         let (body, _) = self
             .frames
-            .resolve(&component_path(owner), socket)
+            .resolve(&owner_path, socket)
             .map_err(|m| self.error(owner, m))?;
         Ok(self.scales.get(&body))
     }
@@ -655,17 +663,24 @@ pub(super) fn apply(xml: &str, source: &str, edits: &[Edit]) -> crate::Result<St
             });
         }
     }
-    let mut out = String::with_capacity(xml.len());
+    let mut out = String::with_capacity(xml.len() + xml.len() / 16);
     let mut at = 0;
     for e in sorted {
         out.push_str(&xml[at..e.range.start]);
         let text = &xml[e.range.clone()];
         let lead = &text[..text.len() - text.trim_start().len()];
         let trail = &text[text.trim_end().len()..];
-        let values: Vec<String> = match &e.op {
-            Op::Set(v) => v.iter().map(|x| format!("{x}")).collect(),
+        out.push_str(lead);
+        // the values written straight into the text, separated by one space (writing to a
+        // String cannot fail)
+        match &e.op {
+            Op::Set(v) => {
+                for (k, x) in v.iter().enumerate() {
+                    let sep = if k == 0 { "" } else { " " };
+                    let _ = write!(out, "{sep}{x}");
+                }
+            }
             Op::Mul(f) => {
-                let mut v = Vec::new();
                 for (k, token) in text.split_whitespace().enumerate() {
                     let x: f64 = token.parse().map_err(|_| Error::Model {
                         file: source.to_string(),
@@ -673,13 +688,11 @@ pub(super) fn apply(xml: &str, source: &str, edits: &[Edit]) -> crate::Result<St
                         element: String::new(),
                         message: format!("`{token}` is not a number"),
                     })?;
-                    v.push(format!("{}", x * f[k % f.len()]));
+                    let sep = if k == 0 { "" } else { " " };
+                    let _ = write!(out, "{sep}{}", x * f[k % f.len()]);
                 }
-                v
             }
-        };
-        out.push_str(lead);
-        out.push_str(&values.join(" "));
+        }
         out.push_str(trail);
         at = e.range.end;
     }
