@@ -108,3 +108,62 @@ fn scale_from_clip_writes_the_model_that_ik_scale_auto_uses() {
     // The file holds the numbers in shortest round-trip form: the same model.
     assert!(worst < 1e-6, "{worst}");
 }
+
+/// The augmentation chain's scaling (`scale_to_clip_shared`): factors rounded to the grid,
+/// and a clip whose rounded factors an earlier clip had takes that clip's scaled model —
+/// with exactly the result it gets from an empty cache. The two forms of HumanML3D 012314
+/// (joints, and joints recovered from the 263 features) stand for two clips of one skeleton:
+/// HumanML3D retargets every clip onto one, so their factors differ by float32 rounding only.
+#[test]
+fn clips_of_one_skeleton_share_a_scaled_model_and_get_what_they_would_alone() {
+    use musculo::solve::scale_from_clip::{SHARED_FACTOR_GRID, ScaledModels, scale_to_clip_shared};
+    let (Some(joints), Some(vecs)) = (
+        reference_file(CLIP),
+        reference_file("humanml3d/new_joint_vecs_012314.npy"),
+    ) else {
+        return;
+    };
+    let read = |p| motion::read(p, None, &ReadOptions::default()).unwrap();
+    let (joints, vecs) = (read(&joints), read(&vecs));
+    let model = Model::default_fullbody();
+    let map = SkeletonMap::builtin("humanml3d").unwrap();
+    let xml = musculo::DEFAULT_MODEL_OSIM;
+    let scale = |clip: &motion::Motion, shared: &ScaledModels| {
+        scale_to_clip_shared(xml, "default", &model, &map, clip, shared).unwrap()
+    };
+    let shared = ScaledModels::new();
+    let first = scale(&joints, &shared);
+    let second = scale(&vecs, &shared);
+    assert_eq!(
+        shared.len(),
+        1,
+        "the two forms should share one scaled model"
+    );
+    let alone = scale(&vecs, &ScaledModels::new());
+    assert_eq!(second.xml().unwrap(), alone.xml().unwrap());
+    assert_eq!(second.factors, alone.factors);
+    assert_eq!(first.factors, second.factors);
+    // the rounded factors: on the grid, within half a step of the unrounded ones
+    let exact = scale_to_clip(xml, "default", &model, &map, &joints).unwrap();
+    for ((name, rounded), (_, s)) in first.factors.iter().zip(&exact.factors) {
+        let steps = rounded / SHARED_FACTOR_GRID;
+        assert!((steps - steps.round()).abs() < 1e-6, "{name}: {rounded}");
+        assert!(
+            (rounded - s).abs() <= 0.5 * SHARED_FACTOR_GRID + 1e-12,
+            "{name}: {rounded} vs {s}"
+        );
+    }
+    // another skeleton (the clip 3 % and 6 % larger) is another entry; the oldest goes
+    // once CAPACITY are held
+    let mut grown = joints.clone();
+    for k in 1..=ScaledModels::CAPACITY {
+        grown.positions = joints
+            .positions
+            .iter()
+            .map(|p| p * (1.0 + 0.03 * k as f64))
+            .collect();
+        let s = scale(&grown, &shared);
+        assert!((s.factors[0].1 / first.factors[0].1 - (1.0 + 0.03 * k as f64)).abs() < 2e-4);
+        assert_eq!(shared.len(), (k + 1).min(ScaledModels::CAPACITY));
+    }
+}

@@ -165,14 +165,16 @@ pub struct ClipOutput {
     pub warnings: Vec<String>,
 }
 
-/// The immutable part of the chain, shared by all clips: the base model's text, the
-/// options, and names of what is emitted.
+/// The part of the chain shared by all clips: the base model's text, the options, and the
+/// models scaled for clips so far (clips of one skeleton share one:
+/// [`scale_from_clip::scale_to_clip_shared`]).
 #[derive(Clone, Debug)]
 pub struct Chain {
     pub xml: String,
     pub source: String,
     pub model: Model,
     pub options: ChainOptions,
+    scaled: scale_from_clip::ScaledModels,
 }
 
 impl Chain {
@@ -216,12 +218,14 @@ impl Chain {
             source,
             model,
             options,
+            scaled: scale_from_clip::ScaledModels::new(),
         })
     }
 
     /// The model the chain uses for `motion` (as the variant sees it: see
-    /// [`Variant::apply_to_motion`]): the base model scaled to the clip's bone lengths when
-    /// a map with segments is given, with one reserve actuator per coordinate, perturbed by
+    /// [`Variant::apply_to_motion`]): the base model scaled to the clip's bone lengths (the
+    /// segment factors rounded to [`scale_from_clip::SHARED_FACTOR_GRID`]) when a map with
+    /// segments is given, with one reserve actuator per coordinate, perturbed by
     /// `variant` (mass, load). Deterministic: a clip's `.npz` can be checked against it.
     pub fn clip_model(
         &self,
@@ -241,12 +245,13 @@ impl Chain {
     ) -> crate::Result<(Model, Option<String>)> {
         let (mut model, xml) = match map {
             Some(map) if self.options.scale_to_clip && !map.segments.is_empty() => {
-                let s = scale_from_clip::scale_to_clip(
+                let s = scale_from_clip::scale_to_clip_shared(
                     &self.xml,
                     &self.source,
                     &self.model,
                     map,
                     motion,
+                    &self.scaled,
                 )?;
                 let xml = if self.options.opensim_files {
                     Some(s.xml()?)

@@ -28,6 +28,10 @@
 //! Placement looks at no more than [`PLACEMENT_FRAMES`] frames, evenly spread over the clip:
 //! a median of that many samples moves by far less than the targets' own noise, and a long
 //! clip (CMU's run to thousands of frames) then costs no more to place than a short one.
+//!
+//! The augmentation chain scales through [`scale_to_clip_shared`]: factors rounded to
+//! [`SHARED_FACTOR_GRID`], and the scaled model (before placement) reused by the clips that
+//! round to the same factors, as all clips of one skeleton do.
 
 use super::ik::{self, IkSettings};
 use super::scale::{ScaleOptions, ScaleSet, ScaledModel, scale_osim};
@@ -37,6 +41,8 @@ use crate::model::Model;
 use crate::motion::Motion;
 use crate::motion::skeleton::SkeletonMap;
 use crate::spatial::Vec3;
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
 
 /// Rounds of marker placement (IK, then placement).
 pub const PLACEMENT_ROUNDS: usize = 3;
@@ -243,8 +249,114 @@ pub fn scale_to_clip(
     clip: &Motion,
 ) -> crate::Result<ClipScaling> {
     let factors = segment_factors(model, map, clip)?;
+    let scaled = scale_by_factors(xml, source, model, map, &factors)?;
+    place_on_clip(scaled, source, map, clip, factors)
+}
+
+/// [`scale_to_clip`] with the segment factors rounded to [`SHARED_FACTOR_GRID`], and the
+/// scaled model (before marker placement, which stays the clip's own) taken from `shared`
+/// when a clip before this one had the same rounded factors. The result depends only on the
+/// clip, never on what `shared` held: a run's output is the same whatever the order, thread
+/// count or sharding of its clips.
+pub fn scale_to_clip_shared(
+    xml: &str,
+    source: &str,
+    model: &Model,
+    map: &SkeletonMap,
+    clip: &Motion,
+    shared: &ScaledModels,
+) -> crate::Result<ClipScaling> {
+    let mut factors = segment_factors(model, map, clip)?;
+    for (_, s) in &mut factors {
+        *s = (*s / SHARED_FACTOR_GRID).round() * SHARED_FACTOR_GRID;
+    }
+    let key: Vec<f64> = factors.iter().map(|(_, s)| *s).collect();
+    let scaled =
+        shared.get_or_insert(&key, || scale_by_factors(xml, source, model, map, &factors))?;
+    place_on_clip((*scaled).clone(), source, map, clip, factors)
+}
+
+/// Grid of the segment factors in [`scale_to_clip_shared`]: 1e-4, a bone's length to within
+/// 0.05 mm. Clips of one skeleton then share a scaled model: every HumanML3D clip does (its
+/// processing retargets all motions onto the skeleton of its sample 000021, by its
+/// `uniform_skeleton` step), and the factors of two
+/// clips of a skeleton differ by the float32 rounding of their joint positions (the two forms
+/// of HumanML3D 012314 by ≤ 6·10⁻⁸).
+pub const SHARED_FACTOR_GRID: f64 = 1e-4;
+
+/// Models scaled by [`scale_to_clip_shared`], by their rounded factors, for the clips that
+/// follow (the last [`ScaledModels::CAPACITY`] distinct ones: a dataset holds a few skeletons
+/// at most, HumanML3D one). Safe to share between threads.
+#[derive(Debug, Default)]
+pub struct ScaledModels {
+    entries: Mutex<VecDeque<(Vec<f64>, Arc<ScaledModel>)>>,
+}
+
+impl Clone for ScaledModels {
+    fn clone(&self) -> Self {
+        ScaledModels {
+            entries: Mutex::new(self.lock().clone()),
+        }
+    }
+}
+
+impl ScaledModels {
+    /// Distinct factor sets kept.
+    pub const CAPACITY: usize = 4;
+
+    /// An empty cache.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Factor sets held now.
+    pub fn len(&self) -> usize {
+        self.lock().len()
+    }
+
+    /// Whether nothing is held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    // A poisoned lock still holds whole entries (nothing panics while it is held).
+    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(Vec<f64>, Arc<ScaledModel>)>> {
+        self.entries.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The model scaled by `key`: held, or made by `make` (outside the lock, so other
+    /// threads go on) and kept.
+    fn get_or_insert(
+        &self,
+        key: &[f64],
+        make: impl FnOnce() -> crate::Result<ScaledModel>,
+    ) -> crate::Result<Arc<ScaledModel>> {
+        if let Some((_, m)) = self.lock().iter().find(|(k, _)| k.as_slice() == key) {
+            return Ok(Arc::clone(m));
+        }
+        let made = Arc::new(make()?);
+        let mut entries = self.lock();
+        if let Some((_, m)) = entries.iter().find(|(k, _)| k.as_slice() == key) {
+            return Ok(Arc::clone(m));
+        }
+        if entries.len() == Self::CAPACITY {
+            entries.pop_front();
+        }
+        entries.push_back((key.to_vec(), Arc::clone(&made)));
+        Ok(made)
+    }
+}
+
+/// `model` scaled by one factor per segment of `map` (in the order of `map.segments`).
+fn scale_by_factors(
+    xml: &str,
+    source: &str,
+    model: &Model,
+    map: &SkeletonMap,
+    factors: &[(String, f64)],
+) -> crate::Result<ScaledModel> {
     let mut scales = ScaleSet::identity(model);
-    for (seg, (_, s)) in map.segments.iter().zip(&factors) {
+    for (seg, (_, s)) in map.segments.iter().zip(factors) {
         for body in &seg.bodies {
             if model.body_index(body).is_none() {
                 return Err(Error::invalid(
@@ -276,12 +388,23 @@ pub fn scale_to_clip(
         preserve_mass_distribution: true,
         ..ScaleOptions::default()
     };
+    scale_osim(xml, source, model, &scales, &options)
+}
+
+/// The scaled model with the map's placed markers moved onto `clip`.
+fn place_on_clip(
+    scaled: ScaledModel,
+    source: &str,
+    map: &SkeletonMap,
+    clip: &Motion,
+    factors: Vec<(String, f64)>,
+) -> crate::Result<ClipScaling> {
     let ScaledModel {
         xml: scaled_xml,
         model: mut fitted,
         length_ratios,
         ..
-    } = scale_osim(xml, source, model, &scales, &options)?;
+    } = scaled;
     let placed = place_markers(&mut fitted, map, clip)?;
     Ok(ClipScaling {
         scaled_xml,
