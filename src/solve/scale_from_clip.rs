@@ -249,7 +249,8 @@ pub fn scale_to_clip(
     clip: &Motion,
 ) -> crate::Result<ClipScaling> {
     let factors = segment_factors(model, map, clip)?;
-    let scaled = scale_by_factors(xml, source, model, map, &factors)?;
+    let scales = clip_scale_set(model, map, &factors)?;
+    let scaled = scale_osim(xml, source, model, &scales, &clip_scale_options())?;
     place_on_clip(scaled, source, map, clip, factors)
 }
 
@@ -257,7 +258,8 @@ pub fn scale_to_clip(
 /// scaled model (before marker placement, which stays the clip's own) taken from `shared`
 /// when a clip before this one had the same rounded factors. The result depends only on the
 /// clip, never on what `shared` held: a run's output is the same whatever the order, thread
-/// count or sharding of its clips.
+/// count or sharding of its clips. `shared` serves one base model (`xml`, `model`): its
+/// entries are told apart by the per-body factors, `source` and the text's length only.
 pub fn scale_to_clip_shared(
     xml: &str,
     source: &str,
@@ -270,9 +272,14 @@ pub fn scale_to_clip_shared(
     for (_, s) in &mut factors {
         *s = (*s / SHARED_FACTOR_GRID).round() * SHARED_FACTOR_GRID;
     }
-    let key: Vec<f64> = factors.iter().map(|(_, s)| *s).collect();
-    let scaled =
-        shared.get_or_insert(&key, || scale_by_factors(xml, source, model, map, &factors))?;
+    let key = ScaleKey {
+        source: source.to_string(),
+        text_length: xml.len(),
+        scales: clip_scale_set(model, map, &factors)?,
+    };
+    let scaled = shared.get_or_insert(&key, || {
+        scale_osim(xml, source, model, &key.scales, &clip_scale_options())
+    })?;
     place_on_clip((*scaled).clone(), source, map, clip, factors)
 }
 
@@ -284,12 +291,20 @@ pub fn scale_to_clip_shared(
 /// of HumanML3D 012314 by ≤ 6·10⁻⁸).
 pub const SHARED_FACTOR_GRID: f64 = 1e-4;
 
-/// Models scaled by [`scale_to_clip_shared`], by their rounded factors, for the clips that
+/// Models scaled by [`scale_to_clip_shared`], by their per-body factors, for the clips that
 /// follow (the last [`ScaledModels::CAPACITY`] distinct ones: a dataset holds a few skeletons
 /// at most, HumanML3D one). Safe to share between threads.
 #[derive(Debug, Default)]
 pub struct ScaledModels {
-    entries: Mutex<VecDeque<(Vec<f64>, Arc<ScaledModel>)>>,
+    entries: Mutex<VecDeque<(ScaleKey, Arc<ScaledModel>)>>,
+}
+
+/// What a shared scaled model was made from, besides the base model's text.
+#[derive(Clone, Debug, PartialEq)]
+struct ScaleKey {
+    source: String,
+    text_length: usize,
+    scales: ScaleSet,
 }
 
 impl Clone for ScaledModels {
@@ -320,7 +335,7 @@ impl ScaledModels {
     }
 
     // A poisoned lock still holds whole entries (nothing panics while it is held).
-    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(Vec<f64>, Arc<ScaledModel>)>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(ScaleKey, Arc<ScaledModel>)>> {
         self.entries.lock().unwrap_or_else(|e| e.into_inner())
     }
 
@@ -328,33 +343,31 @@ impl ScaledModels {
     /// threads go on) and kept.
     fn get_or_insert(
         &self,
-        key: &[f64],
+        key: &ScaleKey,
         make: impl FnOnce() -> crate::Result<ScaledModel>,
     ) -> crate::Result<Arc<ScaledModel>> {
-        if let Some((_, m)) = self.lock().iter().find(|(k, _)| k.as_slice() == key) {
+        if let Some((_, m)) = self.lock().iter().find(|(k, _)| k == key) {
             return Ok(Arc::clone(m));
         }
         let made = Arc::new(make()?);
         let mut entries = self.lock();
-        if let Some((_, m)) = entries.iter().find(|(k, _)| k.as_slice() == key) {
+        if let Some((_, m)) = entries.iter().find(|(k, _)| k == key) {
             return Ok(Arc::clone(m));
         }
         if entries.len() == Self::CAPACITY {
             entries.pop_front();
         }
-        entries.push_back((key.to_vec(), Arc::clone(&made)));
+        entries.push_back((key.clone(), Arc::clone(&made)));
         Ok(made)
     }
 }
 
-/// `model` scaled by one factor per segment of `map` (in the order of `map.segments`).
-fn scale_by_factors(
-    xml: &str,
-    source: &str,
+/// The per-body factors of one factor per segment of `map` (in the order of `map.segments`).
+fn clip_scale_set(
     model: &Model,
     map: &SkeletonMap,
     factors: &[(String, f64)],
-) -> crate::Result<ScaledModel> {
+) -> crate::Result<ScaleSet> {
     let mut scales = ScaleSet::identity(model);
     for (seg, (_, s)) in map.segments.iter().zip(factors) {
         for body in &seg.bodies {
@@ -384,11 +397,15 @@ fn scale_by_factors(
             scales.set(body, f);
         }
     }
-    let options = ScaleOptions {
+    Ok(scales)
+}
+
+/// Scaling a model to a clip keeps its masses (the clip says nothing about them).
+fn clip_scale_options() -> ScaleOptions {
+    ScaleOptions {
         preserve_mass_distribution: true,
         ..ScaleOptions::default()
-    };
-    scale_osim(xml, source, model, &scales, &options)
+    }
 }
 
 /// The scaled model with the map's placed markers moved onto `clip`.
