@@ -149,9 +149,10 @@ pub(crate) fn dot(u: &[f64], v: &[f64]) -> f64 {
 mod tests {
     use super::*;
 
-    /// Columns with zeros in them (about a third of the entries), as A's columns have.
-    fn sparse_test_columns(n: usize) -> Vec<Vec<f64>> {
-        (0..11)
+    /// Columns with zeros in them (about a third of the entries), as A's columns have: dense,
+    /// and as [`SparseColumns`].
+    fn sparse_test_columns(n: usize) -> (Vec<Vec<f64>>, SparseColumns) {
+        let cols: Vec<Vec<f64>> = (0..11)
             .map(|k| {
                 (0..n)
                     .map(|r| {
@@ -163,17 +164,18 @@ mod tests {
                     })
                     .collect()
             })
-            .collect()
+            .collect();
+        let mut a = SparseColumns::with_capacity(n, cols.len());
+        for c in &cols {
+            a.push(c);
+        }
+        (cols, a)
     }
 
     #[test]
     fn sparse_columns_keep_the_nonzeros_and_their_products_match_dense_ones() {
         let n = 7;
-        let cols = sparse_test_columns(n);
-        let mut a = SparseColumns::with_capacity(n, cols.len());
-        for c in &cols {
-            a.push(c);
-        }
+        let (cols, mut a) = sparse_test_columns(n);
         let v: Vec<f64> = (0..n).map(|r| 0.3 * r as f64 - 1.1).collect();
         let mut h = vec![0.0; n * n];
         for (i, c) in cols.iter().enumerate() {
@@ -203,11 +205,7 @@ mod tests {
     #[test]
     fn cholesky_solves_a_symmetric_positive_definite_system() {
         let n = 7;
-        let cols = sparse_test_columns(n);
-        let mut a = SparseColumns::with_capacity(n, cols.len());
-        for c in &cols {
-            a.push(c);
-        }
+        let (cols, a) = sparse_test_columns(n);
         let mut h = vec![0.0; n * n];
         for i in 0..cols.len() {
             a.rank_update(&mut h, n, i, 0.5);
