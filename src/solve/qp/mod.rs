@@ -28,22 +28,28 @@
 //! of multipliers (augmented Lagrangian) on the primal with penalty 1/μ (Rockafellar 1976).
 //! μ = h · clamp(θ‖r‖∞/scale, μ_min, μ_max), h the largest diagonal entry of A D_ref Aᵀ, so μ
 //! vanishes as the residual does and the local convergence is that of Newton's method (finite
-//! for p = 2 once the active set is found).
+//! for p = 2 once the active set is found). For p = 2, when the columns with both bounds
+//! infinite (reserves, residual slacks) span ℝⁿ on their own, A D Aᵀ ⪰ U = Σ_unbounded Dᵢaᵢaᵢᵀ
+//! is positive definite for every λ and the problem feasible for every b: μ is then kept
+//! below 10⁻⁶ of U's smallest Cholesky pivot (and μ_min, μ_max lowered to it where they are
+//! above), since a larger μ only slows the directions whose curvature is a heavily weighted
+//! slack.
 //!
 //! The step length t comes from a line search on φ(t) = ψ(λ + tΔ), whose derivative
 //! φ′(t) = ∇ψ(λ + tΔ)ᵀΔ is non-increasing (ψ is concave) and, for p = 2, piecewise linear
-//! with breakpoints where a coordinate reaches a bound: t = 1 when φ′(1) ≥ −η φ′(0), otherwise a
-//! binary search over the breakpoints and regula falsi on the last smooth piece find t with
-//! |φ′(t)| ≤ η φ′(0), η = 0.1. A backtracking (Armijo) search was tried first: on infeasible
-//! problems its steps shrank to nothing as columns went in and out of the free set, while the
-//! near-exact search keeps the steps the geometry allows.
+//! with breakpoints where a coordinate reaches a bound: t = 1 when φ′(1) ≥ −η φ′(0), otherwise
+//! the root of φ′, found by one sweep over the sorted breakpoints (for p ≠ 2, a binary search
+//! over them and regula falsi on the last smooth piece find t with |φ′(t)| ≤ η φ′(0)),
+//! η = 0.1. A backtracking (Armijo) search was tried first: on infeasible problems its steps
+//! shrank to nothing as columns went in and out of the free set, while the near-exact search
+//! keeps the steps the geometry allows.
 //!
 //! For p = 2, D is constant on free coordinates and A D Aᵀ is updated by rank-1 terms of the
 //! columns that entered or left the free set. A is kept by its nonzero entries (a muscle's
 //! column has a row for each coordinate it spans, ≈ 3 of 29 on the default model), so the
 //! products Aᵀλ, AΔ, A x and the rank-1 terms cost nnz(A) (or Σ nnz(aᵢ)²) rather than n·m; the
-//! rest of an iteration is an n × n Cholesky factorisation and O(m) work per line-search
-//! trial. λ is kept in the workspace and warm-starts the next solve after a `Solved` one.
+//! rest of an iteration is an n × n Cholesky factorisation, the sort of the breakpoints and
+//! O(m) work for the line search. λ is kept in the workspace and warm-starts the next solve after a `Solved` one.
 //!
 //! # Infeasibility
 //! When no x in the box satisfies A x = b, the dual is unbounded and λ diverges, but the
@@ -81,6 +87,10 @@ const INNER_TOLERANCE: f64 = 0.1;
 const STALL_RATIO: f64 = 0.9;
 /// μ/h = θ ‖r‖∞ / scale before clamping to [μ_min, μ_max] (see [`QpSettings`]).
 const REGULARIZATION_GAIN: f64 = 1e-2;
+/// Where the unbounded columns span ℝⁿ with curvature κ (see
+/// [`QpWorkspace::unbounded_curvature`]), μ ≤ this × κ: each proximal step then shrinks the
+/// slowest direction's distance to the optimum by this factor at least.
+const UNBOUNDED_CONTRACTION: f64 = 1e-6;
 /// For p ≠ 2 the slope dx/ds of a free coordinate is kept within these multiples of its
 /// reference slope: it is 0 (p < 2) or ∞ (p > 2) at s = 0.
 const SLOPE_FLOOR: f64 = 1e-6;
@@ -105,8 +115,10 @@ pub struct QpSettings {
     pub warm_start: bool,
     /// Bounds of the proximal weight μ relative to the largest diagonal entry of A D Aᵀ
     /// (see the module documentation): μ_min keeps the Newton matrix numerically positive
-    /// definite, μ_max sets the pace of the method of multipliers on infeasible problems.
-    /// Defaults 1e-12 and 1e-6.
+    /// definite, μ_max sets the pace of the method of multipliers on infeasible problems
+    /// (for p = 2 both are lowered, where needed, below 10⁻⁶ of the curvature the unbounded
+    /// columns give when they span ℝⁿ: such a problem is never infeasible). Defaults 1e-12
+    /// and 1e-6.
     pub regularization_min: f64,
     pub regularization_max: f64,
 }
@@ -277,10 +289,11 @@ pub struct QpWorkspace {
     x_trial: Vec<f64>,
     slope_trial: Vec<f64>,
     /// The values of sᵢ at which ξᵢ(sᵢ) reaches lᵢ and uᵢ (±∞ for infinite bounds), and the
-    /// step fractions in (0, 1) at which some coordinate changes state along Δ.
+    /// step fractions in (0, 1) at which some coordinate changes state along Δ, each with the
+    /// change it makes to the slope of φ′ (p = 2).
     s_at_lower: Vec<f64>,
     s_at_upper: Vec<f64>,
-    breakpoints: Vec<f64>,
+    breakpoints: Vec<(f64, f64)>,
     /// The coefficient each column currently has in `hessian`, and the slope used at a cold
     /// start (the secant from 0 to the box's size; 1/(2wᵢ) for p = 2).
     slope_in_hessian: Vec<f64>,
@@ -453,6 +466,21 @@ impl QpWorkspace {
         self.check_arguments(problem)?;
         let law = PowerLaw::new(settings.exponent);
         let h_reference = self.prepare_columns(problem, &law)?;
+        // μ's bounds relative to h: (μ_min, μ_max), or lower where the unbounded columns
+        // alone make the dual strongly concave (see `unbounded_curvature`)
+        let (mu_min, mu_max) = match law
+            .quadratic
+            .then(|| self.unbounded_curvature(problem, h_reference))
+            .flatten()
+        {
+            Some(kappa) => {
+                let high = settings
+                    .regularization_max
+                    .min(UNBOUNDED_CONTRACTION * kappa / h_reference);
+                (settings.regularization_min.min(high), high)
+            }
+            None => (settings.regularization_min, settings.regularization_max),
+        };
         let (n, m) = (self.n, self.m);
 
         let cold = !(settings.warm_start && self.warm);
@@ -479,9 +507,7 @@ impl QpWorkspace {
         // μ = h clamp(θ‖r‖∞/scale, μ_min, μ_max) (× `boost` after failed line searches)
         let proximal_weight = |r_max: f64, scale: f64, boost: f64| {
             let relative = REGULARIZATION_GAIN * r_max / scale;
-            h_reference
-                * relative.clamp(settings.regularization_min, settings.regularization_max)
-                * boost
+            h_reference * relative.clamp(mu_min, mu_max) * boost
         };
         // ψ(λ) = g(λ) − (μ/2)‖λ − c‖²: μ and the centre c stay fixed while ψ is maximised
         let mut mu = proximal_weight(r_max, scale, boost);
@@ -669,6 +695,38 @@ impl QpWorkspace {
         Ok(if h > 0.0 { h } else { 1.0 })
     }
 
+    /// When the columns with both bounds infinite span ℝⁿ: the smallest pivot κ of the
+    /// Cholesky factorisation of U = Σ_{unbounded i} D_ref,i aᵢaᵢᵀ (λ_min(U) ≤ κ), provided it
+    /// stands well above the rounding of A D Aᵀ (κ ≥ 1e4 ε h); else None. Those columns are
+    /// free for every λ, so A D Aᵀ ⪰ U: the dual is strongly concave, the problem feasible
+    /// for every b, and the Newton matrix definite without the proximal term. μ is then kept
+    /// below [`UNBOUNDED_CONTRACTION`] κ: a larger μ slows the directions whose curvature is
+    /// a heavily weighted unbounded column (a residual slack of weight w, curvature 1/(2w))
+    /// to the factor μ/(μ + 1/(2w)) per proximal step — with μ_max the contact QP's force
+    /// slacks (w = 1e8) crept by ≈ 0.9995 per step and ran into the iteration limit, and
+    /// static optimization with reserves kept the proximal displacement μ(λ − c) in its
+    /// residual for 2–3 iterations after finding the active set. Uses `factor` as scratch
+    /// (it is refactored before use).
+    fn unbounded_curvature(&mut self, problem: &QpProblem<'_>, h: f64) -> Option<f64> {
+        let n = self.n;
+        let mut count = 0;
+        self.factor.fill(0.0);
+        for i in 0..self.m {
+            if problem.lower[i] == f64::NEG_INFINITY && problem.upper[i] == f64::INFINITY {
+                self.columns
+                    .rank_update(&mut self.factor, n, i, self.slope_reference[i]);
+                count += 1;
+            }
+        }
+        if count < n || !cholesky_in_place(&mut self.factor, n) {
+            return None;
+        }
+        let kappa = (0..n)
+            .map(|j| self.factor[j * n + j].powi(2))
+            .fold(f64::INFINITY, f64::min);
+        (kappa >= 100.0 * f64::EPSILON * h).then_some(kappa)
+    }
+
     /// r = A x − b and Σᵢ |A_ri xᵢ|; returns (‖r‖∞, max(‖b‖∞, maxᵣ Σᵢ|A_ri xᵢ|), ‖r‖₂).
     fn update_residual(&mut self, b: &[f64], b_max: f64) -> (f64, f64, f64) {
         for ((r, mag), &br) in self.residual.iter_mut().zip(&mut self.magnitude).zip(b) {
@@ -743,12 +801,15 @@ impl QpWorkspace {
     /// found on its derivative
     ///   φ′(t) = φ′(0) − Σᵢ δᵢ (xᵢ(sᵢ + tδᵢ) − xᵢ(sᵢ)) − μ t ‖Δ‖²,   δ = AᵀΔ,
     /// which is decreasing (each term of the sum is ≥ 0) and free of the large cancelling
-    /// terms of φ itself. t = 1 when φ′(1) ≥ −η φ′(0); otherwise a binary search over the
-    /// breakpoints (the t at which a coordinate reaches or leaves a bound) finds the segment
-    /// where φ′ changes sign, on which φ′ is smooth (linear for p = 2) and regula falsi
-    /// (Illinois) finds |φ′(t)| ≤ η φ′(0) (exactly in one step for p = 2). A full step can
-    /// overshoot by orders of magnitude where many coordinates are clamped (the Newton matrix
-    /// is then only μ in some directions), which backtracking would take many steps to undo.
+    /// terms of φ itself. t = 1 when φ′(1) ≥ −η φ′(0); otherwise the t where φ′ changes sign.
+    /// For p = 2, φ′ is piecewise linear with slope −Σ_free δᵢ² Dᵢ − μ‖Δ‖², changing by
+    /// ∓δᵢ² Dᵢ at each breakpoint (the t at which a coordinate enters or leaves its box), so
+    /// one sweep over the sorted breakpoints finds φ′(1) and the root, and one evaluation
+    /// confirms them. Otherwise (p ≠ 2, or rounding in the sweep) a binary search over the
+    /// breakpoints finds the segment where φ′ changes sign, on which φ′ is smooth and regula
+    /// falsi (Illinois) finds |φ′(t)| ≤ η φ′(0). A full step can overshoot by orders of
+    /// magnitude where many coordinates are clamped (the Newton matrix is then only μ in
+    /// some directions), which backtracking would take many steps to undo.
     /// Leaves x(λ + tΔ) in the `_trial` arrays; None if no ascent step exists numerically.
     fn line_search(
         &mut self,
@@ -758,37 +819,56 @@ impl QpWorkspace {
     ) -> Option<f64> {
         let d0 = slope.psi;
         let accept = LINE_SEARCH_ETA * d0;
-        let d1 = self.derivative_at(1.0, problem, law, slope);
-        if d1 >= -accept {
-            return Some(1.0);
-        }
-        // breakpoints in (0, 1): sᵢ + tδᵢ = sᵢ(lᵢ) or sᵢ(uᵢ)
+        // Breakpoints in (0, 1): sᵢ + tδᵢ = sᵢ(lᵢ) or sᵢ(uᵢ), each with the change it makes
+        // to the slope of φ′ for p = 2 (−δᵢ²Dᵢ entering the box, +δᵢ²Dᵢ leaving it); and
+        // that slope just after t = 0.
+        let mut rate = -slope.mu * slope.step_norm2;
         self.breakpoints.clear();
         for i in 0..self.m {
             let delta = self.a_step[i];
             if delta == 0.0 {
                 continue;
             }
-            for threshold in [self.s_at_lower[i], self.s_at_upper[i]] {
+            let (s, lower, upper) = (self.s[i], self.s_at_lower[i], self.s_at_upper[i]);
+            let curvature = delta * delta * self.slope_reference[i];
+            let free = (s > lower || (s == lower && delta > 0.0))
+                && (s < upper || (s == upper && delta < 0.0));
+            if free {
+                rate -= curvature;
+            }
+            for (threshold, entering) in [(lower, delta > 0.0), (upper, delta < 0.0)] {
                 // t = gap/δ is in (0, 1) only if gap and δ share their sign and |gap| < |δ|:
                 // most thresholds fail that test, and it spares their divisions
-                let gap = threshold - self.s[i];
+                let gap = threshold - s;
                 if (gap > 0.0) != (delta > 0.0) || !(gap.abs() < delta.abs()) {
                     continue;
                 }
                 let t = gap / delta;
                 if t > 0.0 && t < 1.0 {
-                    self.breakpoints.push(t);
+                    let change = if entering { -curvature } else { curvature };
+                    self.breakpoints.push((t, change));
                 }
             }
         }
-        self.breakpoints.sort_unstable_by(f64::total_cmp);
+        self.breakpoints
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        if law.quadratic {
+            let t = self.sweep(d0, rate, accept);
+            let d = self.derivative_at(t, problem, law, slope);
+            if d.abs() <= accept || (t == 1.0 && d >= -accept) {
+                return Some(t);
+            }
+        }
+        let d1 = self.derivative_at(1.0, problem, law, slope);
+        if d1 >= -accept {
+            return Some(1.0);
+        }
         // φ′(lo) > 0 ≥ φ′(hi), and no breakpoint strictly between them
         let (mut lo, mut d_lo, mut hi, mut d_hi) = (0.0, d0, 1.0, d1);
         let (mut first, mut last) = (0, self.breakpoints.len());
         while first < last {
             let mid = (first + last) / 2;
-            let t = self.breakpoints[mid];
+            let t = self.breakpoints[mid].0;
             let d = self.derivative_at(t, problem, law, slope);
             if d.abs() <= accept {
                 return Some(t);
@@ -830,6 +910,27 @@ impl QpWorkspace {
         } else {
             None
         }
+    }
+
+    /// For p = 2: the step [`Self::line_search`] takes, from the piecewise-linear φ′ swept
+    /// over the sorted breakpoints (φ′(0) = `d0`, slope `rate` after 0): 1 when
+    /// φ′(1) ≥ −`accept`, else the root of φ′.
+    fn sweep(&self, d0: f64, rate: f64, accept: f64) -> f64 {
+        let (mut t, mut d, mut rate) = (0.0, d0, rate);
+        let mut root = None;
+        for &(next, change) in &self.breakpoints {
+            let d_next = d + rate * (next - t);
+            if root.is_none() && d_next <= 0.0 {
+                // d > 0 ≥ d_next, so rate < 0
+                root = Some((t + d / -rate).clamp(t, next));
+            }
+            (t, d, rate) = (next, d_next, rate + change);
+        }
+        let d1 = d + rate * (1.0 - t);
+        if d1 >= -accept {
+            return 1.0;
+        }
+        root.unwrap_or_else(|| (t + d / -rate).clamp(t, 1.0))
     }
 
     /// φ′(t) of [`Self::line_search`], leaving x(s + tδ) in the `_trial` arrays.

@@ -290,6 +290,61 @@ fn barely_feasible_problems_are_solved_like_clarabel() {
     }
 }
 
+/// The contact QP's shape: bounded columns that cannot balance b alone, and one slack per
+/// row (unbounded, weight 1e4; the contact QP's 1e8 defeats Clarabel) that takes the rest.
+/// The slacks span ℝⁿ, so μ stays below 10⁻⁶ of their curvature; with μ_max the slack
+/// directions (curvature 1/(2·1e4)) crept towards the optimum by a small fraction per proximal
+/// step and the first case already ran into the iteration limit.
+#[test]
+fn heavily_weighted_slacks_converge_like_clarabel() {
+    let mut rng = Rng(7);
+    let settings = QpSettings::default();
+    for (n, m, _, count) in SIZES {
+        for k in 0..count.div_ceil(2) {
+            let mut case = random_case(&mut rng, n, m, 0);
+            // b well outside A·box: the slacks carry a part of every row
+            let reach: Vec<f64> = (0..n)
+                .map(|r| (0..m).map(|i| case.a[(r, i)].abs()).sum::<f64>())
+                .collect();
+            let b: Vec<f64> = reach.iter().map(|v| 1.5 * v + 10.0).collect();
+            let mut a = DMatrix::zeros(n, m + n);
+            a.columns_mut(0, m).copy_from(&case.a);
+            for r in 0..n {
+                a[(r, m + r)] = 1.0;
+                case.weights.push(1e4);
+                case.lower.push(f64::NEG_INFINITY);
+                case.upper.push(f64::INFINITY);
+                case.x_true.push(0.0);
+            }
+            case.a = a;
+            case.b = b;
+            let what = format!("n = {n}, m = {m} + {n} slacks, case {k}");
+            let ours = cold(&case, &settings);
+            assert_eq!(ours.status, QpStatus::Solved, "{what}: {ours:?}");
+            assert!(
+                ours.iterations <= 40,
+                "{what}: {} iterations",
+                ours.iterations
+            );
+            let reference = clarabel_quadratic(&case, &case.b);
+            assert!(
+                reference.solved(),
+                "{what}: Clarabel {:?}",
+                reference.status
+            );
+            assert_same_optimum(
+                &case,
+                &ours,
+                &reference.x,
+                reference.objective,
+                1e-6,
+                1e-8,
+                &what,
+            );
+        }
+    }
+}
+
 /// Stationarity with multipliers recomputed here: ∂f/∂xᵢ − aᵢᵀλ is 0 inside the box, ≥ 0 at
 /// the lower bound and ≤ 0 at the upper bound; A x = b within the reported tolerance.
 fn assert_kkt(case: &Case, ours: &Outcome, p: f64, what: &str) {
