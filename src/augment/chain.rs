@@ -1009,13 +1009,11 @@ impl FrameArrays {
         let acts = &self.activation[start..];
         layout.flatten(joint, acts, &mut self.x);
         for (i, &k) in self.muscle_columns.iter().enumerate() {
-            let muscle = &so.muscles.muscles[i];
-            let (l, v) = (so_ws.paths.length[i], so_ws.paths.speed[i]);
-            let s = muscle.state_rigid_tendon(so_frame.controls[k].max(0.0), l, v);
+            let (fiber_length, fiber_velocity) = so.fiber_kinematics(so_ws, i);
             self.muscle_force.push(so_frame.forces[k] as f32);
-            self.fiber_length.push(s.fiber_length as f32);
-            self.fiber_velocity.push(s.fiber_velocity as f32);
-            self.muscle_length.push(l as f32);
+            self.fiber_length.push(fiber_length as f32);
+            self.fiber_velocity.push(fiber_velocity as f32);
+            self.muscle_length.push(so_ws.paths.length[i] as f32);
         }
         self.tau.extend_from_slice(tau);
         for &(k, j) in &self.reserve_columns {

@@ -149,6 +149,10 @@ pub struct SoWorkspace {
     pub b: Vec<f64>,
     /// F_k of each actuator at this frame.
     pub unit_force: Vec<f64>,
+    /// Per muscle, fiber length and velocity (rigid tendon) from the evaluation that gave
+    /// F_k (NaN until then, and when muscle physiology is off): see
+    /// [`StaticOptimization::fiber_kinematics`].
+    fiber: Vec<(f64, f64)>,
     column: Vec<f64>,
     qp: QpWorkspace,
 }
@@ -161,6 +165,7 @@ impl SoWorkspace {
             a: DMatrix::zeros(n, m),
             b: vec![0.0; n],
             unit_force: vec![0.0; m],
+            fiber: vec![(f64::NAN, f64::NAN); so.muscles.muscles.len()],
             column: vec![0.0; n],
             qp: QpWorkspace::new(n, m),
         }
@@ -323,7 +328,7 @@ impl StaticOptimization {
             let f = match &act.kind {
                 ActuatorKind::Muscle => {
                     let m = act.muscle.expect("muscle index");
-                    let f = self.muscle_unit_force(m, &ws.paths)?;
+                    let f = self.muscle_unit_force(m, &ws.paths, &mut ws.fiber)?;
                     for j in 0..n {
                         col[j] = ws.paths.moment_arms[(j, m)];
                     }
@@ -385,13 +390,20 @@ impl StaticOptimization {
         Ok(())
     }
 
-    /// F_k of muscle `m` at the current lengths and speeds of `ws.paths`.
-    fn muscle_unit_force(&self, m: usize, paths: &PathData) -> crate::Result<f64> {
+    /// F_k of muscle `m` at the current lengths and speeds of `ws.paths`; with muscle
+    /// physiology, the state's fiber length and velocity go to `fiber[m]`.
+    fn muscle_unit_force(
+        &self,
+        m: usize,
+        paths: &PathData,
+        fiber: &mut [(f64, f64)],
+    ) -> crate::Result<f64> {
         let muscle = &self.muscles.muscles[m];
         if !self.options.use_muscle_physiology {
             return Ok(muscle.params().max_isometric_force);
         }
         let s = muscle.state_rigid_tendon(1.0, paths.length[m], paths.speed[m]);
+        fiber[m] = (s.fiber_length, s.fiber_velocity);
         let f = match s.status {
             MuscleStatus::FiberAtLowerBound => 0.0,
             _ if muscle.kind() == MuscleKind::DeGrooteFregly2016 => s.active_fiber_force,
@@ -409,6 +421,24 @@ impl StaticOptimization {
             ));
         }
         Ok(f)
+    }
+
+    /// Fiber length and velocity of muscle `m` (rigid tendon) at the lengths and speeds of
+    /// the last [`StaticOptimization::assemble`] on `ws`. With a rigid tendon neither depends
+    /// on the activation (l = √(h² + (ℓ_MT − l_s)²), v = ℓ̇_MT cos α, and the clamp at the
+    /// minimum length looks at l and v only), so the unit-activation state that gave F_k
+    /// already holds them; without muscle physiology they are computed here.
+    pub fn fiber_kinematics(&self, ws: &SoWorkspace, m: usize) -> (f64, f64) {
+        if self.options.use_muscle_physiology {
+            ws.fiber[m]
+        } else {
+            let s = self.muscles.muscles[m].state_rigid_tendon(
+                0.0,
+                ws.paths.length[m],
+                ws.paths.speed[m],
+            );
+            (s.fiber_length, s.fiber_velocity)
+        }
     }
 
     /// Passive fiber force along the tendon of muscle `m` (rigid tendon).
