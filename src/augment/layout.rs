@@ -91,6 +91,11 @@ pub struct LayoutWorkspace {
     rhs: Vec<f64>,
     /// Parent-frame orientation per joint.
     frame_rot: Vec<Mat3>,
+    /// The nonzero columns of each A_j as (a, column), joint j's at
+    /// `columns[column_start[j]..column_start[j + 1]]`: a joint's relative rotation moves
+    /// with its own coordinates (and those coupled to them) only.
+    columns: Vec<(usize, Vec3)>,
+    column_start: Vec<usize>,
 }
 
 impl JointFrame {
@@ -180,6 +185,8 @@ impl JointLayout {
             normal: vec![0.0; k * k],
             rhs: vec![0.0; k],
             frame_rot: vec![Mat3::identity(); model.joints.len()],
+            columns: Vec::with_capacity(model.joints.len() * k),
+            column_start: Vec::with_capacity(model.joints.len() + 1),
         }
     }
 
@@ -221,6 +228,8 @@ impl JointLayout {
             }
         }
         ws.normal.fill(0.0);
+        ws.columns.clear();
+        ws.column_start.clear();
         let zero = Vec3::zeros();
         for (j, joint) in model.joints.iter().enumerate() {
             let (rp, _) = if joint.parent_body == 0 {
@@ -248,15 +257,23 @@ impl JointLayout {
             out.vel[j] = r_f.transpose() * rel;
             out.acc[j] = r_f.transpose() * (ac - ap - wp.cross(&rel));
             out.contact[j] = body_contact[joint.child_body];
-            // A_Kᵀ A_K += A_j,Kᵀ A_j,K (lower triangle), A_j = child rows − parent rows
+            // A_Kᵀ A_K += A_j,Kᵀ A_j,K (lower triangle), A_j = child rows − parent rows,
+            // over the columns of A_j that are not zero
+            let start = ws.columns.len();
+            ws.column_start.push(start);
             for a in 0..k {
-                let ca = joint_column(ws, joint.child_body, joint.parent_body, k, a);
-                for b in a..k {
-                    let cb = joint_column(ws, joint.child_body, joint.parent_body, k, b);
+                let c = joint_column(ws, joint.child_body, joint.parent_body, k, a);
+                if c != zero {
+                    ws.columns.push((a, c));
+                }
+            }
+            for (i, &(a, ca)) in ws.columns[start..].iter().enumerate() {
+                for &(b, cb) in &ws.columns[start + i..] {
                     ws.normal[a * k + b] += ca.dot(&cb);
                 }
             }
         }
+        ws.column_start.push(ws.columns.len());
         // m = A_K (A_Kᵀ A_K)⁻¹ τ_K
         for (i, &c) in self.angular.iter().enumerate() {
             ws.rhs[i] = tau[c];
@@ -276,10 +293,10 @@ impl JointLayout {
             }
             cholesky_solve_in_place(&ws.normal, k, &mut ws.rhs);
         }
-        for (j, joint) in model.joints.iter().enumerate() {
+        for j in 0..model.joints.len() {
             let mut m = Vec3::zeros();
-            for a in 0..k {
-                m += joint_column(ws, joint.child_body, joint.parent_body, k, a) * ws.rhs[a];
+            for &(a, c) in &ws.columns[ws.column_start[j]..ws.column_start[j + 1]] {
+                m += c * ws.rhs[a];
             }
             out.torque[j] = ws.frame_rot[j].transpose() * m;
         }
