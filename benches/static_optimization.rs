@@ -18,7 +18,7 @@ use musculo::model::LoadOptions;
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::inverse_dynamics::prepare_coordinates;
 use musculo::solve::kinematics::Differentiation;
-use musculo::solve::qp::{QpProblem, QpSettings, QpWorkspace};
+use musculo::solve::qp::{QpMatrix, QpProblem, QpSettings, QpWorkspace};
 use musculo::solve::static_optimization::{
     SoFrame, SoRunOptions, SoWorkspace, StaticOptimization, StaticOptimizationOptions,
     run_static_optimization,
@@ -139,7 +139,7 @@ fn qp_versus_clarabel(label: &str, frames: &[Frame], lower: &[f64], upper: &[f64
     let weights = vec![1.0; m];
     let solve = |f: &Frame, s: &QpSettings, ws: &mut QpWorkspace| -> (Vec<f64>, usize) {
         let p = QpProblem {
-            a: f.a.as_view(),
+            a: QpMatrix::Dense(f.a.as_view()),
             b: &f.b,
             weights: &weights,
             lower,
@@ -328,7 +328,9 @@ fn gait2392() {
         id(&mut data, s, &mut tau);
         so.assemble(&model, &data, &tau, &mut ws).unwrap();
         problems.push(Frame {
-            a: ws.a.clone(),
+            a: DMatrix::from_fn(ws.a.nrows(), ws.a.ncols(), |r, c| {
+                ws.a.get(r, c).expect("entry")
+            }),
             b: ws.b.clone(),
         });
     }

@@ -171,7 +171,7 @@ fn generalized_forces_of_actuators_equal_finite_difference_virtual_work() {
                 ActuatorKind::Path => unreachable!(),
             };
             assert_close(
-                ws.a[(j, k)],
+                ws.a.get(j, k).expect("entry"),
                 expected,
                 1e-6,
                 &format!("{} on q[{j}]", act.name),
@@ -211,7 +211,7 @@ fn optimum_equals_the_closed_form_least_norm_solution() {
     let vasti = idx("vasti");
     let r_vasti = {
         so.assemble(&model, &data, &vec![0.0; n], &mut ws).unwrap();
-        ws.a[(knee, vasti)]
+        ws.a.get(knee, vasti).expect("entry")
     };
     for tau_knee in [6.0, 30.0, -20.0] {
         let mut tau = vec![0.0; n];
@@ -223,7 +223,7 @@ fn optimum_equals_the_closed_form_least_norm_solution() {
         // act on the knee; the muscle's lower bound may be active.
         let cols: Vec<(usize, f64)> = ["a1", "a2", "a3", "reserve_knee_angle"]
             .iter()
-            .map(|a| (idx(a), ws.a[(knee, idx(a))]))
+            .map(|a| (idx(a), ws.a.get(knee, idx(a)).expect("entry")))
             .collect();
         // Solve the KKT conditions by hand over the bounds' cases.
         let mut best: Option<Vec<f64>> = None;
@@ -322,7 +322,7 @@ fn infeasible_frame_reports_the_unbalanced_coordinates_and_the_least_squares_con
     assert_close(frame.controls[k], 1.0, 1e-9, "knee reserve saturated");
     let vasti = so.names().position(|a| a == "vasti").unwrap();
     assert_close(frame.controls[vasti], 1.0, 1e-9, "vasti saturated");
-    let produced = ws.a[(knee, k)] + ws.a[(knee, vasti)];
+    let produced = ws.a.get(knee, k).expect("entry") + ws.a.get(knee, vasti).expect("entry");
     assert_close(
         frame.residual[knee],
         5000.0 - produced,

@@ -36,9 +36,8 @@ use crate::muscle::path::{PathData, compute_paths};
 use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::inverse_dynamics::{prepare_coordinates, rows_in_range};
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation};
-use crate::solve::qp::{QpProblem, QpSettings, QpStatus, QpWorkspace};
+use crate::solve::qp::{QpMatrix, QpProblem, QpSettings, QpStatus, QpWorkspace, SparseColumns};
 use crate::spatial::Vec3;
-use nalgebra::DMatrix;
 
 /// Options of [`StaticOptimization`] (the StaticOptimization analysis' properties).
 #[derive(Clone, Debug)]
@@ -142,9 +141,9 @@ impl SoFrame {
 #[derive(Clone, Debug)]
 pub struct SoWorkspace {
     pub paths: PathData,
-    /// Generalized force per unit control of each actuator (n × actuators): column k is
-    /// r_k F_k.
-    pub a: DMatrix<f64>,
+    /// Generalized force per unit control of each actuator (n × actuators) by its nonzero
+    /// entries: column k is r_k F_k (a muscle's has a row for each coordinate it spans).
+    pub a: SparseColumns,
     /// Right-hand side τ − (passive muscle forces).
     pub b: Vec<f64>,
     /// F_k of each actuator at this frame.
@@ -162,7 +161,7 @@ impl SoWorkspace {
         let (n, m) = (model.nq(), so.actuators.len());
         SoWorkspace {
             paths: PathData::new(model, &so.muscles.paths),
-            a: DMatrix::zeros(n, m),
+            a: SparseColumns::with_capacity(n, m),
             b: vec![0.0; n],
             unit_force: vec![0.0; m],
             fiber: vec![(f64::NAN, f64::NAN); so.muscles.muscles.len()],
@@ -306,7 +305,7 @@ impl StaticOptimization {
                 format!("expected {n} values, got {}", tau.len()),
             ));
         }
-        if ws.a.shape() != (n, self.actuators.len()) {
+        if ws.a.nrows() != n || ws.unit_force.len() != self.actuators.len() {
             return Err(Error::invalid(
                 "workspace",
                 "built for another model or problem",
@@ -322,29 +321,30 @@ impl StaticOptimization {
             compute_paths(model, data, &self.muscles.paths, &mut ws.paths)?;
         }
         ws.b.copy_from_slice(tau);
+        ws.a.clear();
+        // r (n × paths, column-major): a muscle's column is its moment arms
+        let arms = ws.paths.moment_arms.as_slice();
         for (k, act) in self.actuators.iter().enumerate() {
             let col = &mut ws.column;
-            col.fill(0.0);
-            let f = match &act.kind {
+            let (f, column): (f64, &[f64]) = match &act.kind {
                 ActuatorKind::Muscle => {
                     let m = act.muscle.expect("muscle index");
                     let f = self.muscle_unit_force(m, &ws.paths, &mut ws.fiber)?;
-                    for j in 0..n {
-                        col[j] = ws.paths.moment_arms[(j, m)];
-                    }
+                    let arm = &arms[m * n..(m + 1) * n];
                     if self.options.passive_fiber_force {
                         let fp = self.muscle_passive_force(m, &ws.paths);
-                        for j in 0..n {
-                            ws.b[j] -= col[j] * fp;
+                        for (b, r) in ws.b.iter_mut().zip(arm) {
+                            *b -= r * fp;
                         }
                     }
-                    f
+                    (f, arm)
                 }
                 ActuatorKind::Coordinate { coordinate } => {
+                    col.fill(0.0);
                     for (j, g) in data.coordinate_gradient(model, *coordinate) {
                         col[j] += g;
                     }
-                    act.optimal_force
+                    (act.optimal_force, col)
                 }
                 ActuatorKind::Point {
                     body,
@@ -353,6 +353,7 @@ impl StaticOptimization {
                     direction,
                     force_is_global,
                 } => {
+                    col.fill(0.0);
                     let (rot, _) = data.body_pose(*body);
                     let p = if *point_is_global {
                         *point
@@ -365,7 +366,7 @@ impl StaticOptimization {
                         rot * direction
                     };
                     dynamics::add_body_wrench(model, data, *body, &p, &d, &Vec3::zeros(), col)?;
-                    act.optimal_force
+                    (act.optimal_force, col)
                 }
                 ActuatorKind::Torque {
                     body_a,
@@ -373,19 +374,19 @@ impl StaticOptimization {
                     axis,
                     torque_is_global,
                 } => {
+                    col.fill(0.0);
                     let (rot, origin) = data.body_pose(*body_a);
                     let t = if *torque_is_global { *axis } else { rot * axis };
                     let zero = Vec3::zeros();
                     dynamics::add_body_wrench(model, data, *body_a, &origin, &zero, &t, col)?;
                     dynamics::add_body_wrench(model, data, *body_b, &origin, &zero, &-t, col)?;
-                    act.optimal_force
+                    (act.optimal_force, col)
                 }
                 ActuatorKind::Path => unreachable!("rejected by StaticOptimization::new"),
             };
             ws.unit_force[k] = f;
-            for j in 0..n {
-                ws.a[(j, k)] = col[j] * f;
-            }
+            ws.a.push_scaled(column, f)
+                .map_err(|e| Error::invalid("static optimization", e.to_string()))?;
         }
         Ok(())
     }
@@ -467,13 +468,13 @@ impl StaticOptimization {
     }
 
     /// Solves the problem [`StaticOptimization::assemble`] left in `ws` (which the caller
-    /// may have changed, e.g. another muscle force model: column k of `ws.a` is r_k F_k,
-    /// `ws.unit_force[k]` is F_k).
+    /// may have changed, e.g. another muscle force model: column k of `ws.a` is r_k F_k by
+    /// its nonzero entries, `ws.unit_force[k]` is F_k).
     pub fn solve_assembled(&self, ws: &mut SoWorkspace, out: &mut SoFrame) -> crate::Result<()> {
         let mut settings = self.options.qp.clone();
         settings.exponent = self.options.activation_exponent;
         let problem = QpProblem {
-            a: ws.a.as_view(),
+            a: QpMatrix::Sparse(&ws.a),
             b: &ws.b,
             weights: &self.weights,
             lower: &self.lower,

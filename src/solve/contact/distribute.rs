@@ -20,7 +20,7 @@ use super::{ContactOptions, ContactSet};
 use crate::dynamics::{Data, Stage, check_len, contact_jacobian};
 use crate::error::Error;
 use crate::model::Model;
-use crate::solve::qp::{QpProblem, QpStatus, QpWorkspace};
+use crate::solve::qp::{QpMatrix, QpProblem, QpStatus, QpWorkspace};
 use crate::spatial::Vec3;
 use nalgebra::DMatrix;
 
@@ -229,7 +229,7 @@ impl ContactWorkspace {
             self.upper[c] = f64::INFINITY;
         }
         let problem = QpProblem {
-            a: self.a.columns(0, m),
+            a: QpMatrix::Dense(self.a.columns(0, m)),
             b: &self.b,
             weights: &self.weights[..m],
             lower: &self.lower[..m],

@@ -3,48 +3,108 @@
 //! lower triangle r ≥ c of symmetric matrices is used). They allocate nothing and never panic
 //! on finite input; the dense loops run over contiguous column slices so that they vectorise.
 
+use super::QpError;
+
 /// A matrix stored by columns with only its nonzero entries (compressed sparse columns).
 /// Column i holds `rows[start[i]..start[i + 1]]` (ascending) and the values beside them.
 ///
 /// Static optimization's A has a column per actuator and a row per coordinate; a muscle
 /// spans a few coordinates, so its column has ≈ 3 nonzeros of 29 on the default model (1,130
-/// of 10,237 entries per frame). Every product with A then costs its nonzeros.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct SparseColumns {
+/// of 10,237 entries per frame). Every product with A then costs its nonzeros, and a caller
+/// that knows its columns can hand them over this way ([`super::QpMatrix::Sparse`]) without
+/// ever forming the dense matrix.
+#[derive(Clone, Debug)]
+pub struct SparseColumns {
+    n: usize,
     start: Vec<usize>,
     rows: Vec<usize>,
     values: Vec<f64>,
 }
 
 impl SparseColumns {
-    /// Room for an n × m matrix, so that [`SparseColumns::clear`] and
-    /// [`SparseColumns::push`] never allocate.
-    pub(crate) fn with_capacity(n: usize, m: usize) -> Self {
+    /// An empty matrix of `n` rows, with room for `m` columns, so that
+    /// [`SparseColumns::clear`] and the pushes of up to m columns never allocate.
+    pub fn with_capacity(n: usize, m: usize) -> Self {
         let mut start = Vec::with_capacity(m + 1);
         start.push(0);
         SparseColumns {
+            n,
             start,
             rows: Vec::with_capacity(n * m),
             values: Vec::with_capacity(n * m),
         }
     }
 
-    /// Empties the matrix (keeping its storage).
-    pub(crate) fn clear(&mut self) {
+    /// Rows n.
+    pub fn nrows(&self) -> usize {
+        self.n
+    }
+
+    /// Columns pushed so far.
+    pub fn ncols(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    /// Empties the matrix (keeping its storage and its number of rows).
+    pub fn clear(&mut self) {
         self.start.truncate(1);
         self.rows.clear();
         self.values.clear();
     }
 
-    /// Appends a column from its dense entries, keeping those that are not zero (a NaN is kept).
-    pub(crate) fn push(&mut self, column: &[f64]) {
+    /// Appends a column from its n dense entries, keeping those that are not zero (a NaN is
+    /// kept). A column of another length is refused.
+    pub fn push(&mut self, column: &[f64]) -> Result<(), QpError> {
+        self.push_scaled(column, 1.0)
+    }
+
+    /// Appends `scale` times a column of n dense entries, keeping the products that are not
+    /// zero (a NaN is kept). A column of another length is refused.
+    pub fn push_scaled(&mut self, column: &[f64], scale: f64) -> Result<(), QpError> {
+        if column.len() != self.n {
+            return Err(QpError::WrongSize {
+                argument: "column",
+                expected: self.n,
+                actual: column.len(),
+            });
+        }
         for (r, &v) in column.iter().enumerate() {
+            let v = v * scale;
             if v != 0.0 {
                 self.rows.push(r);
                 self.values.push(v);
             }
         }
         self.start.push(self.rows.len());
+        Ok(())
+    }
+
+    /// Row indices (ascending) and values of the nonzero entries of column i; None past the
+    /// last column.
+    pub fn entries(&self, i: usize) -> Option<(&[usize], &[f64])> {
+        (i < self.ncols()).then(|| self.column(i))
+    }
+
+    /// Entry (row, column): 0 where the column has no entry for the row; None outside the
+    /// matrix.
+    pub fn get(&self, row: usize, column: usize) -> Option<f64> {
+        let (rows, values) = self.entries(column)?;
+        (row < self.n).then(|| match rows.binary_search(&row) {
+            Ok(k) => values[k],
+            Err(_) => 0.0,
+        })
+    }
+
+    /// Becomes a copy of `other`, reusing this matrix's storage (no allocation when it has
+    /// room).
+    pub(crate) fn assign(&mut self, other: &SparseColumns) {
+        self.n = other.n;
+        self.start.clear();
+        self.start.extend_from_slice(&other.start);
+        self.rows.clear();
+        self.rows.extend_from_slice(&other.rows);
+        self.values.clear();
+        self.values.extend_from_slice(&other.values);
     }
 
     /// Row indices and values of column i.
@@ -167,7 +227,7 @@ mod tests {
             .collect();
         let mut a = SparseColumns::with_capacity(n, cols.len());
         for c in &cols {
-            a.push(c);
+            a.push(c).expect("n entries");
         }
         (cols, a)
     }
@@ -197,9 +257,35 @@ mod tests {
             }
         }
         a.clear();
-        a.push(&[0.0, f64::NAN, 2.0]);
+        let mut c = vec![0.0; n];
+        (c[1], c[2]) = (f64::NAN, 2.0);
+        a.push(&c).expect("n entries");
         assert_eq!(a.column(0).0, &[1, 2]);
         assert!(a.column(0).1[0].is_nan());
+        // scaled: products that vanish are dropped; a column of another length is refused
+        a.push_scaled(&c, 0.0).expect("n entries");
+        assert_eq!(a.ncols(), 2);
+        assert_eq!(a.entries(1).map(|e| e.0.len()), Some(1)); // NaN · 0 is NaN, kept
+        assert!(a.entries(2).is_none());
+        assert_eq!(
+            (a.get(2, 0), a.get(0, 0), a.get(n, 0), a.get(0, 2)),
+            (Some(2.0), Some(0.0), None, None)
+        );
+        assert!(matches!(
+            a.push(&c[..n - 1]),
+            Err(QpError::WrongSize {
+                expected: 7,
+                actual: 6,
+                ..
+            })
+        ));
+        assert_eq!(a.ncols(), 2);
+        let mut b = SparseColumns::with_capacity(3, 1);
+        b.assign(&a);
+        assert_eq!((b.nrows(), b.ncols()), (n, 2));
+        let (rows, values) = b.entries(0).expect("copied");
+        assert_eq!(rows, &[1, 2]);
+        assert!(values[0].is_nan() && values[1] == 2.0);
     }
 
     #[test]

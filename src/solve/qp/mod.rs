@@ -74,7 +74,8 @@ pub(crate) mod linalg;
 #[cfg(test)]
 mod tests;
 
-use linalg::{SparseColumns, cholesky_in_place, cholesky_solve_in_place, dot};
+pub use linalg::SparseColumns;
+use linalg::{cholesky_in_place, cholesky_solve_in_place, dot};
 use nalgebra::DMatrixView;
 
 /// The line search accepts t when |φ′(t)| ≤ η φ′(0) (or t = 1 when φ′(1) ≥ −η φ′(0)).
@@ -220,12 +221,40 @@ pub enum QpError {
     },
 }
 
+/// The constraint matrix A (n × m) of a [`QpProblem`]: dense, or by the nonzero entries of
+/// its columns (the solver keeps A that way in any case, so a caller that knows its columns'
+/// nonzeros spares it the scan of the dense matrix).
+#[derive(Clone, Copy, Debug)]
+pub enum QpMatrix<'a> {
+    Dense(DMatrixView<'a, f64>),
+    Sparse(&'a SparseColumns),
+}
+
+impl QpMatrix<'_> {
+    /// Rows n.
+    pub fn nrows(&self) -> usize {
+        match self {
+            QpMatrix::Dense(a) => a.nrows(),
+            QpMatrix::Sparse(a) => a.nrows(),
+        }
+    }
+
+    /// Columns m.
+    pub fn ncols(&self) -> usize {
+        match self {
+            QpMatrix::Dense(a) => a.ncols(),
+            QpMatrix::Sparse(a) => a.ncols(),
+        }
+    }
+}
+
 /// One frame's problem: minimise Σᵢ wᵢ|xᵢ|ᵖ subject to A x = b, lower ≤ x ≤ upper. Bounds may
 /// be −∞ (lower) and +∞ (upper); lower = upper fixes a coordinate.
 #[derive(Clone, Copy, Debug)]
 pub struct QpProblem<'a> {
-    /// n × m; column i holds the generalized forces per unit xᵢ (`matrix.as_view()`).
-    pub a: DMatrixView<'a, f64>,
+    /// n × m; column i holds the generalized forces per unit xᵢ
+    /// (`QpMatrix::Dense(matrix.as_view())`).
+    pub a: QpMatrix<'a>,
     /// n right-hand sides (e.g. inverse-dynamics generalized forces minus passive ones).
     pub b: &'a [f64],
     /// m positive weights wᵢ.
@@ -657,9 +686,17 @@ impl QpWorkspace {
     /// h = maxᵣ Σᵢ A_ri² D_ref,i, the largest diagonal entry of A D_ref Aᵀ (the scale of μ).
     /// A non-finite entry is an error naming it.
     fn prepare_columns(&mut self, problem: &QpProblem<'_>, law: &PowerLaw) -> Result<f64, QpError> {
+        match problem.a {
+            QpMatrix::Dense(a) => {
+                self.columns.clear();
+                for i in 0..self.m {
+                    self.columns.push(a.column(i).data.into_slice())?;
+                }
+            }
+            QpMatrix::Sparse(a) => self.columns.assign(a),
+        }
         // Σᵢ A_ri² D_ref,i accumulates in `magnitude` (overwritten by the first residual).
         self.magnitude.fill(0.0);
-        self.columns.clear();
         for i in 0..self.m {
             let (l, u) = (problem.lower[i], problem.upper[i]);
             let size = [l, u]
@@ -671,16 +708,15 @@ impl QpWorkspace {
             self.slope_reference[i] = d_ref;
             self.s_at_lower[i] = law.s_at(l, problem.weights[i]);
             self.s_at_upper[i] = law.s_at(u, problem.weights[i]);
-            let column = problem.a.column(i).data.into_slice();
-            self.columns.push(column);
+            let (rows, values) = self.columns.column(i);
             let mut sum = 0.0;
-            for (acc, &v) in self.magnitude.iter_mut().zip(column) {
+            for (&row, &v) in rows.iter().zip(values) {
                 let v2 = v * v;
                 sum += v2;
-                *acc += v2 * d_ref;
+                self.magnitude[row] += v2 * d_ref;
             }
             if !sum.is_finite() {
-                if let Some((row, &value)) = column.iter().enumerate().find(|(_, v)| !v.is_finite())
+                if let Some((&row, &value)) = rows.iter().zip(values).find(|(_, v)| !v.is_finite())
                 {
                     return Err(QpError::NonFiniteMatrix {
                         row,

@@ -3,7 +3,7 @@
 //! power-cone program (p ≠ 2), or a least-squares QP (the least residual of an infeasible
 //! problem).
 
-use super::super::QpProblem;
+use super::super::{QpMatrix, QpProblem};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, PowerConeT, SolverStatus,
@@ -52,7 +52,7 @@ pub struct Case {
 impl Case {
     pub fn problem(&self) -> QpProblem<'_> {
         QpProblem {
-            a: self.a.as_view(),
+            a: QpMatrix::Dense(self.a.as_view()),
             b: &self.b,
             weights: &self.weights,
             lower: &self.lower,
