@@ -837,11 +837,11 @@ impl QpWorkspace {
     /// found on its derivative
     ///   φ′(t) = φ′(0) − Σᵢ δᵢ (xᵢ(sᵢ + tδᵢ) − xᵢ(sᵢ)) − μ t ‖Δ‖²,   δ = AᵀΔ,
     /// which is decreasing (each term of the sum is ≥ 0) and free of the large cancelling
-    /// terms of φ itself. t = 1 when φ′(1) ≥ −η φ′(0); otherwise the t where φ′ changes sign.
-    /// For p = 2, φ′ is piecewise linear with slope −Σ_free δᵢ² Dᵢ − μ‖Δ‖², changing by
-    /// ∓δᵢ² Dᵢ at each breakpoint (the t at which a coordinate enters or leaves its box), so
-    /// one sweep over the sorted breakpoints finds φ′(1) and the root, and one evaluation
-    /// confirms them. Otherwise (p ≠ 2, or rounding in the sweep) a binary search over the
+    /// terms of φ itself. t = 1 when φ′(1) ≥ −η φ′(0) (one evaluation); otherwise the t where
+    /// φ′ changes sign. For p = 2, φ′ is piecewise linear with slope −Σ_free δᵢ² Dᵢ − μ‖Δ‖²,
+    /// changing by ∓δᵢ² Dᵢ at each breakpoint (the t at which a coordinate enters or leaves
+    /// its box), so one sweep over the sorted breakpoints finds the root and a second
+    /// evaluation confirms it. Otherwise (p ≠ 2, or rounding in the sweep) a binary search over the
     /// breakpoints finds the segment where φ′ changes sign, on which φ′ is smooth and regula
     /// falsi (Illinois) finds |φ′(t)| ≤ η φ′(0). A full step can overshoot by orders of
     /// magnitude where many coordinates are clamped (the Newton matrix is then only μ in
@@ -855,6 +855,10 @@ impl QpWorkspace {
     ) -> Option<f64> {
         let d0 = slope.psi;
         let accept = LINE_SEARCH_ETA * d0;
+        let d1 = self.derivative_at(1.0, problem, law, slope);
+        if d1 >= -accept {
+            return Some(1.0);
+        }
         // Breakpoints in (0, 1): sᵢ + tδᵢ = sᵢ(lᵢ) or sᵢ(uᵢ), each with the change it makes
         // to the slope of φ′ for p = 2 (−δᵢ²Dᵢ entering the box, +δᵢ²Dᵢ leaving it); and
         // that slope just after t = 0.
@@ -889,15 +893,11 @@ impl QpWorkspace {
         self.breakpoints
             .sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         if law.quadratic {
-            let t = self.sweep(d0, rate, accept);
+            let t = self.sweep(d0, rate);
             let d = self.derivative_at(t, problem, law, slope);
-            if d.abs() <= accept || (t == 1.0 && d >= -accept) {
+            if d.abs() <= accept {
                 return Some(t);
             }
-        }
-        let d1 = self.derivative_at(1.0, problem, law, slope);
-        if d1 >= -accept {
-            return Some(1.0);
         }
         // φ′(lo) > 0 ≥ φ′(hi), and no breakpoint strictly between them
         let (mut lo, mut d_lo, mut hi, mut d_hi) = (0.0, d0, 1.0, d1);
@@ -948,25 +948,19 @@ impl QpWorkspace {
         }
     }
 
-    /// For p = 2: the step [`Self::line_search`] takes, from the piecewise-linear φ′ swept
-    /// over the sorted breakpoints (φ′(0) = `d0`, slope `rate` after 0): 1 when
-    /// φ′(1) ≥ −`accept`, else the root of φ′.
-    fn sweep(&self, d0: f64, rate: f64, accept: f64) -> f64 {
+    /// For p = 2, with φ′(1) < 0: the root of the piecewise-linear φ′, swept over the sorted
+    /// breakpoints from φ′(0) = `d0` and its slope `rate` after 0.
+    fn sweep(&self, d0: f64, rate: f64) -> f64 {
         let (mut t, mut d, mut rate) = (0.0, d0, rate);
-        let mut root = None;
         for &(next, change) in &self.breakpoints {
             let d_next = d + rate * (next - t);
-            if root.is_none() && d_next <= 0.0 {
+            if d_next <= 0.0 {
                 // d > 0 ≥ d_next, so rate < 0
-                root = Some((t + d / -rate).clamp(t, next));
+                return (t + d / -rate).clamp(t, next);
             }
             (t, d, rate) = (next, d_next, rate + change);
         }
-        let d1 = d + rate * (1.0 - t);
-        if d1 >= -accept {
-            return 1.0;
-        }
-        root.unwrap_or_else(|| (t + d / -rate).clamp(t, 1.0))
+        (t + d / -rate).clamp(t, 1.0)
     }
 
     /// φ′(t) of [`Self::line_search`], leaving x(s + tδ) in the `_trial` arrays.
