@@ -745,16 +745,17 @@ impl QpWorkspace {
     /// (it is refactored before use).
     fn unbounded_curvature(&mut self, problem: &QpProblem<'_>, h: f64) -> Option<f64> {
         let n = self.n;
-        let mut count = 0;
-        self.factor.fill(0.0);
-        for i in 0..self.m {
-            if problem.lower[i] == f64::NEG_INFINITY && problem.upper[i] == f64::INFINITY {
-                self.columns
-                    .rank_update(&mut self.factor, n, i, self.slope_reference[i]);
-                count += 1;
-            }
+        let unbounded =
+            |i: usize| problem.lower[i] == f64::NEG_INFINITY && problem.upper[i] == f64::INFINITY;
+        if (0..self.m).filter(|&i| unbounded(i)).count() < n {
+            return None;
         }
-        if count < n || !cholesky_in_place(&mut self.factor, n) {
+        self.factor.fill(0.0);
+        for i in (0..self.m).filter(|&i| unbounded(i)) {
+            self.columns
+                .rank_update(&mut self.factor, n, i, self.slope_reference[i]);
+        }
+        if !cholesky_in_place(&mut self.factor, n) {
             return None;
         }
         let kappa = (0..n)
