@@ -14,7 +14,7 @@
 //!   ∂ℓ/∂q = Σ_w [g_Aᵀ (D_A − D_W(A)) + g_Bᵀ (D_B − D_W(B))]
 //!         + Σ_{point–point segments} ûᵀ (D_b − D_a) − Σ_{wrap–wrap segments} ûᵀ (D_b − D_a).
 
-use super::wrapping::{SegmentWrap, wrap_segment};
+use super::wrapping::{SegmentWrap, WrapCache};
 use super::{Node, NodeKind, PathGeometry, PointKind};
 use crate::dynamics::Data;
 use crate::model::Model;
@@ -50,13 +50,15 @@ pub(super) fn scratch_len(nodes: usize, n: usize) -> usize {
     4 * nodes * n
 }
 
-/// r = −∂ℓ/∂q for a path with interacting wraps; `deriv` holds at least
+/// r = −∂ℓ/∂q for a path with interacting wraps (`wraps`: the outcomes of its wrapping,
+/// see [`WrapCache`]); `deriv` holds at least
 /// [`scratch_len`] vectors.
 pub(super) fn moment_arms(
     model: &Model,
     data: &Data,
     path: &PathGeometry,
     nodes: &[Node],
+    wraps: &mut WrapCache,
     deriv: &mut [Vec3],
     r: &mut [f64],
 ) {
@@ -115,10 +117,11 @@ pub(super) fn moment_arms(
     for k in 0..m {
         if let NodeKind::Tangent(w, false) = nodes[k].kind {
             if engaged < MAX_WRAPS {
-                if let SegmentWrap::Wrapped { jac, .. } = wrap_segment(
+                if let SegmentWrap::Wrapped { jac, .. } = wraps.wrap(
                     model,
                     data,
-                    &path.wraps[w],
+                    path,
+                    w,
                     &nodes[k - 1].ground,
                     &nodes[k + 2].ground,
                 ) {

@@ -214,6 +214,8 @@ struct Scratch {
     touched: Vec<usize>,
     /// Node derivatives for paths with interacting wraps (see [`chain`]).
     deriv: Vec<Vec3>,
+    /// The wrap outcomes of the path being computed.
+    wraps: WrapCache,
 }
 
 impl Scratch {
@@ -227,6 +229,7 @@ impl Scratch {
             } else {
                 Vec::new()
             },
+            wraps: WrapCache::new(),
         }
     }
 }
@@ -365,7 +368,7 @@ pub fn current_path(
     let mut nodes = Vec::with_capacity(set.max_nodes.max(2));
     active_points(model, data, path, &mut nodes);
     if !path.wraps.is_empty() {
-        apply_wrap_objects(model, data, path, &mut nodes);
+        apply_wrap_objects(model, data, path, &mut nodes, &mut WrapCache::new());
     }
     Ok(nodes
         .iter()
@@ -428,11 +431,19 @@ fn compute_path(
     let nodes = &mut scratch.nodes;
     active_points(model, data, path, nodes);
     if !path.wraps.is_empty() {
-        apply_wrap_objects(model, data, path, nodes);
+        apply_wrap_objects(model, data, path, nodes, &mut scratch.wraps);
     }
     let length = path_length(nodes);
     if interacting_non_geodesic_wraps(model, path, nodes) {
-        chain::moment_arms(model, data, path, nodes, &mut scratch.deriv, r);
+        chain::moment_arms(
+            model,
+            data,
+            path,
+            nodes,
+            &mut scratch.wraps,
+            &mut scratch.deriv,
+            r,
+        );
     } else {
         moment_arms(
             model,
@@ -640,4 +651,4 @@ mod chain;
 mod rates;
 mod wrapping;
 pub use rates::MomentArmRates;
-use wrapping::apply_wrap_objects;
+use wrapping::{WrapCache, apply_wrap_objects};

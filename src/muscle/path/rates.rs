@@ -29,7 +29,7 @@
 //! The tangent points' D and Ḋ are iterated to their fixed point, as the path itself is.
 
 use super::chain::{body_point_derivative, segment_sign};
-use super::wrapping::{surface_of, wrap_frame};
+use super::wrapping::{WrapCache, surface_of, wrap_frame};
 use super::{Node, NodeKind, PathSet, PointKind, active_points, apply_wrap_objects};
 use crate::dynamics::{Data, JacobianTimeVariation, Stage};
 use crate::error::Error;
@@ -149,7 +149,7 @@ impl MomentArmRates {
         let nodes = &mut self.nodes;
         active_points(model, data, path, nodes);
         if !path.wraps.is_empty() {
-            apply_wrap_objects(model, data, path, nodes);
+            apply_wrap_objects(model, data, path, nodes, &mut WrapCache::new());
         }
         let m = nodes.len();
         let col = |i: usize| i * n..(i + 1) * n;

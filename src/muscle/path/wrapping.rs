@@ -100,27 +100,46 @@ pub(super) fn wrap_segment(
 
 /// Outcomes of [`wrap_segment`] kept while one path is wrapped: the sweeps try the same
 /// wrap on the same segment again and again (a segment between two path points does not
-/// move from sweep to sweep), and the ellipsoid's fan is costly. Keyed on the wrap and the
-/// segment's end points, bit for bit, so a hit returns exactly what the call would.
-struct WrapCache {
-    entries: [Option<(usize, Vec3, Vec3, SegmentWrap)>; WRAP_CACHE],
+/// move from sweep to sweep), and the ellipsoid's fan is costly; the exact moment arms of a
+/// path with interacting wraps ([`super::chain`]) then ask for the final segments' wraps
+/// once more. Keyed on the wrap and the segment's end points, bit for bit, so a hit returns
+/// exactly what the call would. Kept in the path's scratch and emptied for each path, so
+/// its entries (a few hundred bytes each) are not initialised per path.
+#[derive(Clone)]
+pub(super) struct WrapCache {
+    entries: [(usize, Vec3, Vec3, SegmentWrap); WRAP_CACHE],
+    /// Entries in use (the first `len`), and the slot the next one overwrites.
+    len: usize,
     next: usize,
+}
+
+impl std::fmt::Debug for WrapCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("WrapCache").field("len", &self.len).finish()
+    }
 }
 
 /// Entries of [`WrapCache`] (a path tries at most a few segments per wrap object).
 const WRAP_CACHE: usize = 16;
 
 impl WrapCache {
-    fn new() -> WrapCache {
+    pub(super) fn new() -> WrapCache {
         WrapCache {
-            entries: [None; WRAP_CACHE],
+            entries: [(0, Vec3::zeros(), Vec3::zeros(), SegmentWrap::None); WRAP_CACHE],
+            len: 0,
             next: 0,
         }
     }
 
+    /// Forgets every entry (before another path, or another state).
+    pub(super) fn clear(&mut self) {
+        self.len = 0;
+        self.next = 0;
+    }
+
     /// [`wrap_segment`] of the path's wrap `wi` over a → b, from the cache when it was
     /// computed before.
-    fn wrap(
+    pub(super) fn wrap(
         &mut self,
         model: &Model,
         data: &Data,
@@ -134,17 +153,16 @@ impl WrapCache {
                 .zip(v.iter())
                 .all(|(x, y)| x.to_bits() == y.to_bits())
         };
-        let hit = self
-            .entries
+        let hit = self.entries[..self.len]
             .iter()
-            .flatten()
             .find(|(w, ea, eb, _)| *w == wi && same(ea, a) && same(eb, b));
         if let Some((.., outcome)) = hit {
             return *outcome;
         }
         let outcome = wrap_segment(model, data, &path.wraps[wi], a, b);
-        self.entries[self.next] = Some((wi, *a, *b, outcome));
+        self.entries[self.next] = (wi, *a, *b, outcome);
         self.next = (self.next + 1) % WRAP_CACHE;
+        self.len = (self.len + 1).min(WRAP_CACHE);
         outcome
     }
 }
@@ -174,7 +192,9 @@ pub(super) fn apply_wrap_objects(
     data: &Data,
     path: &PathGeometry,
     nodes: &mut Vec<Node>,
+    cache: &mut WrapCache,
 ) {
+    cache.clear();
     let nw = path.wraps.len();
     let iterations = if nw < 2 { 1 } else { MAX_SWEEPS };
     let mut order = [0usize; 2];
@@ -182,7 +202,6 @@ pub(super) fn apply_wrap_objects(
     order[1] = 1.min(nw - 1);
     let mut last_length = f64::INFINITY;
     let mut first_results = [0u8; 2]; // 0 no wrap, 1 inside, 2 wrapped
-    let mut cache = WrapCache::new();
     for iteration in 0..iterations {
         for oi in 0..nw {
             let wi = if oi < 2 { order[oi] } else { oi };
@@ -284,7 +303,7 @@ pub(super) fn apply_wrap_objects(
             // usually a single pass with nothing to move, but an equal length does not
             // prove it: an object wrapped early in the last sweep against a neighbour that
             // a later object then moved is re-wrapped (or released) here.
-            settle_engaged_wraps(model, data, path, nodes, &mut cache);
+            settle_engaged_wraps(model, data, path, nodes, cache);
             break;
         }
         last_length = length;
