@@ -45,23 +45,37 @@ pub(super) fn body_point_derivative(
     }
 }
 
-/// Vectors of scratch [`moment_arms`] needs for `nodes` nodes and n coordinates.
-pub(super) fn scratch_len(nodes: usize, n: usize) -> usize {
-    4 * nodes * n
+/// The memory of [`moment_arms`]: the node derivatives (4 vectors per node and coordinate)
+/// and the list of coordinates that move the path.
+#[derive(Clone, Debug)]
+pub(super) struct ChainScratch {
+    deriv: Vec<Vec3>,
+    active: Vec<usize>,
+}
+
+impl ChainScratch {
+    /// For paths of up to `nodes` nodes on n coordinates; empty (`nodes` = 0) for a path set
+    /// that never needs it.
+    pub(super) fn new(nodes: usize, n: usize) -> ChainScratch {
+        ChainScratch {
+            deriv: vec![Vec3::zeros(); 4 * nodes * n],
+            active: Vec::with_capacity(if nodes > 0 { n } else { 0 }),
+        }
+    }
 }
 
 /// r = −∂ℓ/∂q for a path with interacting wraps (`wraps`: the outcomes of its wrapping,
-/// see [`WrapCache`]); `deriv` holds at least
-/// [`scratch_len`] vectors.
+/// see [`WrapCache`]; `scratch` made for at least `nodes.len()` nodes).
 pub(super) fn moment_arms(
     model: &Model,
     data: &Data,
     path: &PathGeometry,
     nodes: &[Node],
     wraps: &mut WrapCache,
-    deriv: &mut [Vec3],
+    scratch: &mut ChainScratch,
     r: &mut [f64],
 ) {
+    let ChainScratch { deriv, active } = scratch;
     let n = model.nq();
     let m = nodes.len();
     // d: D of every node; fixed: the node's motion fixed in its body (for a tangent point,
@@ -131,6 +145,10 @@ pub(super) fn moment_arms(
             engaged += 1;
         }
     }
+    // The coordinates that move some node or wrap body: in the others every D stays zero.
+    active.clear();
+    let moves = |v: &[Vec3], j: usize| (0..m).any(|k| v[k * n + j] != Vec3::zeros());
+    active.extend((0..n).filter(|&j| moves(d, j) || moves(wa, j) || moves(wb, j)));
     // The tangent points' sensitivities, iterated to their fixed point.
     let scale = d.iter().fold(1.0f64, |s, v| s.max(v.amax()));
     for _ in 0..MAX_ITERATIONS {
@@ -144,11 +162,17 @@ pub(super) fn moment_arms(
             wrap += 1;
             let (a, b) = (k - 1, k + 2);
             for (t, jp, js) in [(k, jac[0], jac[1]), (k + 1, jac[2], jac[3])] {
-                for j in 0..n {
+                for &j in active.iter() {
                     let da = d[a * n + j] - wa[k * n + j];
                     let db = d[b * n + j] - wb[k * n + j];
                     let new = fixed[t * n + j] + jp * da + js * db;
-                    change = change.max((new - d[t * n + j]).amax());
+                    let step = new - d[t * n + j];
+                    // the largest |step| component (NaN ignored, as f64::max does)
+                    for x in [step.x.abs(), step.y.abs(), step.z.abs()] {
+                        if x > change {
+                            change = x;
+                        }
+                    }
                     d[t * n + j] = new;
                 }
             }
@@ -163,7 +187,7 @@ pub(super) fn moment_arms(
         if let NodeKind::Tangent(_, false) = nodes[k].kind {
             let (a, b) = (k - 1, k + 2);
             let (ga, gb) = (nodes[k].grad, nodes[k + 1].grad);
-            for j in 0..n {
+            for &j in active.iter() {
                 r[j] -= ga.dot(&(d[a * n + j] - wa[k * n + j]))
                     + gb.dot(&(d[b * n + j] - wb[k * n + j]));
             }
@@ -179,7 +203,7 @@ pub(super) fn moment_arms(
             continue;
         }
         let u = u / len;
-        for j in 0..n {
+        for &j in active.iter() {
             r[j] -= sign * u.dot(&(d[(k + 1) * n + j] - d[k * n + j]));
         }
     }

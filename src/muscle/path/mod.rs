@@ -213,7 +213,7 @@ struct Scratch {
     body_force: Vec<Force>,
     touched: Vec<usize>,
     /// Node derivatives for paths with interacting wraps (see [`chain`]).
-    deriv: Vec<Vec3>,
+    chain: chain::ChainScratch,
     /// The wrap outcomes of the path being computed.
     wraps: WrapCache,
 }
@@ -224,11 +224,10 @@ impl Scratch {
             nodes: Vec::with_capacity(set.max_nodes.max(2)),
             body_force: vec![Force::ZERO; model.bodies.len()],
             touched: Vec::with_capacity(model.bodies.len()),
-            deriv: if set.needs_chain {
-                vec![Vec3::zeros(); chain::scratch_len(set.max_nodes, model.nq())]
-            } else {
-                Vec::new()
-            },
+            chain: chain::ChainScratch::new(
+                if set.needs_chain { set.max_nodes } else { 0 },
+                model.nq(),
+            ),
             wraps: WrapCache::new(),
         }
     }
@@ -441,7 +440,7 @@ fn compute_path(
             path,
             nodes,
             &mut scratch.wraps,
-            &mut scratch.deriv,
+            &mut scratch.chain,
             r,
         );
     } else {
