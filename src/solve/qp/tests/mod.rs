@@ -84,6 +84,29 @@ fn assert_same_optimum(
     );
 }
 
+/// A cold solve of a feasible `case` with `settings` (p = 2): Solved, and the optimum Clarabel
+/// finds (x to 1e-6 of each box, the objective to 1e-8). Returns our outcome.
+fn solved_like_clarabel(case: &Case, settings: &QpSettings, what: &str) -> Outcome {
+    let ours = cold(case, settings);
+    assert_eq!(ours.status, QpStatus::Solved, "{what}: {ours:?}");
+    let reference = clarabel_quadratic(case, &case.b);
+    assert!(
+        reference.solved(),
+        "{what}: Clarabel {:?}",
+        reference.status
+    );
+    assert_same_optimum(
+        case,
+        &ours,
+        &reference.x,
+        reference.objective,
+        1e-6,
+        1e-8,
+        what,
+    );
+    ours
+}
+
 #[test]
 fn matches_clarabel_on_random_feasible_problems() {
     let mut rng = Rng(1);
@@ -91,24 +114,7 @@ fn matches_clarabel_on_random_feasible_problems() {
     for (n, m, reserves, count) in SIZES {
         for k in 0..count {
             let case = random_case(&mut rng, n, m, reserves);
-            let ours = cold(&case, &settings);
-            let reference = clarabel_quadratic(&case, &case.b);
-            let what = format!("n = {n}, m = {m}, case {k}");
-            assert_eq!(ours.status, QpStatus::Solved, "{what}");
-            assert!(
-                reference.solved(),
-                "{what}: Clarabel {:?}",
-                reference.status
-            );
-            assert_same_optimum(
-                &case,
-                &ours,
-                &reference.x,
-                reference.objective,
-                1e-6,
-                1e-8,
-                &what,
-            );
+            solved_like_clarabel(&case, &settings, &format!("n = {n}, m = {m}, case {k}"));
         }
     }
 }
@@ -269,23 +275,7 @@ fn barely_feasible_problems_are_solved_like_clarabel() {
                 .collect();
             case.set_b_from(&x);
             let what = format!("n = {n}, m = {m}, boundary case {k} ({inside} inside)");
-            let ours = cold(&case, &settings);
-            assert_eq!(ours.status, QpStatus::Solved, "{what}: {ours:?}");
-            let reference = clarabel_quadratic(&case, &case.b);
-            assert!(
-                reference.solved(),
-                "{what}: Clarabel {:?}",
-                reference.status
-            );
-            assert_same_optimum(
-                &case,
-                &ours,
-                &reference.x,
-                reference.objective,
-                1e-6,
-                1e-8,
-                &what,
-            );
+            solved_like_clarabel(&case, &settings, &what);
         }
     }
 }
@@ -319,27 +309,11 @@ fn heavily_weighted_slacks_converge_like_clarabel() {
             case.a = a;
             case.b = b;
             let what = format!("n = {n}, m = {m} + {n} slacks, case {k}");
-            let ours = cold(&case, &settings);
-            assert_eq!(ours.status, QpStatus::Solved, "{what}: {ours:?}");
+            let ours = solved_like_clarabel(&case, &settings, &what);
             assert!(
                 ours.iterations <= 40,
                 "{what}: {} iterations",
                 ours.iterations
-            );
-            let reference = clarabel_quadratic(&case, &case.b);
-            assert!(
-                reference.solved(),
-                "{what}: Clarabel {:?}",
-                reference.status
-            );
-            assert_same_optimum(
-                &case,
-                &ours,
-                &reference.x,
-                reference.objective,
-                1e-6,
-                1e-8,
-                &what,
             );
         }
     }
