@@ -63,7 +63,7 @@ fn section_axes(i: usize) -> (usize, usize) {
 
 /// OpenSim's choice when some coordinates are ~0: the section (among those planes) whose
 /// two radii sum least.
-fn auto_plane(e: &Ellipsoid, x: &Vec3) -> Option<usize> {
+pub(crate) fn auto_plane(e: &Ellipsoid, x: &Vec3) -> Option<usize> {
     let mut best: Option<(usize, f64)> = None;
     for i in 0..3 {
         if x[i].abs() <= e.zero_tol {

@@ -46,6 +46,7 @@ mod closest;
 mod cylinder;
 mod ellipsoid;
 mod elliptic;
+mod fan_sum;
 mod real;
 mod sphere;
 mod torus;
