@@ -334,59 +334,104 @@ pub fn run(
             frames: frames.load(Ordering::Relaxed),
         });
     };
-    let results: Vec<crate::Result<(ClipRecord, bool)>> = items
-        .par_iter()
-        .map(|(clip, v)| {
-            let name = variant_name(&clip.name, *v);
-            if options.resume
-                && let Some(record) = output::read_record(&options.out, &name)?
-                && record.status == ClipStatus::Ok
-            {
-                let f = record.quality.as_ref().map_or(0, |q| q.frames);
-                report(f, false, true);
-                return Ok((without_sums(record), true));
-            }
-            let variant = Variant::draw(options.seed, &clip.name, *v, &options.perturbation);
-            let record = match process(chain, clip, &variant, options) {
-                Ok(out) => {
-                    output::write_clip(&options.out, &name, &out.arrays)?;
-                    output::write_opensim_files(
-                        &options.out,
-                        &name,
-                        &out.tables,
-                        out.model_xml.as_deref(),
-                    )?;
-                    let (x_sum, x_sum_sq) = output::feature_sums(&out.arrays);
-                    ClipRecord {
-                        clip: name,
-                        input: clip.input.clone(),
-                        status: ClipStatus::Ok,
-                        reason: None,
-                        variant,
-                        quality: Some(out.quality),
-                        warnings: out.warnings,
-                        x_sum,
-                        x_sum_sq,
+    // Writing a clip (its `.npz`, OpenSim files and record, each synced to disk before it is
+    // renamed into place) waits mostly on the disk: it is handed to writer threads, one per
+    // worker, so the workers go on computing. A bounded queue (one clip per worker) keeps
+    // memory independent of the dataset; a clip's record is written after its arrays, so a
+    // run killed before that recomputes the clip on --resume.
+    let writers = rayon::current_num_threads().max(1);
+    let (queue, jobs) = std::sync::mpsc::sync_channel::<WriteJob>(writers);
+    let jobs = std::sync::Mutex::new(jobs);
+    let write_error: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
+    let write = |job: WriteJob| -> crate::Result<()> {
+        if let Some(out) = &job.output {
+            output::write_clip(&options.out, &job.record.clip, &out.arrays)?;
+            output::write_opensim_files(
+                &options.out,
+                &job.record.clip,
+                &out.tables,
+                out.model_xml.as_deref(),
+            )?;
+        }
+        output::write_record(&options.out, &job.record)?;
+        let f = job.record.quality.as_ref().map_or(0, |q| q.frames);
+        report(f, job.record.status == ClipStatus::Failed, false);
+        Ok(())
+    };
+    let results: Vec<crate::Result<(ClipRecord, bool)>> = std::thread::scope(|scope| {
+        for _ in 0..writers {
+            scope.spawn(|| {
+                loop {
+                    // a poisoned lock still holds the receiver (nothing panics while held)
+                    let job = match jobs.lock().unwrap_or_else(|e| e.into_inner()).recv() {
+                        Ok(job) => job,
+                        Err(_) => break, // queue closed: every clip handed over
+                    };
+                    if let Err(e) = write(job) {
+                        let mut first = write_error.lock().unwrap_or_else(|e| e.into_inner());
+                        first.get_or_insert(e);
                     }
                 }
-                Err(e) => ClipRecord {
-                    clip: name,
-                    input: clip.input.clone(),
-                    status: ClipStatus::Failed,
-                    reason: Some(e.to_string()),
-                    variant,
-                    quality: None,
-                    warnings: Vec::new(),
-                    x_sum: Vec::new(),
-                    x_sum_sq: Vec::new(),
-                },
-            };
-            output::write_record(&options.out, &record)?;
-            let f = record.quality.as_ref().map_or(0, |q| q.frames);
-            report(f, record.status == ClipStatus::Failed, false);
-            Ok((without_sums(record), false))
-        })
-        .collect();
+            });
+        }
+        let results = items
+            .par_iter()
+            .map(|(clip, v)| {
+                let name = variant_name(&clip.name, *v);
+                if options.resume
+                    && let Some(record) = output::read_record(&options.out, &name)?
+                    && record.status == ClipStatus::Ok
+                {
+                    let f = record.quality.as_ref().map_or(0, |q| q.frames);
+                    report(f, false, true);
+                    return Ok((without_sums(record), true));
+                }
+                let variant = Variant::draw(options.seed, &clip.name, *v, &options.perturbation);
+                let (record, output) = match process(chain, clip, &variant, options) {
+                    Ok(mut out) => {
+                        let (x_sum, x_sum_sq) = output::feature_sums(&out.arrays);
+                        let record = ClipRecord {
+                            clip: name,
+                            input: clip.input.clone(),
+                            status: ClipStatus::Ok,
+                            reason: None,
+                            variant,
+                            quality: Some(out.quality.clone()),
+                            warnings: std::mem::take(&mut out.warnings),
+                            x_sum,
+                            x_sum_sq,
+                        };
+                        (record, Some(out))
+                    }
+                    Err(e) => (
+                        ClipRecord {
+                            clip: name,
+                            input: clip.input.clone(),
+                            status: ClipStatus::Failed,
+                            reason: Some(e.to_string()),
+                            variant,
+                            quality: None,
+                            warnings: Vec::new(),
+                            x_sum: Vec::new(),
+                            x_sum_sq: Vec::new(),
+                        },
+                        None,
+                    ),
+                };
+                let summary = without_sums(record.clone());
+                queue.send(WriteJob { record, output }).map_err(|_| {
+                    Error::invalid("augment", "the writer threads stopped before the run ended")
+                })?;
+                Ok((summary, false))
+            })
+            .collect();
+        // closing the queue ends the writers once it is empty; the scope waits for them
+        drop(queue);
+        results
+    });
+    if let Some(e) = write_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e);
+    }
     let mut records = Vec::with_capacity(results.len());
     let (mut computed, mut resumed) = (0, 0);
     for r in results {
@@ -421,6 +466,12 @@ pub fn run(
         resumed,
         temporaries_removed,
     })
+}
+
+/// A computed clip for the writer threads: its record and, when it succeeded, its outputs.
+struct WriteJob {
+    record: ClipRecord,
+    output: Option<ClipOutput>,
 }
 
 fn without_sums(mut record: ClipRecord) -> ClipRecord {
