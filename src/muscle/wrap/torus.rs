@@ -132,8 +132,10 @@ fn torus_core<T: Real>(
     if line.e == Vec3::zeros() {
         return None;
     }
-    let u_from_p = line.descend(0.0)?;
-    let u_from_s = line.descend(1.0)?;
+    // both descents walk the same grid: its values of g' are computed once each
+    let mut grid = [f64::NAN; GRID_CELLS + 1];
+    let u_from_p = line.descend(0.0, &mut grid)?;
+    let u_from_s = line.descend(1.0, &mut grid)?;
     let (a1, a2) = (line.at(u_from_p), line.at(u_from_s));
     let ring_distance =
         |a: Vec3| (a.norm_squared() + ring * ring - 2.0 * ring * a.xy().norm()).max(0.0);
@@ -260,16 +262,25 @@ impl Line {
 
     /// g''(u) = 2|e|² − 2 k_r (|e_xy|²|X_xy|² − (X_xy·e_xy)²)/|X_xy|³.
     fn g2(&self, u: f64) -> f64 {
+        self.g12(u).1
+    }
+
+    /// (g'(u), g''(u)), sharing X(u) and |X_xy| (each as [`Line::g1`] and [`Line::g2`]
+    /// compute it).
+    fn g12(&self, u: f64) -> (f64, f64) {
         let x = self.at(u);
         let (xy, exy) = (x.xy(), self.e.xy());
         let rho = xy.norm();
+        let ring_term = if rho > 0.0 { xy.dot(&exy) / rho } else { 0.0 };
+        let g1 = 2.0 * x.dot(&self.e) - 2.0 * self.k_r * ring_term;
         let curv = (exy.norm_squared() * rho * rho - xy.dot(&exy).powi(2)) / rho.powi(3);
-        2.0 * self.e.norm_squared() - 2.0 * self.k_r * curv
+        (g1, 2.0 * self.e.norm_squared() - 2.0 * self.k_r * curv)
     }
 
     /// The minimum of g reached by descent from u0. Every stationary point lies in
     /// u_c ± k_r|e_xy|/|e|² (u_c = −p·e/|e|²): outside it g' has the sign of u − u_c.
-    fn descend(&self, u0: f64) -> Option<f64> {
+    /// `grid` holds g' at the grid points already evaluated (NaN where not yet).
+    fn descend(&self, u0: f64, grid_values: &mut [f64; GRID_CELLS + 1]) -> Option<f64> {
         let e2 = self.e.norm_squared();
         let uc = -self.p.dot(&self.e) / e2;
         let half = self.k_r * self.e.xy().norm() / e2;
@@ -301,7 +312,10 @@ impl Line {
             if (downhill_right && ui <= u0) || (!downhill_right && ui >= u0) {
                 continue;
             }
-            let gi = self.g1(ui);
+            if grid_values[i].is_nan() {
+                grid_values[i] = self.g1(ui);
+            }
+            let gi = grid_values[i];
             let flipped = if downhill_right { gi >= 0.0 } else { gi <= 0.0 };
             if flipped {
                 return Some(if downhill_right {
@@ -326,7 +340,7 @@ impl Line {
         }
         let mut u = 0.5 * (a + b);
         for _ in 0..MAX_REFINE {
-            let g = self.g1(u);
+            let (g, d2) = self.g12(u);
             if g == 0.0 {
                 return u;
             }
@@ -335,7 +349,6 @@ impl Line {
             } else {
                 b = u;
             }
-            let d2 = self.g2(u);
             let mut next = u - g / d2;
             if !(d2 > 0.0 && next > a && next < b) {
                 next = 0.5 * (a + b);
