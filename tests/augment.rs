@@ -390,6 +390,61 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
     }
 }
 
+/// A clip whose `.npz` cannot be put in place (a folder holds its name) fails the run with
+/// that path in the error, on the writer threads as it did on the workers; the other clips
+/// are still written, with their records, so `--resume` finishes the run once the obstacle
+/// is gone.
+#[test]
+fn a_write_that_fails_on_the_writer_threads_fails_the_run() {
+    let chain = chain();
+    let layout = describe(&chain).unwrap();
+    let inputs = demo_inputs(&chain);
+    assert!(inputs.len() >= 2);
+    let out = temp_dir("write-fails");
+    let blocked = out.join(format!("{}.npz", inputs[0].name));
+    std::fs::create_dir_all(blocked.join("occupied")).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let result = pool.install(|| runner::run(&chain, &layout, &inputs, &options(&out), &|_| {}));
+    let error = result
+        .expect_err("the blocked clip fails the run")
+        .to_string();
+    assert!(error.contains(&inputs[0].name), "{error}");
+    for input in &inputs[1..] {
+        assert!(
+            out.join(format!("{}.npz", input.name)).is_file(),
+            "{}",
+            input.name
+        );
+        assert!(
+            output::record_path(&out, &input.name).is_file(),
+            "{}",
+            input.name
+        );
+    }
+    assert!(!output::record_path(&out, &inputs[0].name).exists());
+    // the obstacle removed, --resume computes the blocked clip only
+    std::fs::remove_dir_all(&blocked).unwrap();
+    let resumed = pool
+        .install(|| {
+            runner::run(
+                &chain,
+                &layout,
+                &inputs,
+                &RunOptions {
+                    resume: true,
+                    ..options(&out)
+                },
+                &|_| {},
+            )
+        })
+        .unwrap();
+    assert_eq!((resumed.computed, resumed.resumed), (1, inputs.len() - 1));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 /// The dataset clips in ../shared/reference end to end, each checked from its file.
 /// The reference clips at `rels` (path, format, BVH unit), or None when one is missing.
 fn reference_clips(

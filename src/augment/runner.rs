@@ -367,7 +367,14 @@ pub fn run(
                         Ok(job) => job,
                         Err(_) => break, // queue closed: every clip handed over
                     };
-                    if let Err(e) = write(job) {
+                    // A panic here (none is expected) must not leave the workers blocked on
+                    // a full queue: it ends this clip's write as an error and the loop goes on.
+                    let written =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| write(job)))
+                            .unwrap_or_else(|_| {
+                                Err(Error::invalid("augment", "writing a clip's files panicked"))
+                            });
+                    if let Err(e) = written {
                         let mut first = write_error.lock().unwrap_or_else(|e| e.into_inner());
                         first.get_or_insert(e);
                     }
