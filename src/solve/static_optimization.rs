@@ -31,7 +31,7 @@ use crate::io::Table;
 use crate::io::text::short_number;
 use crate::model::{ActuatorKind, Model};
 use crate::muscle::MuscleSet;
-use crate::muscle::hill::{MuscleKind, MuscleStatus};
+use crate::muscle::hill::{HillMuscle, MuscleKind, MuscleState, MuscleStatus};
 use crate::muscle::path::{PathData, compute_paths};
 use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::inverse_dynamics::{prepare_coordinates, rows_in_range};
@@ -329,10 +329,9 @@ impl StaticOptimization {
             let (f, column): (f64, &[f64]) = match &act.kind {
                 ActuatorKind::Muscle => {
                     let m = act.muscle.expect("muscle index");
-                    let f = self.muscle_unit_force(m, &ws.paths, &mut ws.fiber)?;
+                    let (f, fp) = self.muscle_forces(m, &ws.paths, &mut ws.fiber)?;
                     let arm = &arms[m * n..(m + 1) * n];
-                    if self.options.passive_fiber_force {
-                        let fp = self.muscle_passive_force(m, &ws.paths);
+                    if let Some(fp) = fp {
                         for (b, r) in ws.b.iter_mut().zip(arm) {
                             *b -= r * fp;
                         }
@@ -391,17 +390,25 @@ impl StaticOptimization {
         Ok(())
     }
 
-    /// F_k of muscle `m` at the current lengths and speeds of `ws.paths`; with muscle
-    /// physiology, the state's fiber length and velocity go to `fiber[m]`.
-    fn muscle_unit_force(
+    /// F_k of muscle `m` at the current lengths and speeds of `ws.paths`, and its passive
+    /// fiber force along the tendon when the options subtract it; with muscle physiology, the
+    /// state's fiber length and velocity go to `fiber[m]`. With a rigid tendon the passive
+    /// force f_PE(l̃) F_max cos α depends on the fiber length only, so the unit-activation
+    /// state that gives F_k holds it too.
+    fn muscle_forces(
         &self,
         m: usize,
         paths: &PathData,
         fiber: &mut [(f64, f64)],
-    ) -> crate::Result<f64> {
+    ) -> crate::Result<(f64, Option<f64>)> {
         let muscle = &self.muscles.muscles[m];
+        let passive = self.options.passive_fiber_force;
         if !self.options.use_muscle_physiology {
-            return Ok(muscle.params().max_isometric_force);
+            let fp = passive.then(|| {
+                let s = muscle.state_rigid_tendon(0.0, paths.length[m], paths.speed[m]);
+                passive_along_tendon(muscle, &s)
+            });
+            return Ok((muscle.params().max_isometric_force, fp));
         }
         let s = muscle.state_rigid_tendon(1.0, paths.length[m], paths.speed[m]);
         fiber[m] = (s.fiber_length, s.fiber_velocity);
@@ -421,7 +428,7 @@ impl StaticOptimization {
                 ),
             ));
         }
-        Ok(f)
+        Ok((f, passive.then(|| passive_along_tendon(muscle, &s))))
     }
 
     /// Fiber length and velocity of muscle `m` (rigid tendon) at the lengths and speeds of
@@ -439,17 +446,6 @@ impl StaticOptimization {
                 ws.paths.speed[m],
             );
             (s.fiber_length, s.fiber_velocity)
-        }
-    }
-
-    /// Passive fiber force along the tendon of muscle `m` (rigid tendon).
-    fn muscle_passive_force(&self, m: usize, paths: &PathData) -> f64 {
-        let muscle = &self.muscles.muscles[m];
-        let s = muscle.state_rigid_tendon(0.0, paths.length[m], paths.speed[m]);
-        match s.status {
-            MuscleStatus::FiberAtLowerBound => 0.0,
-            _ if muscle.kind() == MuscleKind::DeGrooteFregly2016 => s.passive_fiber_force,
-            _ => s.passive_fiber_force * s.cos_pennation_angle,
         }
     }
 
@@ -499,6 +495,16 @@ impl StaticOptimization {
             out.forces[k] = out.controls[k] * ws.unit_force[k];
         }
         Ok(())
+    }
+}
+
+/// The passive fiber force along the tendon in a rigid-tendon state (0 for a fiber held at
+/// its minimum length).
+fn passive_along_tendon(muscle: &HillMuscle, s: &MuscleState) -> f64 {
+    match s.status {
+        MuscleStatus::FiberAtLowerBound => 0.0,
+        _ if muscle.kind() == MuscleKind::DeGrooteFregly2016 => s.passive_fiber_force,
+        _ => s.passive_fiber_force * s.cos_pennation_angle,
     }
 }
 
