@@ -31,7 +31,7 @@
 //! for p = 2 once the active set is found). For p = 2, when the columns with both bounds
 //! infinite (reserves, residual slacks) span ℝⁿ on their own, A D Aᵀ ⪰ U = Σ_unbounded Dᵢaᵢaᵢᵀ
 //! is positive definite for every λ and the problem feasible for every b: μ is then kept
-//! below 10⁻⁶ of U's smallest Cholesky pivot (and μ_min, μ_max lowered to it where they are
+//! below 10⁻¹² of U's smallest Cholesky pivot (and μ_min, μ_max lowered to it where they are
 //! above), since a larger μ only slows the directions whose curvature is a heavily weighted
 //! slack.
 //!
@@ -90,8 +90,12 @@ const STALL_RATIO: f64 = 0.9;
 const REGULARIZATION_GAIN: f64 = 1e-2;
 /// Where the unbounded columns span ℝⁿ with curvature κ (see
 /// [`QpWorkspace::unbounded_curvature`]), μ ≤ this × κ: each proximal step then shrinks the
-/// slowest direction's distance to the optimum by this factor at least.
-const UNBOUNDED_CONTRACTION: f64 = 1e-6;
+/// slowest direction's distance to the optimum by this factor at least. 10⁻¹², below the
+/// default tolerance, so that the Newton step that finds the active set already meets it: at
+/// 10⁻⁶ that step left μ(λ − c) ≈ 10⁻⁶ of the residual it removed, and another step followed
+/// (static optimization on the HumanML3D sample: 1,514 → 1,346 iterations over 170 frames,
+/// 10⁻¹⁴ no fewer). U's pivots bound A D Aᵀ + μI's away from zero whatever μ is.
+const UNBOUNDED_CONTRACTION: f64 = 1e-12;
 /// For p ≠ 2 the slope dx/ds of a free coordinate is kept within these multiples of its
 /// reference slope: it is 0 (p < 2) or ∞ (p > 2) at s = 0.
 const SLOPE_FLOOR: f64 = 1e-6;
@@ -117,7 +121,7 @@ pub struct QpSettings {
     /// Bounds of the proximal weight μ relative to the largest diagonal entry of A D Aᵀ
     /// (see the module documentation): μ_min keeps the Newton matrix numerically positive
     /// definite, μ_max sets the pace of the method of multipliers on infeasible problems
-    /// (for p = 2 both are lowered, where needed, below 10⁻⁶ of the curvature the unbounded
+    /// (for p = 2 both are lowered, where needed, below 10⁻¹² of the curvature the unbounded
     /// columns give when they span ℝⁿ: such a problem is never infeasible). Defaults 1e-12
     /// and 1e-6.
     pub regularization_min: f64,

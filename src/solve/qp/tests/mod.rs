@@ -282,7 +282,7 @@ fn barely_feasible_problems_are_solved_like_clarabel() {
 
 /// The contact QP's shape: bounded columns that cannot balance b alone, and one slack per
 /// row (unbounded, weight 1e4; the contact QP's 1e8 defeats Clarabel) that takes the rest.
-/// The slacks span ℝⁿ, so μ stays below 10⁻⁶ of their curvature; with μ_max the slack
+/// The slacks span ℝⁿ, so μ stays below 10⁻¹² of their curvature; with μ_max the slack
 /// directions (curvature 1/(2·1e4)) crept towards the optimum by a small fraction per proximal
 /// step and the first case already ran into the iteration limit.
 #[test]
