@@ -42,6 +42,7 @@ use super::layout_inverse::{LayoutClip, LayoutCoordinates, POSITION_WEIGHT, Solv
 use crate::dynamics;
 use crate::model::reduction::NodeKind;
 use crate::model::{DofKind, JointStep, Model};
+use crate::solve::qp::linalg::lu_solve_in_place;
 use crate::spatial::{Mat3, Vec3};
 use rayon::prelude::*;
 use std::cell::RefCell;
@@ -469,43 +470,6 @@ impl Scratch {
             ht: vec![0.0; n * n],
         }
     }
-}
-
-/// Solves A x = b in place (LU with partial pivoting; A row-major n × n, overwritten; b
-/// becomes x); false when a pivot vanishes.
-fn lu_solve_in_place(a: &mut [f64], n: usize, b: &mut [f64]) -> bool {
-    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    for c in 0..n {
-        // the row with the largest entry in column c, from c down
-        let p = (c..n)
-            .max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))
-            .unwrap_or(c);
-        if !(a[p * n + c].abs() > 1e-14 * scale) {
-            return false;
-        }
-        if p != c {
-            for k in 0..n {
-                a.swap(c * n + k, p * n + k);
-            }
-            b.swap(c, p);
-        }
-        let pivot = a[c * n + c];
-        for i in c + 1..n {
-            let factor = a[i * n + c] / pivot;
-            if factor == 0.0 {
-                continue;
-            }
-            for k in c..n {
-                a[i * n + k] -= factor * a[c * n + k];
-            }
-            b[i] -= factor * b[c];
-        }
-    }
-    for c in (0..n).rev() {
-        let s: f64 = (c + 1..n).map(|k| a[c * n + k] * b[k]).sum();
-        b[c] = (b[c] - s) / a[c * n + c];
-    }
-    true
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -942,28 +906,6 @@ mod tests {
     use crate::augment::layout_inverse::coordinates_from_layout;
     use crate::random::SplitMix64;
     use crate::reference::layout_clip;
-
-    /// The in-place LU solve equals nalgebra's on a random matrix whose first pivot is 0.
-    #[test]
-    fn lu_solve_in_place_matches_nalgebra() {
-        let n = 7;
-        let mut rng = SplitMix64(5);
-        let mut a: Vec<f64> = (0..n * n).map(|_| rng.uniform(-1.0, 1.0)).collect();
-        a[0] = 0.0;
-        let b: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
-        let m = nalgebra::DMatrix::from_row_slice(n, n, &a);
-        let x = m
-            .lu()
-            .solve(&nalgebra::DVector::from_column_slice(&b))
-            .unwrap();
-        let mut ours = b.clone();
-        assert!(lu_solve_in_place(&mut a, n, &mut ours));
-        for (u, v) in ours.iter().zip(x.iter()) {
-            assert!((u - v).abs() < 1e-12 * (1.0 + v.abs()), "{u} vs {v}");
-        }
-        let mut singular = vec![1.0; 4];
-        assert!(!lu_solve_in_place(&mut singular, 2, &mut [1.0, 2.0]));
-    }
 
     /// On an inconsistent layout (the fit leaves residuals), the gradient of a random linear
     /// functional of the fitted q, q̇, q̈ and τ equals central differences of the forward map,

@@ -1,6 +1,7 @@
 //! The kernels of the dual Newton method: A by its nonzero entries ([`SparseColumns`]), and
 //! dense n × n matrices on flat column-major storage (entry (r, c) at `c * n + r`; only the
-//! lower triangle r ≥ c of symmetric matrices is used). They allocate nothing and never panic
+//! lower triangle r ≥ c of symmetric matrices is used; the general solve
+//! [`lu_solve_in_place`] takes its matrix row-major). They allocate nothing and never panic
 //! on finite input; the dense loops run over contiguous column slices so that they vectorise.
 
 use super::QpError;
@@ -205,9 +206,69 @@ pub(crate) fn dot(u: &[f64], v: &[f64]) -> f64 {
     sum
 }
 
+/// Solves A x = b in place for a general (unsymmetric) A: LU with partial pivoting, A
+/// row-major n × n and overwritten, b becomes x; false when a pivot vanishes (below 1e-14 of
+/// A's largest entry).
+pub(crate) fn lu_solve_in_place(a: &mut [f64], n: usize, b: &mut [f64]) -> bool {
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for c in 0..n {
+        // the row with the largest entry in column c, from c down
+        let p = (c..n)
+            .max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))
+            .unwrap_or(c);
+        if !(a[p * n + c].abs() > 1e-14 * scale) {
+            return false;
+        }
+        if p != c {
+            for k in 0..n {
+                a.swap(c * n + k, p * n + k);
+            }
+            b.swap(c, p);
+        }
+        let pivot = a[c * n + c];
+        for i in c + 1..n {
+            let factor = a[i * n + c] / pivot;
+            if factor == 0.0 {
+                continue;
+            }
+            for k in c..n {
+                a[i * n + k] -= factor * a[c * n + k];
+            }
+            b[i] -= factor * b[c];
+        }
+    }
+    for c in (0..n).rev() {
+        let s: f64 = (c + 1..n).map(|k| a[c * n + k] * b[k]).sum();
+        b[c] = (b[c] - s) / a[c * n + c];
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The in-place LU solve equals nalgebra's on a random matrix whose first pivot is 0.
+    #[test]
+    fn lu_solve_in_place_matches_nalgebra() {
+        let n = 7;
+        let mut rng = crate::random::SplitMix64(5);
+        let mut a: Vec<f64> = (0..n * n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        a[0] = 0.0;
+        let b: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let m = nalgebra::DMatrix::from_row_slice(n, n, &a);
+        let x = m
+            .lu()
+            .solve(&nalgebra::DVector::from_column_slice(&b))
+            .unwrap();
+        let mut ours = b.clone();
+        assert!(lu_solve_in_place(&mut a, n, &mut ours));
+        for (u, v) in ours.iter().zip(x.iter()) {
+            assert!((u - v).abs() < 1e-12 * (1.0 + v.abs()), "{u} vs {v}");
+        }
+        let mut singular = vec![1.0; 4];
+        assert!(!lu_solve_in_place(&mut singular, 2, &mut [1.0, 2.0]));
+    }
 
     /// Columns with zeros in them (about a third of the entries), as A's columns have: dense,
     /// and as [`SparseColumns`].
