@@ -175,6 +175,10 @@ pub struct Chain {
     pub model: Model,
     pub options: ChainOptions,
     scaled: scale_from_clip::ScaledModels,
+    /// The activation dynamics of the base model's forces, by force index (None for a force
+    /// that is not a muscle, or whose properties are an error): the same in every clip's
+    /// model, which scaling and variants change in lengths and masses only.
+    activation: Vec<Option<ActivationDynamics>>,
 }
 
 impl Chain {
@@ -213,12 +217,16 @@ impl Chain {
         };
         let model = Model::from_osim_str(&xml, &source)?;
         contact_set(&model)?;
+        let activation = (model.forces.iter())
+            .map(|f| ActivationDynamics::from_muscle(f, f.file_or(&model.source)).ok())
+            .collect();
         Ok(Chain {
             xml,
             source,
             model,
             options,
             scaled: scale_from_clip::ScaledModels::new(),
+            activation,
         })
     }
 
@@ -487,8 +495,15 @@ impl Chain {
             &[]
         };
         for (k, muscle) in muscles.iter().enumerate() {
-            let force = &model.forces[so.muscles.paths.paths[k].force];
-            let dynamics = ActivationDynamics::from_muscle(force, force.file_or(&model.source))?;
+            let index = so.muscles.paths.paths[k].force;
+            let force = &model.forces[index];
+            // The base model's, read once per chain: the clip's model is the base model
+            // scaled (its file re-read: the same forces in the same order), with reserves
+            // appended and a variant's mass and load, so force `index` is the same muscle.
+            let dynamics = match self.activation.get(index) {
+                Some(Some(d)) => *d,
+                _ => ActivationDynamics::from_muscle(force, force.file_or(&model.source))?,
+            };
             let (lo, hi) = dynamics.range();
             for f in 0..frames {
                 series[f] = per_frame.activation[f * m + k].clamp(lo, hi);
