@@ -22,7 +22,7 @@ use super::perturb::Variant;
 use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
-use crate::model::{ActuatorKind, ForceElement, Model, RawElement, ScalarActuator};
+use crate::model::{ActuatorKind, ForceElement, Model, ScalarActuator};
 use crate::motion::Motion;
 use crate::motion::skeleton::SkeletonMap;
 use crate::muscle::activation::ActivationDynamics;
@@ -899,7 +899,7 @@ fn add_reserves(model: &mut Model, optimal_force: f64) {
                 optimal_force,
                 kind: ActuatorKind::Coordinate { coordinate: c },
             }),
-            raw: RawElement::default(),
+            raw: Default::default(),
             line: 0,
             file: String::new(),
         });

@@ -343,7 +343,9 @@ pub struct ForceElement {
     /// For OpenSim's scalar actuators (muscles included): control bounds, optimal force and
     /// where the force acts.
     pub actuator: Option<ScalarActuator>,
-    pub raw: RawElement,
+    /// The element as read, shared between copies of the model (a clip's model is a copy of
+    /// the scaled one, and read-only here).
+    pub raw: std::sync::Arc<RawElement>,
     pub line: u32,
     /// The file the element was read from (the model's, or the force-set file that added
     /// it), for messages; empty for elements built in code.

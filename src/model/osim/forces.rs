@@ -265,7 +265,7 @@ pub(super) fn read_force(
         path,
         applies_force,
         actuator,
-        raw: ctx.raw(f),
+        raw: std::sync::Arc::new(ctx.raw(f)),
         line: ctx.line(f),
         file: ctx.file.to_string(),
     })

@@ -361,7 +361,7 @@ fn muscle(kind: &str, properties: &[(&str, &str)]) -> ForceElement {
         name: "m".into(),
         kind: kind.into(),
         path: None,
-        raw: RawElement {
+        raw: std::sync::Arc::new(RawElement {
             tag: kind.into(),
             name: Some("m".into()),
             children: properties
@@ -374,7 +374,7 @@ fn muscle(kind: &str, properties: &[(&str, &str)]) -> ForceElement {
                 })
                 .collect(),
             ..Default::default()
-        },
+        }),
         line: 7,
         file: "test.osim".into(),
     }

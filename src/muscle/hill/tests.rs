@@ -25,13 +25,13 @@ fn element(kind: &str, props: &[(&str, &str)], objects: Vec<RawElement>) -> Forc
         name: "test_muscle".to_string(),
         kind: kind.to_string(),
         path: None,
-        raw: RawElement {
+        raw: std::sync::Arc::new(RawElement {
             tag: kind.to_string(),
             name: Some("test_muscle".to_string()),
             text: String::new(),
             line: 7,
             children,
-        },
+        }),
         line: 7,
         file: "test.osim".into(),
     }

@@ -633,7 +633,11 @@ fn patch_lengths(model: &mut Model, rescaled: &[(Node, &[&str], f64)]) -> bool {
             return false;
         };
         for tag in tags.iter() {
-            let Some(raw) = element.raw.children.iter_mut().find(|c| c.tag == *tag) else {
+            let Some(raw) = std::sync::Arc::make_mut(&mut element.raw)
+                .children
+                .iter_mut()
+                .find(|c| c.tag == *tag)
+            else {
                 continue;
             };
             let mut values = Vec::new();
