@@ -86,8 +86,9 @@ fn spread_frames(motion: &Motion, max: usize) -> Motion {
 /// A model scaled to a clip.
 #[derive(Clone, Debug)]
 pub struct ClipScaling {
-    /// The scaled model file's text, before marker placement.
-    pub scaled_xml: String,
+    /// The scaled model file's text, before marker placement (shared with the clips of the
+    /// same scaled model).
+    pub scaled_xml: Arc<str>,
     /// ℓ_after / ℓ_before per force whose lengths were rescaled (see [`ScaledModel`]).
     pub length_ratios: Vec<(String, f64)>,
     /// The scaled model with its placed markers moved: the model to run IK with.
@@ -251,7 +252,7 @@ pub fn scale_to_clip(
     let factors = segment_factors(model, map, clip)?;
     let scales = clip_scale_set(model, map, &factors)?;
     let scaled = scale_osim(xml, source, model, &scales, &clip_scale_options())?;
-    place_on_clip(scaled, source, map, clip, factors)
+    place_on_clip(Shared::from(scaled), source, map, clip, factors)
 }
 
 /// [`scale_to_clip`] with the segment factors rounded to [`SHARED_FACTOR_GRID`], and the
@@ -278,7 +279,7 @@ pub fn scale_to_clip_shared(
         scales: clip_scale_set(model, map, &factors)?,
     };
     let scaled = shared.get_or_insert(&key, || {
-        scale_osim(xml, source, model, &key.scales, &clip_scale_options())
+        scale_osim(xml, source, model, &key.scales, &clip_scale_options()).map(Shared::from)
     })?;
     place_on_clip((*scaled).clone(), source, map, clip, factors)
 }
@@ -296,7 +297,26 @@ pub const SHARED_FACTOR_GRID: f64 = 1e-4;
 /// at most, HumanML3D one). Safe to share between threads.
 #[derive(Debug, Default)]
 pub struct ScaledModels {
-    entries: Mutex<VecDeque<(ScaleKey, Arc<ScaledModel>)>>,
+    entries: Mutex<VecDeque<(ScaleKey, Arc<Shared>)>>,
+}
+
+/// A scaled model as clips take it: each copies the model (its markers are then placed on
+/// the clip) and shares the text.
+#[derive(Clone, Debug)]
+struct Shared {
+    xml: Arc<str>,
+    model: Model,
+    length_ratios: Vec<(String, f64)>,
+}
+
+impl From<ScaledModel> for Shared {
+    fn from(scaled: ScaledModel) -> Shared {
+        Shared {
+            xml: scaled.xml.into(),
+            model: scaled.model,
+            length_ratios: scaled.length_ratios,
+        }
+    }
 }
 
 /// What a shared scaled model was made from, besides the base model's text.
@@ -335,7 +355,7 @@ impl ScaledModels {
     }
 
     // A poisoned lock still holds whole entries (nothing panics while it is held).
-    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(ScaleKey, Arc<ScaledModel>)>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(ScaleKey, Arc<Shared>)>> {
         self.entries.lock().unwrap_or_else(|e| e.into_inner())
     }
 
@@ -344,8 +364,8 @@ impl ScaledModels {
     fn get_or_insert(
         &self,
         key: &ScaleKey,
-        make: impl FnOnce() -> crate::Result<ScaledModel>,
-    ) -> crate::Result<Arc<ScaledModel>> {
+        make: impl FnOnce() -> crate::Result<Shared>,
+    ) -> crate::Result<Arc<Shared>> {
         if let Some((_, m)) = self.lock().iter().find(|(k, _)| k == key) {
             return Ok(Arc::clone(m));
         }
@@ -410,17 +430,16 @@ fn clip_scale_options() -> ScaleOptions {
 
 /// The scaled model with the map's placed markers moved onto `clip`.
 fn place_on_clip(
-    scaled: ScaledModel,
+    scaled: Shared,
     source: &str,
     map: &SkeletonMap,
     clip: &Motion,
     factors: Vec<(String, f64)>,
 ) -> crate::Result<ClipScaling> {
-    let ScaledModel {
+    let Shared {
         xml: scaled_xml,
         model: mut fitted,
         length_ratios,
-        ..
     } = scaled;
     let placed = place_markers(&mut fitted, map, clip)?;
     Ok(ClipScaling {
