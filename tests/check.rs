@@ -233,7 +233,9 @@ fn mirrored_muscle_path_fails_the_agonist_sign_check() {
     let mut model = Model::demo();
     let k = model.forces.iter().position(|f| f.name == "vasti").unwrap();
     // A plain point path (no wrapping), in front of the knee: an extensor up to 90° of flexion.
-    model.forces[k].path.as_mut().unwrap().wraps.clear();
+    std::sync::Arc::make_mut(model.forces[k].path.as_mut().unwrap())
+        .wraps
+        .clear();
     let report = check::run(&model, &options).unwrap();
     assert_eq!(
         status(
@@ -257,7 +259,7 @@ fn mirrored_muscle_path_fails_the_agonist_sign_check() {
     // knee centre lies on both bodies' y axes) and drop the patella point: the path passes
     // behind the knee.
     let patella = model.body_index("patella").unwrap();
-    let path = model.forces[k].path.as_mut().unwrap();
+    let path = std::sync::Arc::make_mut(model.forces[k].path.as_mut().unwrap());
     path.points.retain(|p| p.body != patella);
     for p in &mut path.points {
         p.location.x = -p.location.x;

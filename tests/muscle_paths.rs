@@ -272,7 +272,9 @@ fn moment_arms_of_a_path_attached_to_ground() {
     let mut model = Model::from_osim_str(PULLEY_OSIM, "pulley.osim").unwrap();
     for wrapped in [true, false] {
         if !wrapped {
-            model.forces[0].path.as_mut().unwrap().wraps.clear();
+            std::sync::Arc::make_mut(model.forces[0].path.as_mut().unwrap())
+                .wraps
+                .clear();
         }
         let set = PathSet::new(&model).unwrap();
         let mut data = Data::new(&model);

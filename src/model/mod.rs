@@ -336,15 +336,16 @@ pub struct ForceElement {
     pub name: String,
     /// OpenSim class name, e.g. `Thelen2003Muscle`.
     pub kind: String,
-    /// Geometry path, for muscles and path actuators.
-    pub path: Option<GeometryPath>,
+    /// Geometry path, for muscles and path actuators; shared between copies of a model
+    /// (`Arc::make_mut` edits a copy's own).
+    pub path: Option<std::sync::Arc<GeometryPath>>,
     /// `<appliesForce>` (OpenSim 4; `false` disables the element).
     pub applies_force: bool,
     /// For OpenSim's scalar actuators (muscles included): control bounds, optimal force and
     /// where the force acts.
     pub actuator: Option<ScalarActuator>,
-    /// The element as read, shared between copies of the model (a clip's model is a copy of
-    /// the scaled one, and read-only here).
+    /// The element as read; shared between copies of a model, as `path` is (a clip's model
+    /// is a copy of the scaled one).
     pub raw: std::sync::Arc<RawElement>,
     pub line: u32,
     /// The file the element was read from (the model's, or the force-set file that added

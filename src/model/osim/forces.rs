@@ -262,7 +262,7 @@ pub(super) fn read_force(
     Ok(ForceElement {
         name,
         kind,
-        path,
+        path: path.map(std::sync::Arc::new),
         applies_force,
         actuator,
         raw: std::sync::Arc::new(ctx.raw(f)),
