@@ -813,10 +813,11 @@ impl QpWorkspace {
         } else {
             &self.slope
         };
-        let changed = (target.iter().zip(&self.slope_in_hessian))
-            .filter(|(d, h)| d != h)
-            .count();
-        let free = target.iter().filter(|d| **d != 0.0).count();
+        let (mut changed, mut free) = (0, 0);
+        for (d, h) in target.iter().zip(&self.slope_in_hessian) {
+            changed += usize::from(d != h);
+            free += usize::from(*d != 0.0);
+        }
         let rebuild =
             rebuild || changed > free || self.updates_since_rebuild + changed > 2 * self.m;
         if rebuild {
@@ -860,40 +861,9 @@ impl QpWorkspace {
     ) -> Option<f64> {
         let d0 = slope.psi;
         let accept = LINE_SEARCH_ETA * d0;
-        let d1 = self.derivative_at(1.0, problem, law, slope);
+        let (d1, rate) = self.full_step_and_breakpoints(problem, law, slope);
         if d1 >= -accept {
             return Some(1.0);
-        }
-        // Breakpoints in (0, 1): sᵢ + tδᵢ = sᵢ(lᵢ) or sᵢ(uᵢ), each with the change it makes
-        // to the slope of φ′ for p = 2 (−δᵢ²Dᵢ entering the box, +δᵢ²Dᵢ leaving it); and
-        // that slope just after t = 0.
-        let mut rate = -slope.mu * slope.step_norm2;
-        self.breakpoints.clear();
-        for i in 0..self.m {
-            let delta = self.a_step[i];
-            if delta == 0.0 {
-                continue;
-            }
-            let (s, lower, upper) = (self.s[i], self.s_at_lower[i], self.s_at_upper[i]);
-            let curvature = delta * delta * self.slope_reference[i];
-            let free = (s > lower || (s == lower && delta > 0.0))
-                && (s < upper || (s == upper && delta < 0.0));
-            if free {
-                rate -= curvature;
-            }
-            for (threshold, entering) in [(lower, delta > 0.0), (upper, delta < 0.0)] {
-                // t = gap/δ is in (0, 1) only if gap and δ share their sign and |gap| < |δ|:
-                // most thresholds fail that test, and it spares their divisions
-                let gap = threshold - s;
-                if (gap > 0.0) != (delta > 0.0) || !(gap.abs() < delta.abs()) {
-                    continue;
-                }
-                let t = gap / delta;
-                if t > 0.0 && t < 1.0 {
-                    let change = if entering { -curvature } else { curvature };
-                    self.breakpoints.push((t, change));
-                }
-            }
         }
         self.breakpoints
             .sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
@@ -966,6 +936,61 @@ impl QpWorkspace {
             (t, d, rate) = (next, d_next, rate + change);
         }
         (t + d / -rate).clamp(t, 1.0)
+    }
+
+    /// φ′(1) as [`Self::derivative_at`] computes it (x(s + δ) left in the `_trial` arrays),
+    /// and on the same pass the breakpoints in (0, 1), sᵢ + tδᵢ = sᵢ(lᵢ) or sᵢ(uᵢ), each with
+    /// the change it makes to the slope of φ′ for p = 2 (−δᵢ²Dᵢ entering the box, +δᵢ²Dᵢ
+    /// leaving it), unsorted in `breakpoints`; returns (φ′(1), the slope of φ′ just after
+    /// t = 0). A full step that is accepted leaves the breakpoints unused; the pass saved
+    /// when it is not is the larger share.
+    fn full_step_and_breakpoints(
+        &mut self,
+        problem: &QpProblem<'_>,
+        law: &PowerLaw,
+        slope: &Slope,
+    ) -> (f64, f64) {
+        let mut moved = 0.0;
+        let mut rate = -slope.mu * slope.step_norm2;
+        self.breakpoints.clear();
+        for i in 0..self.m {
+            let (s, delta) = (self.s[i], self.a_step[i]);
+            let (x, d) = law.minimiser(
+                s + delta,
+                problem.weights[i],
+                problem.lower[i],
+                problem.upper[i],
+                self.slope_reference[i],
+            );
+            moved += delta * (x - self.x[i]);
+            self.s_trial[i] = s + delta;
+            self.x_trial[i] = x;
+            self.slope_trial[i] = d;
+            if delta == 0.0 {
+                continue;
+            }
+            let (lower, upper) = (self.s_at_lower[i], self.s_at_upper[i]);
+            let curvature = delta * delta * self.slope_reference[i];
+            let free = (s > lower || (s == lower && delta > 0.0))
+                && (s < upper || (s == upper && delta < 0.0));
+            if free {
+                rate -= curvature;
+            }
+            for (threshold, entering) in [(lower, delta > 0.0), (upper, delta < 0.0)] {
+                // t = gap/δ is in (0, 1) only if gap and δ share their sign and |gap| < |δ|:
+                // most thresholds fail that test, and it spares their divisions
+                let gap = threshold - s;
+                if (gap > 0.0) != (delta > 0.0) || !(gap.abs() < delta.abs()) {
+                    continue;
+                }
+                let t = gap / delta;
+                if t > 0.0 && t < 1.0 {
+                    let change = if entering { -curvature } else { curvature };
+                    self.breakpoints.push((t, change));
+                }
+            }
+        }
+        (slope.psi - moved - slope.mu * slope.step_norm2, rate)
     }
 
     /// φ′(t) of [`Self::line_search`], leaving x(s + tδ) in the `_trial` arrays.
