@@ -37,6 +37,21 @@ fn lengths(model: &Model, set: &PathSet, d: &mut Data, pd: &mut PathData, q: &[f
     pd.length.clone()
 }
 
+/// The coordinates of `model` with the named ones set (every other one 0); an unknown name
+/// fails the test.
+fn q_from_names(model: &Model, values: &[(&str, f64)]) -> Vec<f64> {
+    let names = model.q_names();
+    let mut q = vec![0.0; model.nq()];
+    for &(name, v) in values {
+        let j = names
+            .iter()
+            .position(|n| *n == name)
+            .unwrap_or_else(|| panic!("no coordinate {name}"));
+        q[j] = v;
+    }
+    q
+}
+
 /// `known_bad`: paths whose mismatches are counted and printed instead of failing the test
 /// (each is an open problem named in the README).
 fn check_model(path: &Path, states: usize, seed: u64, known_bad: &[&str]) {
@@ -230,15 +245,7 @@ fn moment_arms_equal_differences_where_the_sweeps_left_a_stale_wrap() {
         ("lumbar_bending", 0.2385129795831321),
         ("lumbar_rotation", -0.33005405811610256),
     ];
-    let names = model.q_names();
-    let mut q = vec![0.0; model.nq()];
-    for (name, v) in values {
-        let j = names
-            .iter()
-            .position(|n| *n == name)
-            .unwrap_or_else(|| panic!("{name}"));
-        q[j] = v;
-    }
+    let q = q_from_names(&model, &values);
     let set = PathSet::new(&model).unwrap();
     let k = set.index("INFSP_r").unwrap();
     let mut data = Data::new(&model);
@@ -257,7 +264,7 @@ fn moment_arms_equal_differences_where_the_sweeps_left_a_stale_wrap() {
         assert!(
             (r - fd).abs() <= 1e-6,
             "INFSP_r about {}: r = {r} vs −∂ℓ/∂q by differences {fd}",
-            names[j]
+            model.q_names()[j]
         );
     }
 }
@@ -303,15 +310,7 @@ fn pectoralis_settles_to_opensims_consistent_path_where_the_sweeps_end_far_from_
         ("lumbar_bending", 0.404971812668927),
         ("lumbar_rotation", 0.39120688821739924),
     ];
-    let names = model.q_names();
-    let mut q = vec![0.0; model.nq()];
-    for (name, v) in values {
-        let j = names
-            .iter()
-            .position(|n| *n == name)
-            .unwrap_or_else(|| panic!("{name}"));
-        q[j] = v;
-    }
+    let q = q_from_names(&model, &values);
     let set = PathSet::new(&model).unwrap();
     let k = set.index("PECM1_r").unwrap();
     let (mut data, mut pd) = (Data::new(&model), PathData::new(&model, &set));
