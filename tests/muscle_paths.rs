@@ -31,6 +31,11 @@ fn away_from_conditional_bounds(model: &Model, data: &Data) -> bool {
         })
 }
 
+/// The shipped default model's file.
+fn default_model_path() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim")
+}
+
 fn lengths(model: &Model, set: &PathSet, d: &mut Data, pd: &mut PathData, q: &[f64]) -> Vec<f64> {
     dynamics::forward_kinematics(model, d, q).unwrap();
     compute_paths(model, d, set, pd).unwrap();
@@ -138,9 +143,7 @@ fn moment_arms_equal_finite_differences_of_length_on_every_reference_model() {
 
 #[test]
 fn moment_arms_equal_finite_differences_of_length_on_the_default_model() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim");
-    check_model(&path, 200, 23, &[]);
+    check_model(&default_model_path(), 200, 23, &[]);
 }
 
 #[test]
@@ -211,9 +214,7 @@ fn parallel_paths_equal_serial_paths() {
 /// consistent, so the moment arms are the length's derivatives again.
 #[test]
 fn moment_arms_equal_differences_where_the_sweeps_left_a_stale_wrap() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim");
-    let model = load(&path);
+    let model = load(&default_model_path());
     let values = [
         ("pelvis_tilt", -0.2075079134108564),
         ("pelvis_list", 0.9111559551636279),
@@ -276,9 +277,7 @@ fn moment_arms_equal_differences_where_the_sweeps_left_a_stale_wrap() {
 /// (its path re-wrapped until it no longer moves) is 0.165404 m; the check's tolerance is 1 mm.
 #[test]
 fn pectoralis_settles_to_opensims_consistent_path_where_the_sweeps_end_far_from_it() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/musculo_fullbody.osim");
-    let model = load(&path);
+    let model = load(&default_model_path());
     let values = [
         ("pelvis_tilt", -0.8213137755228754),
         ("pelvis_list", -0.6114804300063476),
