@@ -9,7 +9,8 @@
 //!   0, or N when it ends with the comment `# exits N`.
 //! - ` ```sh ci ` — commands that need a set-up step (the MuJoCo library, the OpenSim wheel)
 //!   or are the CI itself (`cargo test`): `.ci/run` runs them after its set-up steps; this
-//!   test checks that each of them appears in `.ci/run` (ignoring `--locked`).
+//!   test checks that each of them appears in `.ci/run` (ignoring `--locked`, and the
+//!   `--config .ci/…` that gives CI's build of a command its own settings).
 //! - ` ```text ` — output listings; ` ```rust ` — library code.
 //! - ` ```python ` — the Python package's examples, only in its section ("## Python package"):
 //!   `python/tests/test_musculo.py::test_readme_examples` runs them against the built wheel
@@ -151,13 +152,35 @@ fn shell_blocks_split_into_commands() {
     assert_eq!((c[1].line, c[1].status), (15, 3));
 }
 
-/// `.ci/run`'s lines with `--locked` removed and spaces collapsed.
+/// `.ci/run`'s lines with `--locked` and `--config .ci/…` (a CI-only settings file) removed
+/// and spaces collapsed.
 fn normalized(line: &str) -> String {
     let line = line.split(" #").next().unwrap_or(line);
-    line.split_whitespace()
-        .filter(|w| *w != "--locked")
-        .collect::<Vec<_>>()
-        .join(" ")
+    let mut words = Vec::new();
+    let mut it = line.split_whitespace().peekable();
+    while let Some(w) = it.next() {
+        if w == "--locked" {
+            continue;
+        }
+        if w == "--config" && it.peek().is_some_and(|v| v.starts_with(".ci/")) {
+            it.next();
+            continue;
+        }
+        words.push(w);
+    }
+    words.join(" ")
+}
+
+#[test]
+fn ci_lines_lose_locked_and_ci_settings_files_only() {
+    assert_eq!(
+        normalized("cargo --config .ci/a.toml test --release --locked -p m  # note"),
+        "cargo test --release -p m"
+    );
+    assert_eq!(
+        normalized("cargo --config b.toml build"),
+        "cargo --config b.toml build"
+    );
 }
 
 #[test]
