@@ -131,7 +131,7 @@ pub(super) fn moment_arms(
     for k in 0..m {
         if let NodeKind::Tangent(w, false) = nodes[k].kind {
             if engaged < MAX_WRAPS {
-                if let SegmentWrap::Wrapped { jac, .. } = wraps.wrap(
+                if let SegmentWrap::Wrapped { jac, .. } = *wraps.wrap(
                     model,
                     data,
                     path,

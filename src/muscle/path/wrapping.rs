@@ -148,23 +148,27 @@ impl WrapCache {
         wi: usize,
         a: &Vec3,
         b: &Vec3,
-    ) -> SegmentWrap {
+    ) -> &SegmentWrap {
         let same = |u: &Vec3, v: &Vec3| {
             u.iter()
                 .zip(v.iter())
                 .all(|(x, y)| x.to_bits() == y.to_bits())
         };
-        let hit = self.entries[..self.len]
-            .iter()
-            .find(|(w, ea, eb, _)| *w == wi && same(ea, a) && same(eb, b));
-        if let Some((.., outcome)) = hit {
-            return *outcome;
-        }
-        let outcome = wrap_segment(model, data, &path.wraps[wi], a, b);
-        self.entries[self.next] = (wi, *a, *b, outcome);
-        self.next = (self.next + 1) % WRAP_CACHE;
-        self.len = (self.len + 1).min(WRAP_CACHE);
-        outcome
+        // The outcome is returned by reference (it is a few hundred bytes, and most callers
+        // read a few of its fields): copying it on every call showed as memmove in profiles.
+        let slot = match (self.entries[..self.len].iter())
+            .position(|(w, ea, eb, _)| *w == wi && same(ea, a) && same(eb, b))
+        {
+            Some(hit) => hit,
+            None => {
+                let slot = self.next;
+                self.entries[slot] = (wi, *a, *b, wrap_segment(model, data, &path.wraps[wi], a, b));
+                self.next = (self.next + 1) % WRAP_CACHE;
+                self.len = (self.len + 1).min(WRAP_CACHE);
+                slot
+            }
+        };
+        &self.entries[slot].3
     }
 }
 
@@ -248,7 +252,8 @@ pub(super) fn apply_wrap_objects(
                 let Some(end) = (w.start..=w.end).rev().find_map(active) else {
                     continue;
                 };
-                let mut best: Option<(usize, SegmentWrap)> = None;
+                // (segment, t1, t2, surface, ∂L/∂P, ∂L/∂S) of the wrap taken
+                let mut best: Option<(usize, Vec3, Vec3, f64, Vec3, Vec3)> = None;
                 let mut min_change = f64::INFINITY;
                 for a in start..end {
                     let (na, nb) = (nodes[a], nodes[a + 1]);
@@ -257,42 +262,34 @@ pub(super) fn apply_wrap_objects(
                             continue;
                         }
                     }
-                    match cache.wrap(model, data, path, wi, &na.ground, &nb.ground) {
+                    match *cache.wrap(model, data, path, wi, &na.ground, &nb.ground) {
                         SegmentWrap::None => {}
                         SegmentWrap::Inside => result = result.max(1),
-                        wrapped @ SegmentWrap::Wrapped {
-                            mandatory: true, ..
+                        SegmentWrap::Wrapped {
+                            t1,
+                            t2,
+                            surface,
+                            mandatory,
+                            grad_p,
+                            grad_s,
+                            ..
                         } => {
                             result = 2;
-                            best = Some((a, wrapped));
-                            break;
-                        }
-                        wrapped @ SegmentWrap::Wrapped {
-                            t1, t2, surface, ..
-                        } => {
-                            result = 2;
+                            if mandatory {
+                                best = Some((a, t1, t2, surface, grad_p, grad_s));
+                                break;
+                            }
                             let change =
                                 (t1 - na.ground).norm() + surface + (nb.ground - t2).norm()
                                     - (nb.ground - na.ground).norm();
                             if change < min_change {
                                 min_change = change;
-                                best = Some((a, wrapped));
+                                best = Some((a, t1, t2, surface, grad_p, grad_s));
                             }
                         }
                     }
                 }
-                if let Some((
-                    a,
-                    SegmentWrap::Wrapped {
-                        t1,
-                        t2,
-                        surface,
-                        grad_p,
-                        grad_s,
-                        ..
-                    },
-                )) = best
-                {
+                if let Some((a, t1, t2, surface, grad_p, grad_s)) = best {
                     let body = model.wrap_objects[w.object].body;
                     let node = |kind, ground, surface, grad| Node {
                         kind,
@@ -410,7 +407,7 @@ fn settle_engaged_wraps(
                 continue;
             };
             let (a, b) = (nodes[k - 1].ground, nodes[k + 2].ground);
-            match cache.wrap(model, data, path, wi, &a, &b) {
+            match *cache.wrap(model, data, path, wi, &a, &b) {
                 SegmentWrap::Wrapped {
                     t1,
                     t2,
@@ -494,7 +491,7 @@ fn newton_pass(
             grad_s,
             jac,
             ..
-        } = cache.wrap(model, data, path, wi, &a, &b)
+        } = *cache.wrap(model, data, path, wi, &a, &b)
         else {
             return NewtonPass::Unavailable;
         };
@@ -637,7 +634,7 @@ mod tests {
                         };
                         let (a, b) = (nodes[k - 1].ground, nodes[k + 2].ground);
                         let SegmentWrap::Wrapped { t1, t2, .. } =
-                            fresh.wrap(&model, &data, path, wi, &a, &b)
+                            *fresh.wrap(&model, &data, path, wi, &a, &b)
                         else {
                             panic!("{name}: an engaged object let go at q = {q:?}");
                         };
