@@ -390,6 +390,58 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
     }
 }
 
+/// A cutoff above 0.49 of a clip's sampling rate is lowered to it by the filter (OpenSim's
+/// rule), and the run says so: on stderr and in the clip's warnings in the manifest. At the
+/// default 6 Hz the same clip has no warning.
+#[test]
+fn a_cutoff_above_the_clips_rate_is_reported() {
+    let dir = temp_dir("cutoff-inputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    let chain = chain();
+    let (_, reach) = demo::clips(&chain.model).unwrap().remove(2);
+    let values: Vec<f32> = reach
+        .positions
+        .iter()
+        .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+        .collect();
+    let array = ndarray::ArrayD::from_shape_vec(vec![reach.n_frames(), 22, 3], values).unwrap();
+    // read back as HumanML3D joints: 20 fps, that format's rate
+    motion::npy::write_npy(&dir.join("reach.npy"), array.view()).unwrap();
+    let exe = env!("CARGO_BIN_EXE_musculo");
+    for (lowpass, expected) in [("20", true), ("6", false)] {
+        let out = temp_dir(&format!("cutoff-out-{lowpass}"));
+        let result = std::process::Command::new(exe)
+            .args(["augment", "--input"])
+            .arg(dir.join("reach.npy"))
+            .args(["--format", "humanml3d", "--lowpass", lowpass, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(result.status.success(), "{stderr}");
+        let manifest: output::Manifest =
+            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap())
+                .unwrap();
+        let warnings = &manifest.clips[0].warnings;
+        let said = "the low-pass cutoff 20 Hz is above 0.49 of the clip's sampling rate (20 Hz): \
+                    its coordinates were filtered at 9.8 Hz";
+        assert_eq!(
+            warnings.iter().any(|w| w.contains(said)),
+            expected,
+            "--lowpass {lowpass}: {warnings:?}"
+        );
+        assert_eq!(
+            stderr
+                .lines()
+                .any(|l| l.starts_with("warning: ") && l.contains(said)),
+            expected,
+            "--lowpass {lowpass}: {stderr}"
+        );
+        let _ = std::fs::remove_dir_all(out);
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
 /// A clip whose `.npz` cannot be put in place (a folder holds its name) fails the run with
 /// that path in the error, on the writer threads as it did on the workers; the other clips
 /// are still written, with their records, so `--resume` finishes the run once the obstacle

@@ -22,6 +22,7 @@ use super::perturb::Variant;
 use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
+use crate::io::text::short_number;
 use crate::model::{ActuatorKind, ForceElement, Model, ScalarActuator};
 use crate::motion::Motion;
 use crate::motion::skeleton::SkeletonMap;
@@ -341,6 +342,22 @@ impl Chain {
             .zip(&targets.time)
             .all(|(g, t)| (g - t).abs() <= 0.05 * dt);
         let times = if on_grid { grid } else { targets.time.clone() };
+        // The filter lowers a cutoff above 0.49 of the sampling rate to that (OpenSim's rule;
+        // `solve::filter::lowpass_butterworth3`): said here, since one cutoff serves a dataset
+        // of several rates (HumanML3D's 20 fps against mocap's 120).
+        if let Some(fc) = self.options.lowpass_hz {
+            let highest = 0.49 * (frames - 1) as f64 / (times[frames - 1] - times[0]);
+            if fc > highest {
+                warnings.push(format!(
+                    "{}: the low-pass cutoff {} Hz is above 0.49 of the clip's sampling rate \
+                     ({} Hz): its coordinates were filtered at {} Hz",
+                    motion.source,
+                    short_number(fc),
+                    short_number(targets.rate_hz),
+                    short_number((highest * 1e3).round() / 1e3)
+                ));
+            }
+        }
         let table = Table::new("ik", names, times.clone(), solution.q.clone())?;
         let trajectory = CoordinateTrajectory::from_table(
             &model,

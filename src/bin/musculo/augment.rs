@@ -254,6 +254,19 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             args.out.join("manifest.json").display()
         );
     }
+    // what the clips' chains accepted but reported, the first few in full (all of them are
+    // in the manifest, with their clips)
+    let warnings: Vec<&String> = report.records.iter().flat_map(|r| &r.warnings).collect();
+    for w in warnings.iter().take(SHOWN) {
+        eprintln!("warning: {w}");
+    }
+    if warnings.len() > SHOWN {
+        eprintln!(
+            "warning: … and {} more, each with its clip in {}",
+            warnings.len() - SHOWN,
+            args.out.join("manifest.json").display()
+        );
+    }
     eprintln!(
         "{} clip(s) ok, {} failed ({} computed, {} resumed); {frames} frames in {seconds:.1} s \
          ({:.0} frames/s); output in {}",
