@@ -390,6 +390,83 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
     }
 }
 
+/// Demo clip `index` (march, squat, reach) written as a HumanML3D joints array.
+fn write_demo_as_joints(chain: &Chain, index: usize, path: &Path) {
+    let (_, clip) = demo::clips(&chain.model).unwrap().remove(index);
+    let values: Vec<f32> = clip
+        .positions
+        .iter()
+        .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+        .collect();
+    let array = ndarray::ArrayD::from_shape_vec(vec![clip.n_frames(), 22, 3], values).unwrap();
+    motion::npy::write_npy(path, array.view()).unwrap();
+}
+
+/// A folder remembers the settings of the run that started it: `--resume` (or any later run
+/// there) with other settings is refused before anything is computed, naming what differs,
+/// so that a dataset never mixes two cutoffs or two models; more variants are accepted (a
+/// variant depends on the seed, the clip and its index only).
+#[test]
+fn a_run_with_other_settings_is_refused_in_a_folder() {
+    let dir = temp_dir("settings-inputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    let chain = chain();
+    write_demo_as_joints(&chain, 2, &dir.join("reach.npy"));
+    write_demo_as_joints(&chain, 1, &dir.join("squat.npy"));
+    let exe = env!("CARGO_BIN_EXE_musculo");
+    let out = temp_dir("settings-out");
+    let augment = |extra: &[&str], inputs: &[&str]| {
+        let mut command = std::process::Command::new(exe);
+        command.args(["augment", "--format", "humanml3d", "--out"]);
+        command.arg(&out).args(extra).arg("--input");
+        command.args(inputs.iter().map(|i| dir.join(i)));
+        let result = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr).to_string();
+        (result.status.success(), stderr)
+    };
+    let (ok, stderr) = augment(&[], &["reach.npy"]);
+    assert!(ok, "{stderr}");
+    let settings: output::RunSettings =
+        serde_json::from_str(&std::fs::read_to_string(out.join(output::SETTINGS)).unwrap())
+            .unwrap();
+    assert_eq!(settings.run.lowpass_hz, Some(6.0));
+    let reach = std::fs::read(out.join("reach.npz")).unwrap();
+    // another cutoff, seed and contact setting, and a new clip: refused, nothing written
+    let (ok, stderr) = augment(
+        &["--resume", "--lowpass", "4", "--seed", "3", "--treadmill"],
+        &["reach.npy", "squat.npy"],
+    );
+    assert!(!ok, "{stderr}");
+    for said in [
+        "holds results of a run with other settings",
+        "--lowpass: 6 Hz then → 4 Hz now",
+        "--seed: 0 then → 3 now",
+        "--treadmill",
+    ] {
+        assert!(stderr.contains(said), "{said}: {stderr}");
+    }
+    assert!(!out.join("squat.npz").exists());
+    // without --resume too (no clip of this run finished there yet)
+    let (ok, stderr) = augment(&["--muscle-strength", "2"], &["squat.npy"]);
+    assert!(
+        !ok && stderr.contains("--muscle-strength: 1 then → 2 now"),
+        "{stderr}"
+    );
+    // the same settings with a new clip and a second variant: accepted, the first clip kept
+    let (ok, stderr) = augment(
+        &["--resume", "--variants", "2"],
+        &["reach.npy", "squat.npy"],
+    );
+    assert!(ok, "{stderr}");
+    assert_eq!(std::fs::read(out.join("reach.npz")).unwrap(), reach);
+    for f in ["squat.npz", "reach_v1.npz", "squat_v1.npz"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    for d in [dir, out] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
 /// A cutoff above 0.49 of a clip's sampling rate is lowered to it by the filter (OpenSim's
 /// rule), and the run says so: on stderr and in the clip's warnings in the manifest. At the
 /// default 6 Hz the same clip has no warning.
@@ -397,16 +474,8 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
 fn a_cutoff_above_the_clips_rate_is_reported() {
     let dir = temp_dir("cutoff-inputs");
     std::fs::create_dir_all(&dir).unwrap();
-    let chain = chain();
-    let (_, reach) = demo::clips(&chain.model).unwrap().remove(2);
-    let values: Vec<f32> = reach
-        .positions
-        .iter()
-        .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
-        .collect();
-    let array = ndarray::ArrayD::from_shape_vec(vec![reach.n_frames(), 22, 3], values).unwrap();
     // read back as HumanML3D joints: 20 fps, that format's rate
-    motion::npy::write_npy(&dir.join("reach.npy"), array.view()).unwrap();
+    write_demo_as_joints(&chain(), 2, &dir.join("reach.npy"));
     let exe = env!("CARGO_BIN_EXE_musculo");
     for (lowpass, expected) in [("20", true), ("6", false)] {
         let out = temp_dir(&format!("cutoff-out-{lowpass}"));

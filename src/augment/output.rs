@@ -6,6 +6,10 @@
 //! - `.musculo/records/<clip>.json` — the clip's record: status, reason, variant, quality
 //!   figures and the per-feature sums of `x` for the statistics; written after the `.npz`,
 //!   so a record means the clip is complete;
+//! - `.musculo/settings.json` — what the clips' outputs depend on besides the clips
+//!   ([`RunSettings`]), written by the first run into the folder: every later run there (a
+//!   resumed one, another shard) must have the same, so that a folder never mixes results of
+//!   different settings;
 //! - `manifest.json` and `stats.npz` — written at the end of an unsharded run, or by
 //!   `musculo merge` from the records once every shard has finished. Both are computed from
 //!   the records in clip order only, so the same clips give the same bytes whatever the
@@ -26,6 +30,8 @@ use std::path::{Path, PathBuf};
 pub const RECORDS: &str = ".musculo/records";
 /// Folder of the shard lists, inside the output folder.
 pub const SHARDS: &str = ".musculo/shards";
+/// The settings of the run the output folder holds ([`RunSettings`]).
+pub const SETTINGS: &str = ".musculo/settings.json";
 
 /// The manifest's description of the tensors (same for every clip of a run).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -63,6 +69,133 @@ pub struct RunDescription {
 
 fn unit_strength() -> f64 {
     1.0
+}
+
+/// What a run's outputs depend on besides its clips, kept in the output folder
+/// ([`SETTINGS`]) by the first run there and required of every later one ([`claim_settings`]):
+/// a resumed run that changed `--lowpass` would otherwise finish a dataset half of which was
+/// filtered at one cutoff and half at another, under a manifest that names only the second.
+/// The number of variants may differ: variant k of a clip depends on the seed, the clip and k
+/// only, so a resumed run may add variants.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunSettings {
+    pub run: RunDescription,
+    /// The chain's options but those `run` holds (IK, contacts, static optimization,
+    /// reserves, OpenSim files), as Rust's `Debug` prints them.
+    pub chain: String,
+    /// The skeleton map given for every input (without the path it was read from); None:
+    /// each format's built-in map.
+    pub map: Option<String>,
+    /// How the inputs are read (length unit).
+    pub read: String,
+    /// An ExternalLoads file for the run's single trial.
+    pub external_loads: Option<String>,
+    /// Each C3D input's force plates as measured loads.
+    pub force_plates: bool,
+}
+
+impl RunSettings {
+    /// The settings in which `now` differs from `self` (but for the number of variants), each
+    /// as `name: value then → value now` where the values are short.
+    pub fn differences(&self, now: &RunSettings) -> Vec<String> {
+        let (a, b) = (&self.run, &now.run);
+        let mut out = Vec::new();
+        let mut short = |name: &str, then: String, now: String| {
+            if then != now {
+                out.push(format!("{name}: {then} then → {now} now"));
+            }
+        };
+        short(
+            "musculo version",
+            a.musculo_version.clone(),
+            b.musculo_version.clone(),
+        );
+        short(
+            "model",
+            format!("{} (hash {})", a.model, a.model_hash),
+            format!("{} (hash {})", b.model, b.model_hash),
+        );
+        let hz = |v: Option<f64>| v.map_or("none".to_string(), |v| format!("{v} Hz"));
+        short("--lowpass", hz(a.lowpass_hz), hz(b.lowpass_hz));
+        short(
+            "--muscle-strength",
+            a.muscle_strength.to_string(),
+            b.muscle_strength.to_string(),
+        );
+        short(
+            "scaling to each clip (--no-scale)",
+            a.scale_to_clip.to_string(),
+            b.scale_to_clip.to_string(),
+        );
+        short("--seed", a.seed.to_string(), b.seed.to_string());
+        short(
+            "perturbation ranges",
+            format!("{:?}", a.perturbation),
+            format!("{:?}", b.perturbation),
+        );
+        short(
+            "--force-plates",
+            self.force_plates.to_string(),
+            now.force_plates.to_string(),
+        );
+        for (name, then, now) in [
+            (
+                "the chain's other options (IK, contacts, --treadmill, static optimization, \
+                 reserves or --opensim-files)",
+                Some(&self.chain),
+                Some(&now.chain),
+            ),
+            ("--map", self.map.as_ref(), now.map.as_ref()),
+            ("--length-unit", Some(&self.read), Some(&now.read)),
+            (
+                "--external-loads",
+                self.external_loads.as_ref(),
+                now.external_loads.as_ref(),
+            ),
+        ] {
+            if then != now {
+                out.push(name.to_string());
+            }
+        }
+        out
+    }
+}
+
+/// Writes `settings` into the output folder when it holds none; when it does, requires them
+/// to be the same (but for the number of variants), and otherwise refuses the run, naming
+/// what differs. Run before any clip is computed.
+pub fn claim_settings(out: &Path, settings: &RunSettings) -> crate::Result<()> {
+    let path = out.join(SETTINGS);
+    match std::fs::read_to_string(&path) {
+        Ok(text) => {
+            let held: RunSettings = serde_json::from_str(&text).map_err(|e| Error::Motion {
+                file: path.display().to_string(),
+                location: format!("line {}", e.line()),
+                message: format!("not a run's settings: {e}"),
+            })?;
+            let differences = held.differences(settings);
+            if differences.is_empty() {
+                Ok(())
+            } else {
+                Err(Error::invalid(
+                    "--out",
+                    format!(
+                        "{} holds results of a run with other settings ({}): finish that run \
+                         with the settings it started with, or use another folder",
+                        out.display(),
+                        differences.join("; ")
+                    ),
+                ))
+            }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            create_parent(&path)?;
+            let text = serde_json::to_string_pretty(settings)
+                .map_err(|e| Error::invalid("settings", e.to_string()))?;
+            npy::write_file_atomic(&path, text.as_bytes())
+        }
+        Err(source) => Err(Error::Io { path, source }),
+    }
 }
 
 /// One clip's record.

@@ -7,7 +7,7 @@
 //! list of inputs, so any scheduler (a Slurm array, a Kubernetes Indexed Job, Dask, Ray) can
 //! run the shards anywhere and `musculo merge` puts them together.
 
-use super::chain::{Chain, ClipOutput, MeasuredLoads, OPENSIM_SUFFIXES};
+use super::chain::{Chain, ChainOptions, ClipOutput, MeasuredLoads, OPENSIM_SUFFIXES};
 use super::output::{
     self, ClipRecord, ClipStatus, LayoutDescription, Manifest, RunDescription, SHARDS,
 };
@@ -287,6 +287,7 @@ pub fn run(
         .iter()
         .flat_map(|(c, v)| output::clip_files(&variant_name(&c.name, *v), &OPENSIM_SUFFIXES))
         .collect();
+    own.insert(output::SETTINGS.to_string());
     match options.shard {
         None => own.extend(["manifest.json".to_string(), "stats.npz".to_string()]),
         Some((k, n)) => {
@@ -310,6 +311,7 @@ pub fn run(
             ));
         }
     }
+    output::claim_settings(&options.out, &run_settings(chain, options))?;
     let total = items.len();
     let (done, failed, skipped, frames) = (
         AtomicUsize::new(0),
@@ -499,6 +501,38 @@ pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
         lowpass_hz: chain.options.lowpass_hz,
         scale_to_clip: chain.options.scale_to_clip,
         muscle_strength: chain.options.muscle_strength,
+    }
+}
+
+/// What the run's outputs depend on besides its clips (see [`output::RunSettings`]).
+pub fn run_settings(chain: &Chain, options: &RunOptions) -> output::RunSettings {
+    output::RunSettings {
+        run: run_description(chain, options),
+        // (without the options the run description holds)
+        chain: format!(
+            "{:?}",
+            ChainOptions {
+                lowpass_hz: None,
+                scale_to_clip: true,
+                muscle_strength: 1.0,
+                ..chain.options.clone()
+            }
+        ),
+        map: options.map.as_ref().map(|m| {
+            format!(
+                "{:?}",
+                SkeletonMap {
+                    source: String::new(),
+                    ..m.clone()
+                }
+            )
+        }),
+        read: format!("{:?}", options.read),
+        external_loads: options
+            .external_loads
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        force_plates: options.force_plates,
     }
 }
 
