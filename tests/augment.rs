@@ -462,6 +462,27 @@ fn a_run_with_other_settings_is_refused_in_a_folder() {
     for f in ["squat.npz", "reach_v1.npz", "squat_v1.npz"] {
         assert!(out.join(f).exists(), "{f}");
     }
+    // two shards started at the same moment with different settings both find no settings
+    // in the folder (simulated by removing them in between): the merge refuses them
+    let _ = std::fs::remove_dir_all(&out);
+    let (ok, stderr) = augment(&["--shard", "0/2"], &["reach.npy", "squat.npy"]);
+    assert!(ok, "{stderr}");
+    std::fs::remove_file(out.join(output::SETTINGS)).unwrap();
+    let (ok, stderr) = augment(
+        &["--shard", "1/2", "--treadmill"],
+        &["reach.npy", "squat.npy"],
+    );
+    assert!(ok, "{stderr}");
+    let merged = std::process::Command::new(exe)
+        .arg("merge")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&merged.stderr);
+    assert!(
+        !merged.status.success() && stderr.contains("belongs to another run"),
+        "{stderr}"
+    );
     for d in [dir, out] {
         let _ = std::fs::remove_dir_all(d);
     }

@@ -464,7 +464,16 @@ pub fn run(
             )?)
         }
         Some((k, n)) => {
-            write_shard_list(&options.out, k, n, clips, &run, layout, options.variants)?;
+            let settings = run_settings(chain, options);
+            write_shard_list(
+                &options.out,
+                k,
+                n,
+                clips,
+                &settings,
+                layout,
+                options.variants,
+            )?;
             None
         }
     };
@@ -587,6 +596,11 @@ pub struct ShardList {
     pub layout: LayoutDescription,
     /// Every output name of the dataset (all shards), in order.
     pub all: Vec<(String, String)>,
+    /// Everything else the outputs depend on (absent from lists written before it was
+    /// kept): shards started at the same moment with different settings both find the
+    /// folder without any, and the merge is where they meet.
+    #[serde(default)]
+    pub settings: Option<output::RunSettings>,
 }
 
 fn write_shard_list(
@@ -594,14 +608,15 @@ fn write_shard_list(
     k: usize,
     n: usize,
     clips: &[ClipInput],
-    run: &RunDescription,
+    settings: &output::RunSettings,
     layout: &LayoutDescription,
     variants: usize,
 ) -> crate::Result<()> {
     let list = ShardList {
         shard: k,
         shards: n,
-        run: run.clone(),
+        run: settings.run.clone(),
+        settings: Some(settings.clone()),
         layout: layout.clone(),
         all: clips
             .iter()
@@ -656,7 +671,8 @@ pub fn merge(out: &Path) -> crate::Result<Manifest> {
     };
     let n = first.shards;
     for l in &lists {
-        if l.shards != n || l.run != first.run || l.all != first.all {
+        if l.shards != n || l.run != first.run || l.all != first.all || l.settings != first.settings
+        {
             return Err(Error::invalid(
                 "OUT",
                 format!(
