@@ -390,6 +390,35 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
     }
 }
 
+/// Marker data matched by name to a model that has none of those markers (a gait lab's
+/// .trc on the default model) fails with a message naming both sides and the way out,
+/// rather than IK's "no marker or coordinate task".
+#[test]
+fn markers_the_model_lacks_are_named() {
+    let chain = chain();
+    let names: Vec<String> = ["R.ASIS", "L.ASIS", "V.Sacral"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let positions = (0..10 * names.len())
+        .map(|i| Vec3::new(0.1 * i as f64, 1.0, 0.0))
+        .collect();
+    let motion = Motion::uniform("walk.trc", names, 60.0, positions).unwrap();
+    let e = chain
+        .run(&motion, None, &Variant::identity())
+        .err()
+        .expect("no common marker");
+    let message = e.to_string();
+    for said in [
+        "walk.trc: none of its 3 markers (R.ASIS, L.ASIS, V.Sacral)",
+        "the model `musculo_fullbody`",
+        "--model",
+        "--map",
+    ] {
+        assert!(message.contains(said), "{said}: {message}");
+    }
+}
+
 /// Demo clip `index` (march, squat, reach) written as a HumanML3D joints array.
 fn write_demo_as_joints(chain: &Chain, index: usize, path: &Path) {
     let (_, clip) = demo::clips(&chain.model).unwrap().remove(index);

@@ -312,7 +312,13 @@ impl Chain {
         let (model, scaled_xml) = self.clip_model_and_xml(&motion, map, variant)?;
         let (targets, tasks) = match map {
             Some(map) => map.apply(&model, &motion)?,
-            None => (motion.clone(), ik::tasks_by_name(&model, &motion)),
+            None => {
+                let tasks = ik::tasks_by_name(&model, &motion);
+                if tasks.markers.is_empty() {
+                    return Err(no_common_markers(&model, &motion));
+                }
+                (motion.clone(), tasks)
+            }
         };
         let targets = trim_to_data(&targets, &mut warnings)?;
         // --- inverse kinematics ---
@@ -921,6 +927,32 @@ fn add_reserves(model: &mut Model, optimal_force: f64) {
             file: String::new(),
         });
     }
+}
+
+/// The error for marker data matched by name to a model that has none of its markers.
+fn no_common_markers(model: &Model, motion: &Motion) -> Error {
+    let first = |names: &mut dyn Iterator<Item = &str>| {
+        let names: Vec<&str> = names.collect();
+        let shown = names.iter().take(4).copied().collect::<Vec<_>>().join(", ");
+        if names.len() > 4 {
+            format!("{shown}, …")
+        } else {
+            shown
+        }
+    };
+    Error::invalid(
+        "markers",
+        format!(
+            "{}: none of its {} markers ({}) is a marker of the model `{}` ({} markers: {}); \
+             give the model they were placed on (--model) or a skeleton map (--map)",
+            motion.source,
+            motion.names.len(),
+            first(&mut motion.names.iter().map(String::as_str)),
+            model.name,
+            model.markers.len(),
+            first(&mut model.markers.iter().map(|m| m.name.as_str())),
+        ),
+    )
 }
 
 fn at_frame(source: &str, frame: usize, e: Error) -> Error {
