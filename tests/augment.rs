@@ -418,6 +418,54 @@ fn markers_the_model_lacks_are_named() {
     }
 }
 
+/// Measured-load options that cannot apply: a missing ExternalLoads file stops the run
+/// before it makes its output folder; `--force-plates` on a clip that is not a C3D file
+/// estimates its ground reactions and says so (on stderr and in the clip's warnings).
+#[test]
+fn measured_loads_that_cannot_apply_are_reported() {
+    let dir = temp_dir("loads-inputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    write_demo_as_joints(&chain(), 2, &dir.join("reach.npy"));
+    let exe = env!("CARGO_BIN_EXE_musculo");
+    let out = temp_dir("loads-out");
+    let run = |extra: &[&str]| {
+        let result = std::process::Command::new(exe)
+            .args(["augment", "--format", "humanml3d", "--input"])
+            .arg(dir.join("reach.npy"))
+            .arg("--out")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            result.status.success(),
+            String::from_utf8_lossy(&result.stderr).to_string(),
+        )
+    };
+    let missing = dir.join("no_such_loads.xml");
+    let (ok, stderr) = run(&["--external-loads", missing.to_str().unwrap()]);
+    assert!(!ok && stderr.contains("no_such_loads.xml"), "{stderr}");
+    assert!(
+        !out.exists(),
+        "no output folder for a run that cannot start"
+    );
+    let (ok, stderr) = run(&["--force-plates"]);
+    assert!(ok, "{stderr}");
+    let said = "--force-plates: only C3D files carry force plates";
+    assert!(
+        stderr
+            .lines()
+            .any(|l| l.starts_with("warning: ") && l.contains(said)),
+        "{stderr}"
+    );
+    let manifest: output::Manifest =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    assert!(manifest.clips[0].warnings.iter().any(|w| w.contains(said)));
+    for d in [dir, out] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
 /// Demo clip `index` (march, squat, reach) written as a HumanML3D joints array.
 fn write_demo_as_joints(chain: &Chain, index: usize, path: &Path) {
     let (_, clip) = demo::clips(&chain.model).unwrap().remove(index);

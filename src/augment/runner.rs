@@ -273,6 +273,13 @@ pub fn run(
             ),
         ));
     }
+    // a missing loads file is the run's error, before an output folder is made
+    if let Some(p) = &options.external_loads {
+        std::fs::metadata(p).map_err(|source| Error::Io {
+            path: p.clone(),
+            source,
+        })?;
+    }
     std::fs::create_dir_all(&options.out).map_err(|source| Error::Io {
         path: options.out.clone(),
         source,
@@ -574,6 +581,13 @@ fn process(
             let mut output = chain.run_with_loads(&motion, map, variant, loads.as_ref())?;
             let read = read_warnings.iter().map(|w| w.to_string());
             output.warnings.splice(0..0, read);
+            if options.force_plates && loads.is_none() {
+                output.warnings.push(format!(
+                    "{}: --force-plates: only C3D files carry force plates; this clip's ground \
+                     reactions are estimated from its kinematics",
+                    path.display()
+                ));
+            }
             Ok(output)
         }
         ClipSource::Motion(motion) => {
