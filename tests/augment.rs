@@ -522,6 +522,11 @@ fn a_run_with_other_settings_is_refused_in_a_folder() {
         assert!(stderr.contains(said), "{said}: {stderr}");
     }
     assert!(!out.join("squat.npz").exists());
+    let (ok, stderr) = augment(&["--resume", "--opensim-files"], &["reach.npy"]);
+    assert!(
+        !ok && stderr.contains("--opensim-files (or --report, which implies it): false then"),
+        "{stderr}"
+    );
     // without --resume too (no clip of this run finished there yet)
     let (ok, stderr) = augment(&["--muscle-strength", "2"], &["squat.npy"]);
     assert!(

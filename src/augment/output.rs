@@ -80,9 +80,11 @@ fn unit_strength() -> f64 {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunSettings {
     pub run: RunDescription,
-    /// The chain's options but those `run` holds (IK, contacts, static optimization,
-    /// reserves, OpenSim files), as Rust's `Debug` prints them.
+    /// The chain's options but those `run` holds and `opensim_files` (IK, contacts, static
+    /// optimization, reserves), as Rust's `Debug` prints them.
     pub chain: String,
+    /// Whether each clip also has its OpenSim files (`--opensim-files`, or `--report`).
+    pub opensim_files: bool,
     /// The skeleton map given for every input (without the path it was read from); None:
     /// each format's built-in map.
     pub map: Option<String>,
@@ -134,6 +136,11 @@ impl RunSettings {
             format!("{:?}", b.perturbation),
         );
         short(
+            "--opensim-files (or --report, which implies it)",
+            self.opensim_files.to_string(),
+            now.opensim_files.to_string(),
+        );
+        short(
             "--force-plates",
             self.force_plates.to_string(),
             now.force_plates.to_string(),
@@ -141,7 +148,7 @@ impl RunSettings {
         for (name, then, now) in [
             (
                 "the chain's other options (IK, contacts, --treadmill, static optimization, \
-                 reserves or --opensim-files)",
+                 or reserves)",
                 Some(&self.chain),
                 Some(&now.chain),
             ),

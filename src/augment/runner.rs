@@ -524,16 +524,18 @@ pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
 pub fn run_settings(chain: &Chain, options: &RunOptions) -> output::RunSettings {
     output::RunSettings {
         run: run_description(chain, options),
-        // (without the options the run description holds)
+        // (without the options named on their own)
         chain: format!(
             "{:?}",
             ChainOptions {
                 lowpass_hz: None,
                 scale_to_clip: true,
                 muscle_strength: 1.0,
+                opensim_files: false,
                 ..chain.options.clone()
             }
         ),
+        opensim_files: chain.options.opensim_files,
         map: options.map.as_ref().map(|m| {
             format!(
                 "{:?}",
