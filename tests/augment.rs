@@ -426,22 +426,8 @@ fn measured_loads_that_cannot_apply_are_reported() {
     let dir = temp_dir("loads-inputs");
     std::fs::create_dir_all(&dir).unwrap();
     write_demo_as_joints(&chain(), 2, &dir.join("reach.npy"));
-    let exe = env!("CARGO_BIN_EXE_musculo");
     let out = temp_dir("loads-out");
-    let run = |extra: &[&str]| {
-        let result = std::process::Command::new(exe)
-            .args(["augment", "--format", "humanml3d", "--input"])
-            .arg(dir.join("reach.npy"))
-            .arg("--out")
-            .arg(&out)
-            .args(extra)
-            .output()
-            .unwrap();
-        (
-            result.status.success(),
-            String::from_utf8_lossy(&result.stderr).to_string(),
-        )
-    };
+    let run = |args: &[&str]| augment_cli(&[dir.join("reach.npy")], &out, args);
     let missing = dir.join("no_such_loads.xml");
     let (ok, stderr) = run(&["--external-loads", missing.to_str().unwrap()]);
     assert!(!ok && stderr.contains("no_such_loads.xml"), "{stderr}");
@@ -464,6 +450,23 @@ fn measured_loads_that_cannot_apply_are_reported() {
     for d in [dir, out] {
         let _ = std::fs::remove_dir_all(d);
     }
+}
+
+/// `musculo augment` with `args` (HumanML3D joints input, output folder `out`): whether it
+/// succeeded, and its stderr.
+fn augment_cli(input: &[PathBuf], out: &Path, args: &[&str]) -> (bool, String) {
+    let result = std::process::Command::new(env!("CARGO_BIN_EXE_musculo"))
+        .args(["augment", "--format", "humanml3d", "--out"])
+        .arg(out)
+        .args(args)
+        .arg("--input")
+        .args(input)
+        .output()
+        .unwrap();
+    (
+        result.status.success(),
+        String::from_utf8_lossy(&result.stderr).into_owned(),
+    )
 }
 
 /// Demo clip `index` (march, squat, reach) written as a HumanML3D joints array.
@@ -491,14 +494,9 @@ fn a_run_with_other_settings_is_refused_in_a_folder() {
     write_demo_as_joints(&chain, 1, &dir.join("squat.npy"));
     let exe = env!("CARGO_BIN_EXE_musculo");
     let out = temp_dir("settings-out");
-    let augment = |extra: &[&str], inputs: &[&str]| {
-        let mut command = std::process::Command::new(exe);
-        command.args(["augment", "--format", "humanml3d", "--out"]);
-        command.arg(&out).args(extra).arg("--input");
-        command.args(inputs.iter().map(|i| dir.join(i)));
-        let result = command.output().unwrap();
-        let stderr = String::from_utf8_lossy(&result.stderr).to_string();
-        (result.status.success(), stderr)
+    let augment = |args: &[&str], inputs: &[&str]| {
+        let inputs: Vec<PathBuf> = inputs.iter().map(|i| dir.join(i)).collect();
+        augment_cli(&inputs, &out, args)
     };
     let (ok, stderr) = augment(&[], &["reach.npy"]);
     assert!(ok, "{stderr}");
@@ -578,18 +576,10 @@ fn a_cutoff_above_the_clips_rate_is_reported() {
     std::fs::create_dir_all(&dir).unwrap();
     // read back as HumanML3D joints: 20 fps, that format's rate
     write_demo_as_joints(&chain(), 2, &dir.join("reach.npy"));
-    let exe = env!("CARGO_BIN_EXE_musculo");
     for (lowpass, expected) in [("20", true), ("6", false)] {
         let out = temp_dir(&format!("cutoff-out-{lowpass}"));
-        let result = std::process::Command::new(exe)
-            .args(["augment", "--input"])
-            .arg(dir.join("reach.npy"))
-            .args(["--format", "humanml3d", "--lowpass", lowpass, "--out"])
-            .arg(&out)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&result.stderr);
-        assert!(result.status.success(), "{stderr}");
+        let (ok, stderr) = augment_cli(&[dir.join("reach.npy")], &out, &["--lowpass", lowpass]);
+        assert!(ok, "{stderr}");
         let manifest: output::Manifest =
             serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap())
                 .unwrap();
