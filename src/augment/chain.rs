@@ -931,15 +931,16 @@ fn add_reserves(model: &mut Model, optimal_force: f64) {
 
 /// The error for marker data matched by name to a model that has none of its markers.
 fn no_common_markers(model: &Model, motion: &Motion) -> Error {
-    let first = |names: &mut dyn Iterator<Item = &str>| {
+    // the first four names, and "…" when there are more
+    fn some<'a>(names: impl Iterator<Item = &'a str>) -> String {
         let names: Vec<&str> = names.collect();
-        let shown = names.iter().take(4).copied().collect::<Vec<_>>().join(", ");
+        let shown = names[..names.len().min(4)].join(", ");
         if names.len() > 4 {
             format!("{shown}, …")
         } else {
             shown
         }
-    };
+    }
     Error::invalid(
         "markers",
         format!(
@@ -947,10 +948,10 @@ fn no_common_markers(model: &Model, motion: &Motion) -> Error {
              give the model they were placed on (--model) or a skeleton map (--map)",
             motion.source,
             motion.names.len(),
-            first(&mut motion.names.iter().map(String::as_str)),
+            some(motion.names.iter().map(String::as_str)),
             model.name,
             model.markers.len(),
-            first(&mut model.markers.iter().map(|m| m.name.as_str())),
+            some(model.markers.iter().map(|m| m.name.as_str())),
         ),
     )
 }

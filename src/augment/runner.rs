@@ -318,7 +318,8 @@ pub fn run(
             ));
         }
     }
-    output::claim_settings(&options.out, &run_settings(chain, options))?;
+    let settings = run_settings(chain, options);
+    output::claim_settings(&options.out, &settings)?;
     let total = items.len();
     let (done, failed, skipped, frames) = (
         AtomicUsize::new(0),
@@ -459,19 +460,17 @@ pub fn run(
         }
         records.push(record);
     }
-    let run = run_description(chain, options);
     let manifest = match options.shard {
         None => {
             let names: Vec<String> = records.iter().map(|r| r.clip.clone()).collect();
             Some(output::write_manifest(
                 &options.out,
-                &run,
+                &settings.run,
                 Some(layout),
                 &names,
             )?)
         }
         Some((k, n)) => {
-            let settings = run_settings(chain, options);
             write_shard_list(
                 &options.out,
                 k,
