@@ -352,6 +352,41 @@ fn an_npy_of_neither_dataset_shape_is_an_error_naming_its_shape() {
     assert!(!ok && err.contains("array shape"), "{err}");
 }
 
+/// A format the file's extension contradicts (`--format bvh` on an `.npy`) is refused by
+/// name, before the reader meets the first bytes; an extension of no known format (a BVH
+/// saved as `.txt`) is left to the reader, and a matching one reads.
+#[test]
+fn a_format_the_extension_contradicts_is_named() {
+    let dir = ScratchDir::new("format-extension");
+    let npy = dir.join("clip.npy");
+    std::fs::write(&npy, b"\x93NUMPY whatever").unwrap();
+    let e = motion::read(&npy, Some(Format::Bvh), &ReadOptions::default()).unwrap_err();
+    let (file, location, message) = expect_motion_error(e);
+    assert_eq!(
+        (file.as_str(), location.as_str()),
+        (npy.to_str().unwrap(), "file name")
+    );
+    assert!(
+        message.contains("read as bvh (--format), but `.npy` names a NumPy array")
+            && message.contains("leave --format out"),
+        "{message}"
+    );
+    for format in [Format::C3d, Format::Trc] {
+        let e = motion::read(&npy, Some(format), &ReadOptions::default()).unwrap_err();
+        assert_eq!(expect_motion_error(e).1, "file name");
+    }
+    // `.txt`: the reader's own error (not a BVH), not the extension's
+    let txt = dir.join("clip.txt");
+    std::fs::write(&txt, "not a motion").unwrap();
+    let e = motion::read(&txt, Some(Format::Bvh), &ReadOptions::default()).unwrap_err();
+    assert_ne!(expect_motion_error(e).1, "file name");
+    // `.npy` read as KIT-ML or HumanML3D passes the check (and fails on the content here)
+    for format in [Format::HumanMl3d, Format::Kit] {
+        let e = motion::read(&npy, Some(format), &ReadOptions::default()).unwrap_err();
+        assert_ne!(expect_motion_error(e).1, "file name");
+    }
+}
+
 #[test]
 fn the_shape_message_has_no_run_of_spaces() {
     let Some(hml) = reference_file(HML_JOINTS) else {

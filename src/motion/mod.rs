@@ -93,6 +93,49 @@ impl Format {
         }
     }
 
+    /// Refuses a format that another one's file extension contradicts (`--format bvh` on an
+    /// `.npy` file), where reading would fail on the first bytes with a message about them;
+    /// a file of another extension (a BVH saved as `.txt`) is left to the reader.
+    pub fn check_extension(self, path: &Path) -> crate::Result<()> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        let (formats, what): (&[Format], &str) = match ext.as_str() {
+            "npy" => (
+                &[Format::HumanMl3d, Format::Kit],
+                "a NumPy array (HumanML3D or KIT-ML)",
+            ),
+            "bvh" => (&[Format::Bvh], "a BVH file"),
+            "c3d" => (&[Format::C3d], "a C3D file"),
+            "trc" => (&[Format::Trc], "a TRC file"),
+            _ => return Ok(()),
+        };
+        if formats.contains(&self) {
+            return Ok(());
+        }
+        Err(Error::Motion {
+            file: path.display().to_string(),
+            location: "file name".into(),
+            message: format!(
+                "read as {} (--format), but `.{ext}` names {what}; leave --format out to \
+                 detect each file's format, or give the one this file has",
+                self.name()
+            ),
+        })
+    }
+
+    /// The format's name as [`Format::parse`] takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::HumanMl3d => "humanml3d",
+            Format::Kit => "kit",
+            Format::Bvh => "bvh",
+            Format::C3d => "c3d",
+            Format::Trc => "trc",
+        }
+    }
+
     /// The built-in skeleton map of the format (None: markers matched by name).
     pub fn default_map(self) -> Option<&'static str> {
         match self {
@@ -129,7 +172,10 @@ pub fn read_with_warnings(
     options: &ReadOptions,
 ) -> crate::Result<(Motion, Vec<crate::io::FileWarning>)> {
     let format = match format {
-        Some(f) => f,
+        Some(f) => {
+            f.check_extension(path)?;
+            f
+        }
         None => Format::detect(path)?,
     };
     let motion = match format {
