@@ -177,6 +177,77 @@ fn a_destination_that_is_a_folder_is_refused_and_nothing_is_written() {
 }
 
 #[test]
+fn a_destination_that_is_a_pipe_is_refused_and_a_link_is_written_through() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = ScratchDir::new("outputs-special");
+    // A named pipe (a device such as /dev/null behaves alike): the rename of a new file onto
+    // it would replace it, and as root `-o /dev/null` would delete the device.
+    let pipe = d.join("pipe.xml");
+    let made = Command::new("mkfifo").arg(&pipe).status();
+    if made.map(|s| s.success()).unwrap_or(false) {
+        let (ok, err) = run(&args("export-mjcf --demo -o {}", &[&pipe]));
+        assert!(!ok);
+        assert!(
+            err.contains("pipe.xml: is a device, named pipe or socket"),
+            "{err}"
+        );
+        let meta = std::fs::symlink_metadata(&pipe).unwrap();
+        assert!(
+            meta.file_type().is_fifo(),
+            "the pipe was replaced: {meta:?}"
+        );
+        let (ok, err) = run(&args(
+            "model scale {} --mass 30 --height 1.8 --model-height 1.7 -o {}",
+            &[demo(), &pipe],
+        ));
+        assert!(!ok);
+        assert!(err.contains("named pipe"), "{err}");
+        assert!(
+            std::fs::symlink_metadata(&pipe)
+                .unwrap()
+                .file_type()
+                .is_fifo()
+        );
+    } else {
+        eprintln!("skipped the named pipe: mkfifo is not available");
+    }
+    // A symbolic link to a file: the file is replaced, the link kept.
+    let real = d.join("real.xml");
+    std::fs::write(&real, b"old").unwrap();
+    let link = d.join("link.xml");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let (ok, err) = run(&args("export-mjcf --demo -o {}", &[&link]));
+    assert!(ok, "{err}");
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    let written = std::fs::read_to_string(&real).unwrap();
+    assert!(
+        written.contains("<mujoco"),
+        "{}",
+        &written[..written.len().min(200)]
+    );
+    // A link to nothing is refused, and stays a link.
+    let dangling = d.join("dangling.xml");
+    std::os::unix::fs::symlink(d.join("missing/nothing.xml"), &dangling).unwrap();
+    let (ok, err) = run(&args("export-mjcf --demo -o {}", &[&dangling]));
+    assert!(!ok);
+    assert!(
+        err.contains("symbolic link to a file that cannot be reached"),
+        "{err}"
+    );
+    assert!(
+        std::fs::symlink_metadata(&dangling)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+}
+
+#[test]
 fn a_write_into_a_read_only_folder_fails_and_leaves_no_file() {
     let d = ScratchDir::new("outputs-read-only");
     if !permissions_are_enforced(&d.0) {

@@ -23,8 +23,9 @@
 //!
 //! Refused before anything is written ([`OutputSet::check`]): an output that is one of the
 //! command's inputs (compared as canonical paths, so `a.mot`, `./a.mot` and a symbolic link
-//! to it are one file), an output that is a folder, a path without a file name, and one file
-//! twice in a set. [`plain_name_problem`] says why a name taken from a setup file may not be
+//! to it are one file), an output that is a folder, a device, a named pipe or a socket (the
+//! rename would replace it), a path without a file name, and one file twice in a set. An
+//! output that is a symbolic link replaces the file it points to and keeps the link. [`plain_name_problem`] says why a name taken from a setup file may not be
 //! a file name inside a results folder; [`name_in_folder`] gives `-o out/` its meaning.
 //!
 //! Errors are [`Error::Output`] naming the output file (or the folder that could not be made).
@@ -72,9 +73,47 @@ pub(crate) struct AtomicFile {
     target: PathBuf,
 }
 
+/// The file an output to `target` replaces: `target` itself when it is a regular file or does
+/// not exist, the file a symbolic link points to (the link is kept, as a shell's `>` keeps
+/// it). Anything else at that path — a device such as `/dev/null`, a named pipe, a socket, a
+/// folder, a link to a missing file — is refused: renaming a new file onto it would replace
+/// it (run as root, `-o /dev/null` would delete the device).
+fn replaceable_target(target: &Path) -> crate::Result<PathBuf> {
+    let Ok(meta) = std::fs::symlink_metadata(target) else {
+        return Ok(target.to_path_buf());
+    };
+    let (resolved, meta) = if meta.file_type().is_symlink() {
+        let resolved = target.canonicalize().map_err(|e| {
+            output_error(
+                target,
+                format!("is a symbolic link to a file that cannot be reached ({e})"),
+            )
+        })?;
+        let meta = std::fs::metadata(&resolved).map_err(|e| output_error(target, e.to_string()))?;
+        (resolved, meta)
+    } else {
+        (target.to_path_buf(), meta)
+    };
+    if meta.is_file() {
+        Ok(resolved)
+    } else {
+        let what = if meta.is_dir() {
+            "an existing folder"
+        } else {
+            "a device, named pipe or socket, not a regular file"
+        };
+        Err(output_error(
+            target,
+            format!("is {what}: outputs are written as regular files; choose another path"),
+        ))
+    }
+}
+
 impl AtomicFile {
-    /// Creates the temporary file (never an existing one) for `target`.
+    /// Creates the temporary file (never an existing one) for `target` (see
+    /// [`replaceable_target`]: a link is followed, a device or pipe refused).
     pub(crate) fn create(target: &Path) -> crate::Result<(AtomicFile, std::fs::File)> {
+        let target = &replaceable_target(target)?;
         let name = target
             .file_name()
             .ok_or_else(|| output_error(target, "not a file path"))?;
@@ -274,9 +313,7 @@ impl OutputSet {
         if name.is_none() {
             return Err(output_error(target, "not a file path (it names a folder)"));
         }
-        if target.is_dir() {
-            return Err(output_error(target, "is an existing folder"));
-        }
+        replaceable_target(target)?;
         let Some(canonical) = canonical_target(target) else {
             return Ok(()); // its folder does not exist yet: not an input, not staged
         };
