@@ -567,9 +567,9 @@ fn a_run_with_other_settings_is_refused_in_a_folder() {
     }
 }
 
-/// A cutoff above 0.49 of a clip's sampling rate is lowered to it by the filter (OpenSim's
-/// rule), and the run says so: on stderr and in the clip's warnings in the manifest. At the
-/// default 6 Hz the same clip has no warning.
+/// A cutoff above 0.4 of a clip's sampling rate (where the filter rings) is lowered to that,
+/// and the run says so: on stderr and in the clip's warnings in the manifest. At the default
+/// 6 Hz the same clip has no warning.
 #[test]
 fn a_cutoff_above_the_clips_rate_is_reported() {
     let dir = temp_dir("cutoff-inputs");
@@ -584,8 +584,8 @@ fn a_cutoff_above_the_clips_rate_is_reported() {
             serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap())
                 .unwrap();
         let warnings = &manifest.clips[0].warnings;
-        let said = "the low-pass cutoff 20 Hz is above 0.49 of the clip's sampling rate (20 Hz): \
-                    its coordinates were filtered at 9.8 Hz";
+        let said = "the low-pass cutoff 20 Hz is above 0.4 of the clip's sampling rate (20 Hz), \
+                    where the filter rings: its coordinates were filtered at 8 Hz";
         assert_eq!(
             warnings.iter().any(|w| w.contains(said)),
             expected,

@@ -31,6 +31,7 @@ use crate::solve::contact::{
     self, ContactFrame, ContactOptions, ContactSet, ContactWorkspace, GroupWrench,
 };
 use crate::solve::external_loads::ExternalLoadSet;
+use crate::solve::filter::HIGHEST_CUTOFF_FRACTION;
 use crate::solve::ik::{self, IkSettings};
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
 use crate::solve::scale_from_clip;
@@ -348,22 +349,31 @@ impl Chain {
             .zip(&targets.time)
             .all(|(g, t)| (g - t).abs() <= 0.05 * dt);
         let times = if on_grid { grid } else { targets.time.clone() };
-        // The filter lowers a cutoff above 0.49 of the sampling rate to that (OpenSim's rule;
-        // `solve::filter::lowpass_butterworth3`): said here, since one cutoff serves a dataset
-        // of several rates (HumanML3D's 20 fps against mocap's 120).
-        if let Some(fc) = self.options.lowpass_hz {
-            let highest = 0.49 * (frames - 1) as f64 / (times[frames - 1] - times[0]);
+        // One cutoff serves a dataset of several rates (HumanML3D's 20 fps against mocap's
+        // 120): above 0.4 of a clip's rate, where the filter would ring
+        // (`solve::filter::HIGHEST_CUTOFF_FRACTION`), the clip is filtered at that fraction,
+        // and its warnings say so.
+        let lowpass_hz = self.options.lowpass_hz.map(|fc| {
+            let rate = (frames - 1) as f64 / (times[frames - 1] - times[0]);
+            let highest = HIGHEST_CUTOFF_FRACTION * rate;
             if fc > highest {
+                // rounded down to 1 mHz (after a nudge of 1e-10 against the round-off of
+                // the rate, within the filter's own margin of 1e-9), so its check passes
+                let lowered = (highest * (1.0 + 1e-10) * 1e3).floor() / 1e3;
                 warnings.push(format!(
-                    "{}: the low-pass cutoff {} Hz is above 0.49 of the clip's sampling rate \
-                     ({} Hz): its coordinates were filtered at {} Hz",
+                    "{}: the low-pass cutoff {} Hz is above {HIGHEST_CUTOFF_FRACTION} of the \
+                     clip's sampling rate ({} Hz), where the filter rings: its coordinates \
+                     were filtered at {} Hz",
                     motion.source,
                     short_number(fc),
                     short_number(targets.rate_hz),
-                    short_number((highest * 1e3).round() / 1e3)
+                    short_number(lowered)
                 ));
+                lowered
+            } else {
+                fc
             }
-        }
+        });
         let table = Table::new("ik", names, times.clone(), solution.q.clone())?;
         let trajectory = CoordinateTrajectory::from_table(
             &model,
@@ -373,7 +383,7 @@ impl Chain {
             },
             &motion.source,
             &KinematicsOptions {
-                lowpass_hz: self.options.lowpass_hz,
+                lowpass_hz,
                 differentiation: Differentiation::SecondDerivative,
             },
         )?;

@@ -18,9 +18,10 @@
 //!    natural quintic spline, at the times t₀, t₀ + h, t₀ + 2h, … accumulated by repeated
 //!    addition while ≤ the last time (as OpenSim's loop does, so the output times carry the
 //!    same drift, e.g. 0.39999934 for 0.4). Each column is then filtered by the zero-lag
-//!    third-order Butterworth low-pass ([`super::filter::lowpass_butterworth3`]; a cutoff at
-//!    or above 0.49 of the sampling rate is lowered to 0.49 of it, where OpenSim lowers only
-//!    cutoffs at or above 0.5 of it).
+//!    third-order Butterworth low-pass ([`super::filter::lowpass_butterworth3`]). A cutoff
+//!    above 0.4 of the sampling rate is an error: OpenSim lowers one at or above half the
+//!    rate to 0.49 of it, where the filter rings and the accelerations become noise
+//!    ([`super::filter::HIGHEST_CUTOFF_FRACTION`]).
 //! 2. Rotational coordinates are converted to radians when the file is in degrees. A file
 //!    without `inDegrees` counts as degrees when it is an unversioned (SIMM) `.mot`, as
 //!    OpenSim's `Storage` decides, and as radians otherwise.
@@ -55,7 +56,7 @@
 //!   `inDegrees=no`); the header is still honoured.
 
 use super::external_loads::ExternalLoadSet;
-use super::filter::{accumulated_grid, lowpass_butterworth3, pad_odd};
+use super::filter::{accumulated_grid, cutoff_problem, lowpass_butterworth3, pad_odd};
 use super::kinematics::{
     CoordinateTrajectory, Differentiation, KinematicsOptions, independent_columns,
 };
@@ -256,6 +257,9 @@ pub fn prepare_coordinates(
             }
             time = new_time;
             resampled = true;
+        }
+        if let Some(problem) = cutoff_problem(fc, dt) {
+            return Err(Error::invalid("lowpass_hz", problem));
         }
         for (col, name) in columns.iter_mut().zip(&names) {
             *col = lowpass_butterworth3(col, dt, fc)

@@ -14,7 +14,7 @@
 //!   q̈ is the derivative of a second quintic spline through the speeds S'(t_i) sampled at
 //!   the data times.
 
-use super::filter::{lowpass_butterworth3, pad_odd};
+use super::filter::{cutoff_problem, lowpass_butterworth3, pad_odd};
 use crate::error::Error;
 use crate::io::{Table, TableLocator};
 use crate::model::natural_spline::NaturalSpline;
@@ -82,6 +82,9 @@ impl CoordinateTrajectory {
                     "column \"time\"".into(),
                     "filtering needs uniformly sampled rows; resample the motion first".into(),
                 ));
+            }
+            if let Some(problem) = cutoff_problem(fc, dt) {
+                return Err(Error::invalid("lowpass_hz", problem));
             }
             let pad = n / 2;
             time = pad_odd(&time, pad);
