@@ -162,6 +162,34 @@ fn lowpass_cutoffs_that_cannot_filter_are_refused_by_the_cli() {
 }
 
 #[test]
+fn thread_and_pose_counts_are_bounded() {
+    // 100,000 threads ran for minutes before the system refused one; ten million random
+    // poses would take most of a day.
+    for command in ["evaluate --input x --out y.json", "report x --out y"] {
+        for jobs in ["100000", "0"] {
+            let (ok, _, stderr) = musculo_cli(&format!("{command} --jobs {jobs}"), &[]);
+            assert!(!ok, "{command} --jobs {jobs} was accepted");
+            assert!(
+                stderr.contains("--jobs") && stderr.contains("from 1 to 1024"),
+                "{command} --jobs {jobs}: {stderr}"
+            );
+        }
+    }
+    let (ok, _, stderr) = musculo_cli("check --demo --random-poses 100000000", &[]);
+    assert!(!ok);
+    assert!(
+        stderr.contains("--random-poses") && stderr.contains("from 0 to 1000000"),
+        "{stderr}"
+    );
+    let options = musculo::check::CheckOptions {
+        random_poses: musculo::check::MAX_RANDOM_POSES + 1,
+        ..Default::default()
+    };
+    let e = musculo::check::run(&Model::demo(), &options).unwrap_err();
+    assert!(e.to_string().contains("random_poses"), "{e}");
+}
+
+#[test]
 fn check_grid_points_are_bounded() {
     let (ok, _, stderr) = musculo_cli("check --demo --grid-points 100000000000", &[]);
     assert!(!ok);

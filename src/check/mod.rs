@@ -191,6 +191,10 @@ impl CheckReport {
 /// path, so more would only make a check run for hours (or exhaust memory) to no benefit.
 pub const MAX_GRID_POINTS: usize = 10_000;
 
+/// The most random poses of the moment-arm bounds: each computes every muscle path (100,000
+/// take seconds on the default model; ten million would take most of an hour).
+pub const MAX_RANDOM_POSES: usize = 1_000_000;
+
 /// Settings of [`run`], with the defaults in one place.
 #[derive(Clone, Debug)]
 pub struct CheckOptions {
@@ -210,7 +214,8 @@ pub struct CheckOptions {
     pub max_rotation: f64,
     /// Plausible range limit of translational coordinates (default 10 m).
     pub max_translation: f64,
-    /// Random poses for the moment-arm bounds (default 0): every crossed rotational
+    /// Random poses for the moment-arm bounds (default 0; at most [`MAX_RANDOM_POSES`]):
+    /// every crossed rotational
     /// coordinate drawn uniformly from its physiological range at once, where the
     /// single-coordinate sweeps leave the others at their defaults.
     pub random_poses: usize,
@@ -256,6 +261,15 @@ pub fn run_with_progress(
             format!(
                 "{} points: must be from 2 to {MAX_GRID_POINTS}",
                 options.grid_points
+            ),
+        ));
+    }
+    if options.random_poses > MAX_RANDOM_POSES {
+        return Err(Error::invalid(
+            "random_poses",
+            format!(
+                "{} poses: must be at most {MAX_RANDOM_POSES}",
+                options.random_poses
             ),
         ));
     }

@@ -103,10 +103,15 @@ pub fn cutoff_problem(cutoff: f64, dt: f64) -> Option<String> {
              (its start-up transient alternates sign from sample to sample) and the \
              derivatives become noise; give a cutoff of at most {} Hz, or none",
             short_number(cutoff),
-            short_number((rate * 1e3).round() / 1e3),
-            short_number((highest * 1e3).floor() / 1e3)
+            short_number(millihertz(rate, f64::round)),
+            short_number(millihertz(highest, f64::floor))
         )
     })
+}
+
+/// `hz` rounded to 1 mHz by `round` (above 1 Hz; a slower rate is shown as it is).
+fn millihertz(hz: f64, round: fn(f64) -> f64) -> f64 {
+    if hz >= 1.0 { round(hz * 1e3) / 1e3 } else { hz }
 }
 
 /// Third-order low-pass Butterworth filter with cutoff `cutoff` Hz for samples `dt` apart,

@@ -259,7 +259,7 @@ pub fn prepare_coordinates(
             resampled = true;
         }
         if let Some(problem) = cutoff_problem(fc, dt) {
-            return Err(Error::invalid("lowpass_hz", problem));
+            return Err(err("column \"time\"".into(), problem));
         }
         for (col, name) in columns.iter_mut().zip(&names) {
             *col = lowpass_butterworth3(col, dt, fc)

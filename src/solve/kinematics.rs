@@ -84,7 +84,7 @@ impl CoordinateTrajectory {
                 ));
             }
             if let Some(problem) = cutoff_problem(fc, dt) {
-                return Err(Error::invalid("lowpass_hz", problem));
+                return Err(err("column \"time\"".into(), problem));
             }
             let pad = n / 2;
             time = pad_odd(&time, pad);

@@ -44,7 +44,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads (default: all cores).
-    #[arg(long, value_parser = jobs)]
+    #[arg(long, value_parser = crate::tool::jobs)]
     jobs: Option<usize>,
     /// Run shard K of N (0 ≤ K < N), e.g. `--shard $SLURM_ARRAY_TASK_ID/8`; finish with
     /// `musculo merge OUT`.
@@ -123,17 +123,6 @@ fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
         return Err(bad());
     }
     Ok((k, n))
-}
-
-/// `--jobs`: 1 to 1024 worker threads (a larger count would start thousands of threads
-/// before the system refused one).
-fn jobs(text: &str) -> Result<usize, String> {
-    match text.trim().parse::<usize>() {
-        Ok(n) if (1..=1024).contains(&n) => Ok(n),
-        _ => Err(format!(
-            "`{text}`: give a whole number of threads from 1 to 1024"
-        )),
-    }
 }
 
 /// `--variants`: a count from 1 to [`runner::MAX_VARIANTS`].

@@ -29,9 +29,21 @@ pub struct Args {
     #[arg(long, default_value_t = CheckOptions::default().grid_points, value_parser = grid_points)]
     grid_points: usize,
     /// Also hold the moment arms to their bounds at this many random poses, every rotational
-    /// coordinate drawn from its physiological range at once (seeded; 0: sweeps only).
-    #[arg(long, default_value_t = 0)]
+    /// coordinate drawn from its physiological range at once (seeded; 0: sweeps only; at
+    /// most 1000000).
+    #[arg(long, default_value_t = 0, value_parser = random_poses)]
     random_poses: usize,
+}
+
+/// `--random-poses`: a count from 0 to [`check::MAX_RANDOM_POSES`].
+fn random_poses(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if n <= check::MAX_RANDOM_POSES => Ok(n),
+        _ => Err(format!(
+            "`{text}`: give a whole number of poses from 0 to {}",
+            check::MAX_RANDOM_POSES
+        )),
+    }
 }
 
 /// `--grid-points`: a count from 2 to [`check::MAX_GRID_POINTS`].

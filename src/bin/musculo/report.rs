@@ -39,8 +39,8 @@ pub struct SetArgs {
     /// built-in map).
     #[arg(long)]
     pub map: Option<String>,
-    /// Threads (default: all cores).
-    #[arg(long)]
+    /// Threads, 1 to 1024 (default: all cores).
+    #[arg(long, value_parser = crate::tool::jobs)]
     pub jobs: Option<usize>,
 }
 

@@ -158,3 +158,14 @@ pub fn lowpass_hz(text: &str) -> Result<f64, String> {
     }
     Ok(hz)
 }
+
+/// `--jobs`: 1 to 1024 worker threads (a larger count would start thousands of threads
+/// before the system refused one).
+pub fn jobs(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (1..=1024).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{text}`: give a whole number of threads from 1 to 1024"
+        )),
+    }
+}
