@@ -221,6 +221,119 @@ fn threads_and_shards_give_identical_bytes() {
     }
 }
 
+/// `musculo merge` takes nothing in the shard lists or the records on trust: an absurd shard
+/// count is answered at once (not by walking 0..N), a shard K of N outside 0 ≤ K < N and
+/// lists that disagree on N are refused naming the files, a clip listed twice or named
+/// outside the output folder is refused, and a clip recorded ok whose `.npz` is missing or
+/// damaged fails the merge (non-zero exit) naming the clip. The untouched folder merges.
+#[test]
+fn merge_refuses_shard_lists_and_outputs_it_cannot_trust() {
+    let chain = chain();
+    let layout = describe(&chain).unwrap();
+    let clips = demo_inputs(&chain);
+    let out = temp_dir("merge-untrusted");
+    for k in 0..2 {
+        let mut o = options(&out);
+        o.shard = Some((k, 2));
+        runner::run(&chain, &layout, &clips, &o, &|_| {}).unwrap();
+    }
+    let lists = out.join(output::SHARDS);
+    let paths = [lists.join("0-of-2.json"), lists.join("1-of-2.json")];
+    let originals: Vec<String> = paths
+        .iter()
+        .map(|p| std::fs::read_to_string(p).unwrap())
+        .collect();
+    // the merge's error after `edit(k, list k)` of each list; the lists restored after it
+    let merge_error = |edit: &dyn Fn(usize, &mut serde_json::Value)| -> String {
+        for (k, (path, text)) in paths.iter().zip(&originals).enumerate() {
+            let mut list: serde_json::Value = serde_json::from_str(text).unwrap();
+            edit(k, &mut list);
+            std::fs::write(path, list.to_string()).unwrap();
+        }
+        let result = runner::merge(&out);
+        for (path, text) in paths.iter().zip(&originals) {
+            std::fs::write(path, text).unwrap();
+        }
+        result.expect_err("merged untrustworthy shard lists").to_string()
+    };
+    let huge = 1_000_000_000_000_000_000usize;
+    let e = merge_error(&|_, l| l["shards"] = huge.into());
+    assert!(
+        e.contains(&format!(
+            "shard(s) 2, 3, 4, 5, 6, 7, 8, 9, 10, 11 and {} more of {huge} have not finished",
+            huge - 12
+        )),
+        "{e}"
+    );
+    let e = merge_error(&|_, l| l["shards"] = 0.into());
+    assert!(
+        e.contains("0-of-2.json: shard 0 of 0: a shard list must be shard K of N with 0 ≤ K < N"),
+        "{e}"
+    );
+    let e = merge_error(&|k, l| {
+        if k == 1 {
+            l["shard"] = 5.into();
+        }
+    });
+    assert!(e.contains("1-of-2.json: shard 5 of 2"), "{e}");
+    let e = merge_error(&|k, l| {
+        if k == 1 {
+            l["shards"] = 3.into();
+        }
+    });
+    assert!(
+        e.contains("0-of-2.json is shard 0 of 2")
+            && e.contains("1-of-2.json shard 1 of 3")
+            && e.contains("disagree on the number of shards"),
+        "{e}"
+    );
+    let e = merge_error(&|_, l| {
+        let first = l["all"][0].clone();
+        l["all"].as_array_mut().unwrap().push(first);
+    });
+    assert!(e.contains("clip \"march\" is listed twice"), "{e}");
+    for name in ["../../../../outside/evil", "/tmp/evil", "a/./b", ""] {
+        let e = merge_error(&|_, l| l["all"][0][0] = name.into());
+        assert!(
+            e.contains(&format!(
+                "clip name \"{name}\" is not a relative path inside the output folder"
+            )),
+            "{name}: {e}"
+        );
+    }
+    // a clip recorded ok whose output is gone, or is not an .npz
+    let (march, squat) = (out.join("march.npz"), out.join("squat.npz"));
+    let (march_bytes, squat_bytes) = (std::fs::read(&march).unwrap(), std::fs::read(&squat).unwrap());
+    std::fs::remove_file(&march).unwrap();
+    std::fs::write(&squat, b"garbage").unwrap();
+    let (ok, _, stderr) = run_musculo(&[std::ffi::OsStr::new("merge"), out.as_os_str()]);
+    assert!(!ok, "merged clips without their outputs: {stderr}");
+    assert!(
+        stderr.contains("2 clip(s) recorded ok have a missing or unreadable output")
+            && stderr.contains("march (")
+            && stderr.contains("squat (")
+            && stderr.contains("not an .npz (zip) archive"),
+        "{stderr}"
+    );
+    assert!(!out.join("manifest.json").exists(), "a manifest was written");
+    std::fs::write(&march, &march_bytes).unwrap();
+    std::fs::write(&squat, &squat_bytes).unwrap();
+    let manifest = runner::merge(&out).unwrap();
+    assert_eq!(
+        (manifest.summary.clips_ok, manifest.summary.clips_failed),
+        (3, 0)
+    );
+    // augment refuses such names from a library caller before writing anything
+    let mut outside = clips.clone();
+    outside[0].name = "../evil".to_string();
+    let e = runner::run(&chain, &layout, &outside, &options(&out.join("inner")), &|_| {})
+        .expect_err("ran a clip named outside its folder")
+        .to_string();
+    assert!(e.contains("clip name \"../evil\""), "{e}");
+    assert!(!out.join("evil.npz").exists());
+    let _ = std::fs::remove_dir_all(out);
+}
+
 /// Shards of one run write into one folder at once, and each begins by tidying what
 /// interrupted runs left: it must remove only temporaries of its own files whose writer has
 /// ended — never another shard's file in the middle of being written (the failure was a

@@ -264,6 +264,58 @@ pub struct Summary {
     pub reserve_share_max: f64,
 }
 
+/// Refuses a clip name that would put its files outside the output folder: every file of a
+/// clip is `out/<name>…`, so the name must be a relative, `/`-separated path of plain
+/// components (no empty one, no `.` or `..`, no root or drive). `source` names where the
+/// name came from in the error.
+pub fn check_clip_name(name: &str, source: &str) -> crate::Result<()> {
+    let plain = !name.is_empty()
+        && name.split(['/', '\\']).all(|c| !c.is_empty() && c != "." && c != "..")
+        && Path::new(name)
+            .components()
+            .all(|c| matches!(c, std::path::Component::Normal(_)));
+    if plain {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            "clip name",
+            format!(
+                "{source}: clip name \"{name}\" is not a relative path inside the output folder \
+                 (empty, absolute, or with a `.`, `..` or empty component)"
+            ),
+        ))
+    }
+}
+
+/// Checks that the `.npz` of a clip recorded ok is the archive its record describes: it
+/// exists, opens as a zip archive, and holds a `time` array of the record's frame count and,
+/// when the record has feature sums, an `x` array. Cheap: the archive's directory and `time`
+/// are read, not the other arrays. The error says what is wrong.
+pub fn check_clip_output(out: &Path, record: &ClipRecord) -> crate::Result<()> {
+    let path = npz_path(out, &record.clip);
+    let frames = record.quality.as_ref().map_or(0, |q| q.frames);
+    let members = npy::read_npz_some_as_f64(&path, &["time"])?;
+    let bad = |message: String| Error::Motion {
+        file: path.display().to_string(),
+        location: "archive".to_string(),
+        message,
+    };
+    match members.iter().find(|(k, _)| k == "time") {
+        Some((_, Some(time))) if time.ndim() == 1 && time.len() == frames => {}
+        Some((_, Some(time))) => {
+            return Err(bad(format!(
+                "`time` has shape {}; the clip's record says {frames} frames",
+                npy::shape_text(time.shape())
+            )));
+        }
+        _ => return Err(bad("has no `time` array".to_string())),
+    }
+    if !record.x_sum.is_empty() && !members.iter().any(|(k, _)| k == "x") {
+        return Err(bad("has no `x` array".to_string()));
+    }
+    Ok(())
+}
+
 /// The `.npz` of a clip.
 pub fn npz_path(out: &Path, clip: &str) -> PathBuf {
     out.join(format!("{clip}.npz"))

@@ -256,6 +256,10 @@ pub fn run(
         ));
     }
     options.perturbation.validate()?;
+    // the names come from the input tree (plain by construction) or from a library caller
+    for c in clips {
+        output::check_clip_name(&c.name, &c.input)?;
+    }
     if options.force_plates && options.variants != 1 {
         return Err(Error::invalid(
             "--force-plates",
@@ -651,6 +655,11 @@ fn write_shard_list(
 /// `musculo merge OUT`: checks that every shard of the run in `out` has finished and
 /// writes the manifest and statistics from the records — the same files an unsharded run
 /// writes.
+///
+/// The shard lists and records are files anyone may have edited or damaged, so nothing in
+/// them is taken on trust: every list must be a shard K of N with 0 ≤ K < N, all lists of
+/// one run (same N, settings and clips), the clip names unique and inside `out`; and every
+/// clip recorded ok must have its `.npz` ([`output::check_clip_output`]).
 pub fn merge(out: &Path) -> crate::Result<Manifest> {
     let dir = out.join(SHARDS);
     let entries = std::fs::read_dir(&dir).map_err(|source| Error::Io {
@@ -672,10 +681,12 @@ pub fn merge(out: &Path) -> crate::Result<Manifest> {
                 location: format!("line {}", e.line()),
                 message: format!("not a shard list: {e}"),
             })?;
-            lists.push(list);
+            lists.push((path, list));
         }
     }
-    let Some(first) = lists.first() else {
+    // the directory's order is the file system's: errors name the same files every time
+    lists.sort_by(|a, b| a.0.cmp(&b.0));
+    let Some((first_path, first)) = lists.first() else {
         return Err(Error::invalid(
             "OUT",
             format!(
@@ -685,30 +696,115 @@ pub fn merge(out: &Path) -> crate::Result<Manifest> {
         ));
     };
     let n = first.shards;
-    for l in &lists {
-        if l.shards != n || l.run != first.run || l.all != first.all || l.settings != first.settings
-        {
+    for (path, l) in &lists {
+        if l.shard >= l.shards {
             return Err(Error::invalid(
                 "OUT",
                 format!(
-                    "{}: shard {} of {} belongs to another run than shard {} of {}",
+                    "{}: shard {} of {}: a shard list must be shard K of N with 0 ≤ K < N",
+                    path.display(),
+                    l.shard,
+                    l.shards
+                ),
+            ));
+        }
+        if l.shards != n {
+            return Err(Error::invalid(
+                "OUT",
+                format!(
+                    "{} is shard {} of {}, {} shard {} of {}: the shard lists disagree on the \
+                     number of shards, so they belong to different runs",
+                    first_path.display(),
+                    first.shard,
+                    n,
+                    path.display(),
+                    l.shard,
+                    l.shards
+                ),
+            ));
+        }
+        if l.run != first.run || l.all != first.all || l.settings != first.settings {
+            return Err(Error::invalid(
+                "OUT",
+                format!(
+                    "{}: shard {} of {} belongs to another run than shard {} of {} ({})",
                     out.display(),
                     l.shard,
                     l.shards,
                     first.shard,
-                    n
+                    n,
+                    path.display()
                 ),
             ));
         }
     }
-    let mut missing: Vec<usize> = (0..n)
-        .filter(|k| !lists.iter().any(|l| l.shard == *k))
+    // Only the first few missing shards are named; N comes from a file, so 0..N is walked
+    // lazily and stops there (at most `lists.len()` + SHOWN steps, whatever N says).
+    const SHOWN: usize = 10;
+    let present = |k: usize| lists.iter().any(|(_, l)| l.shard == k);
+    let missing: Vec<String> = (0..n)
+        .filter(|k| !present(*k))
+        .take(SHOWN)
+        .map(|k| k.to_string())
         .collect();
-    missing.truncate(10);
     if !missing.is_empty() {
+        let mut distinct: Vec<usize> = lists.iter().map(|(_, l)| l.shard).collect();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let absent = n - distinct.len();
+        let more = if absent > missing.len() {
+            format!(" and {} more", absent - missing.len())
+        } else {
+            String::new()
+        };
         return Err(Error::invalid(
             "OUT",
-            format!("shard(s) {missing:?} of {n} have not finished"),
+            format!(
+                "shard(s) {}{more} of {n} have not finished ({} holds the lists of {} shard(s))",
+                missing.join(", "),
+                dir.display(),
+                distinct.len()
+            ),
+        ));
+    }
+    let source = first_path.display().to_string();
+    let mut seen = std::collections::HashSet::with_capacity(first.all.len());
+    for (name, _) in &first.all {
+        output::check_clip_name(name, &source)?;
+        if !seen.insert(name.as_str()) {
+            return Err(Error::invalid(
+                "OUT",
+                format!("{source}: clip \"{name}\" is listed twice"),
+            ));
+        }
+    }
+    // A record says ok only after the clip's `.npz` was written; one deleted or damaged
+    // since would otherwise be counted in the manifest as a clip of the dataset.
+    let mut broken = Vec::new();
+    for (name, _) in &first.all {
+        if let Some(record) = output::read_record(out, name)?
+            && record.status == ClipStatus::Ok
+            && let Err(e) = output::check_clip_output(out, &record)
+        {
+            broken.push(format!("{name} ({e})"));
+        }
+    }
+    if !broken.is_empty() {
+        let count = broken.len();
+        let more = if count > SHOWN {
+            format!("; and {} more", count - SHOWN)
+        } else {
+            String::new()
+        };
+        broken.truncate(SHOWN);
+        return Err(Error::invalid(
+            "OUT",
+            format!(
+                "{count} clip(s) recorded ok have a missing or unreadable output: {}{more}; \
+                 remove their records from {} and run their shards again with --resume",
+                broken.join("; "),
+                out.join(output::RECORDS).display()
+            ),
         ));
     }
     let names: Vec<String> = first.all.iter().map(|(n, _)| n.clone()).collect();

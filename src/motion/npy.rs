@@ -250,6 +250,48 @@ pub fn read_npz_as_f64(path: &Path) -> crate::Result<Vec<(String, ArrayD<f64>)>>
     read_npz_with(path, parse_array_as_f64)
 }
 
+/// The members of an `.npz` archive in archive order, named without the `.npy` suffix, with
+/// the arrays of the members named in `wanted` parsed (float32 or float64, widened to f64);
+/// the others are listed from the archive's directory, not read — a cheap check that a file
+/// is the archive it should be.
+pub fn read_npz_some_as_f64(
+    path: &Path,
+    wanted: &[&str],
+) -> crate::Result<Vec<(String, Option<ArrayD<f64>>)>> {
+    let source = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
+    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
+        motion_error(
+            &source,
+            "archive",
+            format!("not an .npz (zip) archive: {e}"),
+        )
+    })?;
+    let mut out = Vec::with_capacity(zip.len().min(1024));
+    for i in 0..zip.len() {
+        let mut member = zip
+            .by_index(i)
+            .map_err(|e| motion_error(&source, &format!("archive member {i}"), e.to_string()))?;
+        let name = member.name().to_string();
+        let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
+        let array = if wanted.contains(&key.as_str()) {
+            let mut bytes = Vec::new();
+            member.read_to_end(&mut bytes).map_err(|e| {
+                motion_error(
+                    &source,
+                    &format!("archive member \"{name}\""),
+                    e.to_string(),
+                )
+            })?;
+            Some(parse_array_as_f64(&bytes, &format!("{source} [{name}]"))?)
+        } else {
+            None
+        };
+        out.push((key, array));
+    }
+    Ok(out)
+}
+
 fn write_error(path: &Path, e: impl std::fmt::Display) -> Error {
     io_error(path, std::io::Error::other(e.to_string()))
 }
