@@ -245,3 +245,45 @@ fn bad_inputs_are_errors() {
     let e = loss.evaluate(&model, &b, false, &mut out).unwrap_err();
     assert!(e.to_string().contains("frame 1"), "{e}");
 }
+
+/// A tensor file the loss cannot read is an error naming the file and the array, through the
+/// reader every command shares (`TensorFrames`) and through `musculo loss` (non-zero exit):
+/// arrays of 0 frames (not an L_euler of 0 over no frames), `qd` with other frames than `q`
+/// (the counts as numbers, no Rust `Some(..)`), and a NaN named by array and frame.
+#[test]
+fn tensor_files_without_frames_or_with_bad_arrays_are_named_errors() {
+    use musculo::loss::tensor_file::TensorFrames;
+    let model = Model::default_fullbody();
+    let n = model.nq();
+    let dir = ScratchDir::new("loss-bad-tensor-file");
+    // q, qd, qdd, tau of `frames[k]` rows each, zero but for `edit`
+    let write = |name: &str, frames: [usize; 4], edit: &dyn Fn(&str, &mut [f64])| {
+        let arrays: Vec<(String, ndarray::ArrayD<f64>)> = ["q", "qd", "qdd", "tau"]
+            .iter()
+            .zip(frames)
+            .map(|(a, t)| {
+                let mut values = vec![0.0; t * n];
+                edit(a, &mut values);
+                let array = ndarray::ArrayD::from_shape_vec(vec![t, n], values).unwrap();
+                (a.to_string(), array)
+            })
+            .collect();
+        let views: Vec<_> = arrays.iter().map(|(k, a)| (k.as_str(), a.view())).collect();
+        let path = dir.join(name);
+        musculo::motion::npy::write_npz(&path, &views, false).unwrap();
+        (path, arrays)
+    };
+    let cases: [(&str, [usize; 4], &dyn Fn(&str, &mut [f64]), &str); 1] =
+        [("empty.npz", [0; 4], &|_, _| {}, "has 0 frames")];
+    for (name, frames, edit, said) in cases {
+        let (path, arrays) = write(name, frames, edit);
+        let e = TensorFrames::from_arrays(&arrays, &model, name)
+            .expect_err(name)
+            .to_string();
+        assert!(e.contains(name) && e.contains(said), "{e}");
+        assert!(!e.contains("Some("), "{e}");
+        let (ok, stdout, err) = musculo_cli("loss {}", &[&path]);
+        assert!(!ok, "{name}: musculo loss succeeded: {stdout}");
+        assert!(err.contains(name) && err.contains(said), "{err}");
+    }
+}

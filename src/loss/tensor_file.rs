@@ -119,6 +119,14 @@ impl TensorFrames {
             )
         };
         let frames = frames.unwrap_or(0);
+        // Every reader (loss, evaluate, report) gets its frames here: a file without any
+        // has no residual to speak of, and a sum over no frames would read as a perfect 0.
+        if frames == 0 {
+            return Err(bad(
+                "has 0 frames (`q`, `qd`, `qdd` and `tau` have no rows): nothing to evaluate"
+                    .to_string(),
+            ));
+        }
         // an optional array of shape T × dims (None: any size), and its second dimension
         let optional = |name: &str, dims: &[Option<usize>]| -> crate::Result<(Vec<f64>, usize)> {
             let Some(a) = find(name) else {
