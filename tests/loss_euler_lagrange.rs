@@ -273,8 +273,25 @@ fn tensor_files_without_frames_or_with_bad_arrays_are_named_errors() {
         musculo::motion::npy::write_npz(&path, &views, false).unwrap();
         (path, arrays)
     };
-    let cases: [(&str, [usize; 4], &dyn Fn(&str, &mut [f64]), &str); 1] =
-        [("empty.npz", [0; 4], &|_, _| {}, "has 0 frames")];
+    let cases: [(&str, [usize; 4], &dyn Fn(&str, &mut [f64]), &str); 3] = [
+        ("empty.npz", [0; 4], &|_, _| {}, "has 0 frames"),
+        (
+            "mismatch.npz",
+            [110, 120, 110, 110],
+            &|_, _| {},
+            "`qd` has 120 frames, `q` has 110",
+        ),
+        (
+            "nan.npz",
+            [3; 4],
+            &|a, v| {
+                if a == "tau" {
+                    v[n + 7] = f64::NAN;
+                }
+            },
+            &format!("`tau` is NaN at frame 1 (value 7 of the frame's {n})"),
+        ),
+    ];
     for (name, frames, edit, said) in cases {
         let (path, arrays) = write(name, frames, edit);
         let e = TensorFrames::from_arrays(&arrays, &model, name)

@@ -98,8 +98,10 @@ impl TensorFrames {
                 )));
             }
             let t = a.shape()[0];
-            if *frames.get_or_insert(t) != t {
-                return Err(bad(format!("`{name}` has {t} frames, `q` has {frames:?}")));
+            // `q` is read first and sets the frame count the others must have
+            let first = *frames.get_or_insert(t);
+            if first != t {
+                return Err(bad(format!("`{name}` has {t} frames, `q` has {first}")));
             }
             Ok(a.iter().copied().collect())
         };
@@ -164,22 +166,35 @@ impl TensorFrames {
         let (grf, groups) = optional("grf", &[None, Some(3)])?;
         let (muscle_force, _) = optional("muscle_force", &[None])?;
         let (time, _) = optional("time", &[])?;
-        if let Some((i, v)) = q
-            .iter()
-            .chain(&qd)
-            .chain(&qdd)
-            .chain(&tau)
-            .chain(&lambda)
-            .chain(&muscle_act)
-            .chain(&muscle_force)
-            .chain(&time)
-            .chain(&external)
-            .chain(&grf)
-            .chain(&contact_force)
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
-            return Err(bad(format!("value {i} of the arrays is {v}")));
+        // (a layout-only file's q … tau are fitted from its layout arrays, which are named)
+        let coordinates = if layout_only { "fitted " } else { "" };
+        for (name, values) in [
+            ("q", &q),
+            ("qd", &qd),
+            ("qdd", &qdd),
+            ("tau", &tau),
+            ("contact_point_force", &lambda),
+            ("muscle_act", &muscle_act),
+            ("muscle_force", &muscle_force),
+            ("time", &time),
+            ("external", &external),
+            ("grf", &grf),
+            ("contact_force", &contact_force),
+        ] {
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                // the arrays are frame-major: T rows of `width` values
+                let width = values.len() / frames;
+                let what = if matches!(name, "q" | "qd" | "qdd" | "tau") {
+                    coordinates
+                } else {
+                    ""
+                };
+                return Err(bad(format!(
+                    "{what}`{name}` is {v} at frame {} (value {} of the frame's {width})",
+                    i / width,
+                    i % width
+                )));
+            }
         }
         Ok(TensorFrames {
             frames,
