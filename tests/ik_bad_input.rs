@@ -220,6 +220,46 @@ fn a_frame_with_every_marker_missing_keeps_the_previous_pose() {
     );
 }
 
+/// A frame without any marker keeps the previous pose, but a file in which no frame has any
+/// of the model's markers has nothing to fit: `musculo ik` fails naming the file (rather
+/// than writing the default pose with a marker RMSE of NaN), and so does the library.
+#[test]
+fn a_trc_file_with_every_marker_missing_in_every_frame_is_an_error_naming_it() {
+    let dir = ScratchDir::new("ik-bad-all-blank");
+    let tutorial = "opensim-models/Tutorials/Computed_Muscle_Control/InverseKinematics";
+    let (Some(model_path), Some(trc_path)) = (
+        reference_file(&format!("{tutorial}/arm26.osim")),
+        reference_file(&format!("{tutorial}/arm26_elbow_flex.trc")),
+    ) else {
+        return;
+    };
+    let trc = Trc::read(&trc_path).unwrap();
+    let blank = Trc::new(
+        trc.markers.clone(),
+        trc.time.clone(),
+        vec![NAN; trc.positions.len()],
+        trc.data_rate,
+    )
+    .unwrap();
+    let path = dir.join("all_blank.trc");
+    blank.write(&path).unwrap();
+    let out = dir.join("all_blank.mot");
+    let (ok, _, err) = musculo_cli("ik --model {} --input {} -o {}", &[&model_path, &path, &out]);
+    assert!(!ok, "musculo ik solved a file without markers: {err}");
+    assert!(
+        err.contains("no frame of") && err.contains("all_blank.trc") && err.contains("r_acromion"),
+        "{err}"
+    );
+    assert!(!out.exists(), "wrote {}", out.display());
+    let model = Model::from_osim_file(&model_path).unwrap();
+    let markers = read(&path).unwrap();
+    let tasks = ik::tasks_by_name(&model, &markers);
+    let e = ik::solve_motion(&model, &markers, &tasks, &IkSettings::default(), &|_| {})
+        .expect_err("solved a clip without markers")
+        .to_string();
+    assert!(e.contains("no frame of"), "{e}");
+}
+
 #[test]
 fn gaps_in_joint_centres_are_left_out_and_a_joint_missing_everywhere_is_an_error() {
     let Some(hml) = reference_file(HML_JOINTS) else {

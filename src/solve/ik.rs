@@ -762,6 +762,38 @@ fn solve(
     settings.validate()?;
     targets.validate()?;
     check_tasks(model, targets, tasks)?;
+    // A frame with no target keeps the previous pose; a clip in which no frame has one
+    // would be the start pose throughout, reported as solved.
+    let weighted: Vec<&MarkerTask> = tasks.markers.iter().filter(|t| t.weight > 0.0).collect();
+    let no_data = !tasks.coordinates.iter().any(|t| t.weight > 0.0)
+        && (0..targets.n_frames()).all(|f| {
+            let frame = targets.frame(f);
+            weighted.iter().all(|t| frame[t.target].x.is_nan())
+        });
+    if no_data && weighted.is_empty() {
+        return Err(Error::invalid(
+            "tasks",
+            "every marker and coordinate task has weight 0: nothing to fit",
+        ));
+    }
+    if no_data {
+        return Err(Error::invalid(
+            "targets",
+            format!(
+                "no frame of {} has any of the model's {} IK marker(s) ({}{}): every one is \
+                 missing in every frame, so there is nothing to fit",
+                targets.source,
+                weighted.len(),
+                weighted
+                    .iter()
+                    .take(5)
+                    .map(|t| model.markers[t.marker].name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                if weighted.len() > 5 { ", …" } else { "" }
+            ),
+        ));
+    }
     let n = model.nq();
     let mut ws = IkWorkspace::new(model, settings.bounds);
     ws.tree = task_tree(model, tasks);
