@@ -254,7 +254,9 @@ fn merge_refuses_shard_lists_and_outputs_it_cannot_trust() {
         for (path, text) in paths.iter().zip(&originals) {
             std::fs::write(path, text).unwrap();
         }
-        result.expect_err("merged untrustworthy shard lists").to_string()
+        result
+            .expect_err("merged untrustworthy shard lists")
+            .to_string()
     };
     let huge = 1_000_000_000_000_000_000usize;
     let e = merge_error(&|_, l| l["shards"] = huge.into());
@@ -303,7 +305,10 @@ fn merge_refuses_shard_lists_and_outputs_it_cannot_trust() {
     }
     // a clip recorded ok whose output is gone, or is not an .npz
     let (march, squat) = (out.join("march.npz"), out.join("squat.npz"));
-    let (march_bytes, squat_bytes) = (std::fs::read(&march).unwrap(), std::fs::read(&squat).unwrap());
+    let (march_bytes, squat_bytes) = (
+        std::fs::read(&march).unwrap(),
+        std::fs::read(&squat).unwrap(),
+    );
     std::fs::remove_file(&march).unwrap();
     std::fs::write(&squat, b"garbage").unwrap();
     let (ok, _, stderr) = run_musculo(&[std::ffi::OsStr::new("merge"), out.as_os_str()]);
@@ -315,7 +320,10 @@ fn merge_refuses_shard_lists_and_outputs_it_cannot_trust() {
             && stderr.contains("not an .npz (zip) archive"),
         "{stderr}"
     );
-    assert!(!out.join("manifest.json").exists(), "a manifest was written");
+    assert!(
+        !out.join("manifest.json").exists(),
+        "a manifest was written"
+    );
     std::fs::write(&march, &march_bytes).unwrap();
     std::fs::write(&squat, &squat_bytes).unwrap();
     let manifest = runner::merge(&out).unwrap();
@@ -326,9 +334,15 @@ fn merge_refuses_shard_lists_and_outputs_it_cannot_trust() {
     // augment refuses such names from a library caller before writing anything
     let mut outside = clips.clone();
     outside[0].name = "../evil".to_string();
-    let e = runner::run(&chain, &layout, &outside, &options(&out.join("inner")), &|_| {})
-        .expect_err("ran a clip named outside its folder")
-        .to_string();
+    let e = runner::run(
+        &chain,
+        &layout,
+        &outside,
+        &options(&out.join("inner")),
+        &|_| {},
+    )
+    .expect_err("ran a clip named outside its folder")
+    .to_string();
     assert!(e.contains("clip name \"../evil\""), "{e}");
     assert!(!out.join("evil.npz").exists());
     let _ = std::fs::remove_dir_all(out);

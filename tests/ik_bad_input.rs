@@ -244,7 +244,10 @@ fn a_trc_file_with_every_marker_missing_in_every_frame_is_an_error_naming_it() {
     let path = dir.join("all_blank.trc");
     blank.write(&path).unwrap();
     let out = dir.join("all_blank.mot");
-    let (ok, _, err) = musculo_cli("ik --model {} --input {} -o {}", &[&model_path, &path, &out]);
+    let (ok, _, err) = musculo_cli(
+        "ik --model {} --input {} -o {}",
+        &[&model_path, &path, &out],
+    );
     assert!(!ok, "musculo ik solved a file without markers: {err}");
     assert!(
         err.contains("no frame of") && err.contains("all_blank.trc") && err.contains("r_acromion"),

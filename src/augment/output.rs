@@ -270,7 +270,9 @@ pub struct Summary {
 /// name came from in the error.
 pub fn check_clip_name(name: &str, source: &str) -> crate::Result<()> {
     let plain = !name.is_empty()
-        && name.split(['/', '\\']).all(|c| !c.is_empty() && c != "." && c != "..")
+        && name
+            .split(['/', '\\'])
+            .all(|c| !c.is_empty() && c != "." && c != "..")
         && Path::new(name)
             .components()
             .all(|c| matches!(c, std::path::Component::Normal(_)));
