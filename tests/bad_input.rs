@@ -386,6 +386,85 @@ fn unknown_element_in_a_body_is_a_warning_with_its_line() {
 }
 
 // ---------------------------------------------------------------------------------------
+// Component names.
+
+/// OpenSim 4 refuses `/` (the component-path separator), `\`, `*`, `+` and whitespace in a
+/// component's name; so does the reader, naming the element, its line and the name, for
+/// every kind of component it names. (A coordinate named `../../x` would otherwise make
+/// `musculo muscles` write `…_MomentArm_../../x.sto` outside its folder.)
+#[test]
+fn component_names_with_characters_opensim_forbids_are_errors_naming_the_element() {
+    let cases = [
+        (r#"<Body name="thigh">"#, "Body", "thigh"),
+        (r#"<PinJoint name="ankle">"#, "PinJoint", "ankle"),
+        (r#"<Coordinate name="knee_angle">"#, "Coordinate", "knee_angle"),
+        (r#"<WrapCylinder name="knee_wrap">"#, "WrapCylinder", "knee_wrap"),
+        (r#"<Thelen2003Muscle name="vasti">"#, "Thelen2003Muscle", "vasti"),
+        (r#"<PathPoint name="vasti-P1">"#, "PathPoint", "vasti-P1"),
+        (r#"<Marker name="toe">"#, "Marker", "toe"),
+        (
+            r#"<CoordinateCouplerConstraint name="patella_follows_knee">"#,
+            "CoordinateCouplerConstraint",
+            "patella_follows_knee",
+        ),
+        (r#"<Ground name="ground" />"#, "Ground", "ground"),
+    ];
+    for (anchor, tag, name) in cases {
+        for bad in ["a/b", "../../pwn"] {
+            let to = anchor.replace(&format!("\"{name}\""), &format!("\"{bad}\""));
+            let xml = replace_unique(DEMO, anchor, &to);
+            let line = line_of(&xml, &to);
+            assert_model_error(
+                load(&xml),
+                &format!("{tag} \"{bad}\""),
+                line,
+                &[&format!("\"{bad}\""), "contains `/`", "OpenSim forbids"],
+            );
+        }
+    }
+    for (bad, what) in [
+        (r"a\b", "`\\`"),
+        ("a*b", "`*`"),
+        ("a+b", "`+`"),
+        ("a b", "a space"),
+        ("a&#9;b", "a tab"),
+        ("a&#10;b", "a line break"),
+    ] {
+        let to = format!("<Coordinate name=\"{bad}\">");
+        let xml = replace_unique(DEMO, r#"<Coordinate name="knee_angle">"#, &to);
+        let line = line_of(&xml, &to);
+        assert_model_error(
+            load(&xml),
+            "Coordinate",
+            line,
+            &[&format!("contains {what}"), "OpenSim forbids"],
+        );
+    }
+    // The model's own name is a component name too.
+    let xml = replace_unique(
+        DEMO,
+        r#"<Model name="musculo_demo_leg">"#,
+        r#"<Model name="demo/leg">"#,
+    );
+    let line = line_of(&xml, r#"<Model name="demo/leg">"#);
+    assert_model_error(load(&xml), "<Model>", line, &["\"demo/leg\"", "contains `/`"]);
+}
+
+/// Characters OpenSim allows in names (`-`, `.`, `:`, `|`, digits) and surrounding
+/// whitespace, which the reader trims, still load.
+#[test]
+fn component_names_with_allowed_characters_load() {
+    let xml = replace_unique(
+        DEMO,
+        r#"<Coordinate name="knee_angle">"#,
+        r#"<Coordinate name=" knee.angle-r:1|x ">"#,
+    );
+    let xml = xml.replace(">knee_angle<", ">knee.angle-r:1|x<");
+    let model = load(&xml).expect("allowed characters load");
+    assert!(model.coordinate_index("knee.angle-r:1|x").is_some());
+}
+
+// ---------------------------------------------------------------------------------------
 // Joints and the tree.
 
 #[test]

@@ -153,6 +153,50 @@ fn an_actuator_set_file_adds_its_actuators_like_a_force_set() {
     );
 }
 
+/// OpenSim removes whitespace from component names in documents older than Version 30500
+/// (with a warning) and refuses it in newer ones; a force-set file is read the same way.
+#[test]
+fn whitespace_in_a_name_is_removed_in_an_old_force_set_file_and_refused_in_a_new_one() {
+    let set = |version: u32| {
+        format!(
+            r#"<?xml version="1.0" encoding="UTF-8"?>
+<OpenSimDocument Version="{version}">
+  <ActuatorSet name="reserves">
+    <objects>
+      <CoordinateActuator name="knee reserve">
+        <coordinate>knee_angle</coordinate>
+      </CoordinateActuator>
+    </objects>
+  </ActuatorSet>
+</OpenSimDocument>"#
+        )
+    };
+    let read = |text: String| {
+        Model::from_osim_str_with_force_sets(
+            musculo::DEMO_MODEL_OSIM,
+            "demo.osim",
+            &LoadOptions::default(),
+            &ForceSetFiles {
+                files: vec![(text, "reserves.xml".into())],
+                replace: false,
+            },
+        )
+    };
+    let old = read(set(20302)).expect("an OpenSim 2 file's name loses its space");
+    assert!(old.forces.iter().any(|f| f.name == "kneereserve"));
+    let warning = old
+        .warnings
+        .iter()
+        .find(|w| w.message.contains("\"knee reserve\""))
+        .unwrap_or_else(|| panic!("no warning names the renamed force: {:?}", old.warnings));
+    assert!(warning.message.contains("\"kneereserve\""), "{}", warning.message);
+    let e = read(set(40000)).unwrap_err().to_string();
+    assert!(
+        e.contains("reserves.xml:5") && e.contains("\"knee reserve\" contains a space"),
+        "{e}"
+    );
+}
+
 // ---------------------------------------------------------------------------------------
 // 3. Windows separators in paths from setup and ExternalLoads files.
 

@@ -215,7 +215,7 @@ fn read_spatial_transform<'a, 'i>(
             ctx.unknown(a);
             continue;
         }
-        let name = ctx.name(a)?;
+        let name = ctx.object_name(a)?;
         let i = AXIS_NAMES.iter().position(|n| *n == name).ok_or_else(|| {
             ctx.err(
                 a,

@@ -174,7 +174,10 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         options: &LoadOptions,
         force_sets: Option<&ForceSetFiles>,
     ) -> Result<Model, Error> {
-        let name = model.attribute("name").unwrap_or("model").to_string();
+        let name = match model.attribute("name").map(str::trim) {
+            Some(n) if !n.is_empty() => ctx.check_component_name(model, n.to_string())?,
+            _ => "model".to_string(),
+        };
         let mut gravity = Vec3::new(0.0, -9.80665, 0.0);
         let mut ground = None;
         for c in elements(model) {
@@ -237,10 +240,10 @@ impl<'a, 'i> ModelReader<'a, 'i> {
             }
         }
         // Ground is body 0 in file order too.
-        let ground_name = ground
-            .and_then(|g| g.attribute("name"))
-            .unwrap_or("ground")
-            .to_string();
+        let ground_name = match ground.and_then(|g| Some((g, g.attribute("name")?.trim()))) {
+            Some((g, n)) if !n.is_empty() => ctx.check_component_name(g, n.to_string())?,
+            _ => "ground".to_string(),
+        };
         self.bodies.insert(
             0,
             BodyDef {
@@ -420,6 +423,12 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         let doc = parse_document(text, file)?;
         let mut ctx = Ctx::new(&doc, file);
         let root = doc.root_element();
+        // Force-set files written for OpenSim 2 and 3 are read (their names may hold
+        // whitespace, which OpenSim removes from documents older than Version 30500).
+        ctx.legacy_whitespace_in_names = root
+            .attribute("Version")
+            .and_then(|v| v.trim().parse::<u32>().ok())
+            .is_some_and(|v| v < 30500);
         let is_set = |n: XNode| matches!(n.tag_name().name(), "ForceSet" | "ActuatorSet");
         let set = if is_set(root) {
             Some(root)

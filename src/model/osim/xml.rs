@@ -14,9 +14,16 @@ pub struct Ctx<'a, 'i> {
     pub file: &'a str,
     pub warnings: Vec<Warning>,
     pub visual: usize,
+    /// The document is older than Version 30500: whitespace in a component name is removed
+    /// with a warning instead of refused, as OpenSim does.
+    pub legacy_whitespace_in_names: bool,
     /// Byte offset of the start of every line, for line numbers by binary search.
     line_starts: Vec<usize>,
 }
+
+/// The characters OpenSim 4 refuses in a component name (`ComponentPath`'s invalid
+/// characters: the path separator `/`, and `\\ * +`, space, tab, newline).
+pub const INVALID_NAME_CHARS: &str = "/\\*+ \t\n";
 
 /// Display-only elements: skipped and counted, never needed for dynamics.
 pub const VISUAL_TAGS: &[&str] = &[
@@ -51,6 +58,7 @@ impl<'a, 'i> Ctx<'a, 'i> {
             file,
             warnings: Vec::new(),
             visual: 0,
+            legacy_whitespace_in_names: false,
             line_starts,
         }
     }
@@ -200,12 +208,62 @@ impl<'a, 'i> Ctx<'a, 'i> {
         }
     }
 
-    /// The `name` attribute (required for named components).
-    pub fn name(&self, node: XNode<'a, 'i>) -> Result<String, Error> {
+    /// The `name` attribute of a component (body, joint, coordinate, force, path point,
+    /// marker, frame, …): required, and without the characters OpenSim 4 refuses in component
+    /// names (see [`check_component_name`](Self::check_component_name)).
+    pub fn name(&mut self, node: XNode) -> Result<String, Error> {
+        let name = self.object_name(node)?;
+        self.check_component_name(node, name)
+    }
+
+    /// The `name` attribute of an OpenSim object that is not a component (a `TransformAxis`),
+    /// whose name is no element of a component path: required, not otherwise checked.
+    pub fn object_name(&self, node: XNode) -> Result<String, Error> {
         match node.attribute("name") {
             Some(n) if !n.trim().is_empty() => Ok(n.trim().to_string()),
             _ => Err(self.err(node, "missing or empty `name` attribute")),
         }
+    }
+
+    /// Refuses a component name holding one of [`INVALID_NAME_CHARS`], as OpenSim 4 does
+    /// when it reads the model (`Component::finalizeFromProperties` throws
+    /// `InvalidComponentName`): `/` is the separator of component paths, so `a/b` would name
+    /// a different component, and as a coordinate or muscle name it would make output file
+    /// names leave their folder. In a document older than Version 30500 OpenSim instead removes
+    /// whitespace from the name, with a warning; so does this reader.
+    pub fn check_component_name(&mut self, node: XNode, name: String) -> Result<String, Error> {
+        let name = if self.legacy_whitespace_in_names && name.contains(char::is_whitespace) {
+            let stripped: String = name.chars().filter(|c| !c.is_whitespace()).collect();
+            self.warn(
+                node,
+                format!(
+                    "name \"{name}\" contains whitespace, which OpenSim 4 does not allow in \
+                     names; renamed \"{stripped}\" as OpenSim renames it in files older than \
+                     Version 30500"
+                ),
+            );
+            stripped
+        } else {
+            name
+        };
+        if let Some(bad) = name.chars().find(|c| INVALID_NAME_CHARS.contains(*c)) {
+            return Err(self.err(
+                node,
+                format!(
+                    "name \"{}\" contains {}: OpenSim forbids `/`, `\\`, `*`, `+`, spaces, \
+                     tabs and line breaks in component names (`/` separates the names \
+                     in a component path)",
+                    name.escape_debug(),
+                    match bad {
+                        ' ' => "a space".to_string(),
+                        '\t' => "a tab".to_string(),
+                        '\n' => "a line break".to_string(),
+                        c => format!("`{c}`"),
+                    }
+                ),
+            ));
+        }
+        Ok(name)
     }
 
     /// A verbatim copy of an element tree.
