@@ -342,3 +342,105 @@ fn model_build_reproduces_the_default_model_and_scale_writes_a_subject() {
     ]);
     assert!(!ok && err.contains("--model-height"), "{err}");
 }
+
+/// A model with nothing to move (no coordinate, or only locked ones) is refused by the
+/// commands whose results are per coordinate, naming the file and why, and none of them
+/// writes a file; before, `id`, `so` and `muscles` wrote tables of no column (the motion's
+/// columns ignored) and `check` said "all checks passed". `inspect` still describes it.
+#[test]
+fn a_model_with_nothing_to_move_is_refused_by_the_per_coordinate_commands() {
+    let d = TempDir::new("nothing-to-move");
+    let empty = d.0.join("empty.osim");
+    std::fs::write(
+        &empty,
+        r#"<OpenSimDocument Version="40000"><Model name="x"></Model></OpenSimDocument>"#,
+    )
+    .unwrap();
+    let locked = d.0.join("locked.osim");
+    std::fs::write(
+        &locked,
+        r#"<OpenSimDocument Version="40000"><Model name="y">
+<BodySet><objects><Body name="a"><mass>1</mass><inertia>0.1 0.1 0.1 0 0 0</inertia></Body></objects></BodySet>
+<JointSet><objects><PinJoint name="j"><socket_parent_frame>/ground</socket_parent_frame>
+<socket_child_frame>/bodyset/a</socket_child_frame>
+<coordinates><Coordinate name="q"><locked>true</locked></Coordinate></coordinates>
+</PinJoint></objects></JointSet></Model></OpenSimDocument>"#,
+    )
+    .unwrap();
+    let motion = d.0.join("walk.mot");
+    std::fs::write(
+        &motion,
+        "walk\nversion=1\nnRows=3\nnColumns=2\ninDegrees=yes\nendheader\n\
+         time\tknee_angle\n0\t10\n0.01\t11\n0.02\t12\n",
+    )
+    .unwrap();
+    let trc = d.0.join("trial.trc");
+    std::fs::write(
+        &trc,
+        "PathFileType\t4\t(X/Y/Z)\ttrial.trc\n\
+         DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n\
+         100\t100\t2\t1\tm\t100\t1\t2\n\
+         Frame#\tTime\thip\t\t\n\
+         \t\tX1\tY1\tZ1\n\n\
+         1\t0\t0\t0.9\t0\n\
+         2\t0.01\t0\t0.9\t0\n",
+    )
+    .unwrap();
+    let out = d.0.join("out");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    for (model, why) in [
+        (&empty, "(it has no coordinate)"),
+        (&locked, "(its 1 coordinate(s) are all locked"),
+    ] {
+        let m = s(model);
+        let commands: [Vec<String>; 5] = [
+            vec!["check".into(), m.clone()],
+            vec![
+                "id".into(),
+                "--model".into(),
+                m.clone(),
+                "--coordinates".into(),
+                s(&motion),
+                "-o".into(),
+                s(&out.join("id.sto")),
+            ],
+            vec![
+                "so".into(),
+                "--model".into(),
+                m.clone(),
+                "--coordinates".into(),
+                s(&motion),
+                "-o".into(),
+                s(&out.join("so.sto")),
+            ],
+            vec![
+                "muscles".into(),
+                m.clone(),
+                "--coords".into(),
+                s(&motion),
+                "-o".into(),
+                s(&out.join("m")),
+            ],
+            vec![
+                "ik".into(),
+                "--model".into(),
+                m.clone(),
+                "--input".into(),
+                s(&trc),
+                "-o".into(),
+                s(&out.join("ik.mot")),
+            ],
+        ];
+        for command in commands {
+            let (ok, stdout, err) = run_musculo(&command);
+            assert!(!ok, "{command:?} succeeded: {stdout}");
+            assert!(
+                err.contains(&m) && err.contains("has nothing to move") && err.contains(why),
+                "{command:?}: {err}"
+            );
+            assert!(!out.exists(), "{command:?} wrote into {}", out.display());
+        }
+        let (ok, stdout, err) = run_musculo(&["inspect", m.as_str()]);
+        assert!(ok && stdout.contains("COORDINATES"), "inspect: {err}");
+    }
+}

@@ -60,7 +60,7 @@ fn grid_points(text: &str) -> Result<usize, String> {
 /// Runs the checks; `Ok(false)` when some check failed.
 pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     let model = match &args.model {
-        Some(p) => args.strict.load(p)?,
+        Some(p) => args.strict.load_movable(p)?,
         None => Model::demo(),
     };
     let options = CheckOptions {

@@ -91,7 +91,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         options.time_range = Some([r[0], r[1]]);
     }
 
-    let model = args.strict.load(&model_path)?;
+    let model = args.strict.load_movable(&model_path)?;
     let coordinates = read_coordinates(
         &model,
         &coordinates_path,

@@ -215,7 +215,7 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
         .chain(setup.coordinate_file.as_deref());
     let mut outputs = OutputSet::new(inputs);
     outputs.check(&output)?;
-    let model = args.strict.load(&model_path)?;
+    let model = args.strict.load_movable(&model_path)?;
     let (markers, read_warnings) =
         motion::read_with_warnings(&marker_path, args.format, &ReadOptions::default())?;
     crate::warnings::print(&read_warnings);
@@ -295,7 +295,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
     let inputs = args.input.iter().chain(&args.model).map(PathBuf::as_path);
     let mut outputs = OutputSet::new(inputs);
     let (base_xml, base_source) = model_text(args.model.as_deref())?;
-    let base_model = args.strict.load_str(&base_xml, &base_source)?;
+    let base_model = args.strict.load_str_movable(&base_xml, &base_source)?;
     let options = read_options(args.length_unit.as_deref())?;
     let auto_scale = match args.scale.as_deref() {
         None => false,

@@ -29,7 +29,7 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
-    let model = args.strict.load(&args.model)?;
+    let model = args.strict.load_movable(&args.model)?;
     let set = MuscleSet::new(&model)?;
     let motion = Table::read(&args.coords)?;
     crate::warnings::print(&motion.warnings);

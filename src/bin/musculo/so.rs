@@ -164,6 +164,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
         replace,
     )?;
     crate::warnings::print_model(&model);
+    crate::warnings::require_movable(&model)?;
     let so = StaticOptimization::new(&model, options)?;
     let coordinates = read_coordinates(
         &model,

@@ -1,7 +1,8 @@
 //! What every command does with what the library's readers accepted but reported: print it on
 //! stderr, one line per warning, and past a few, one line counting the rest; warnings about
 //! many frames summarised (the count, the worst frame in full, the first few times). Also the
-//! `--strict` flag shared by every command that loads a model.
+//! `--strict` flag shared by every command that loads a model, and the refusal of a model with
+//! nothing to move by the commands whose results are per coordinate.
 
 use musculo::Model;
 use musculo::model::{LoadOptions, WarningKind};
@@ -43,6 +44,48 @@ impl Strict {
         print_model(&model);
         Ok(model)
     }
+
+    /// [`load`](Self::load) for a command whose results are per coordinate (`id`, `so`,
+    /// `muscles`, `ik`, `check`): a model with nothing to move is refused
+    /// ([`require_movable`]).
+    pub fn load_movable(self, path: &Path) -> Result<Model, musculo::Error> {
+        let model = self.load(path)?;
+        require_movable(&model)?;
+        Ok(model)
+    }
+
+    /// [`load_str`](Self::load_str) with [`require_movable`].
+    pub fn load_str_movable(self, xml: &str, source: &str) -> Result<Model, musculo::Error> {
+        let model = self.load_str(xml, source)?;
+        require_movable(&model)?;
+        Ok(model)
+    }
+}
+
+/// Refuses a model without an independent coordinate for the commands whose results are per
+/// coordinate: with none they would write tables of no column (and ignore every column of
+/// the motion) and report success, or pass every check vacuously. `inspect` and
+/// `export-mjcf` still read such a model: describing it is meaningful.
+pub fn require_movable(model: &Model) -> Result<(), musculo::Error> {
+    if model.nq() > 0 {
+        return Ok(());
+    }
+    let why = if model.coordinates.is_empty() {
+        "it has no coordinate".to_string()
+    } else {
+        format!(
+            "its {} coordinate(s) are all locked or coupled to others",
+            model.coordinates.len()
+        )
+    };
+    Err(musculo::Error::InvalidArgument {
+        argument: "model",
+        message: format!(
+            "{}: the model \"{}\" has nothing to move ({why}): there is no coordinate to \
+             compute results for (`musculo inspect` lists what the model holds)",
+            model.source, model.name
+        ),
+    })
 }
 
 /// Longest message printed whole (bytes); a longer one is cut in the middle.
