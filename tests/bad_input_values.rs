@@ -353,28 +353,32 @@ fn id(text: &str) -> musculo::Result<Table> {
     .map(|o| o.table)
 }
 
+/// A coordinate value beyond ±1e15 (radians or metres) is a typing or unit error: refused at
+/// its own row's line and column. (Before, 1e250 made the spline's speeds square to infinity
+/// and the error blamed the first row whose force was NaN, and 1e306 overflowed the spline,
+/// blamed on the label line.)
 #[test]
-fn a_generalized_force_that_overflows_names_file_line_and_the_column_behind_it() {
-    // q = 1e250 keeps the spline finite, but its speeds square to infinity in the dynamics.
-    let (file, line, element, message) = model_error(id(&motion_with_knee("1e250")));
-    assert_eq!(file, "m.mot");
-    assert_eq!(element, "column \"knee_angle\"");
-    assert!((8..=12).contains(&line), "line {line}: {message}");
-    assert!(
-        message.contains("generalized force") && message.contains(" s:"),
-        "{message}"
-    );
-    assert!(!message.contains("element"), "{message}");
-}
-
-#[test]
-fn coordinates_that_overflow_the_spline_name_the_label_line_and_column() {
-    let (file, line, element, message) = model_error(id(&motion_with_knee("1e306")));
-    assert_eq!(
-        (file.as_str(), line, element.as_str()),
-        ("m.mot", 7, "column \"knee_angle\"")
-    );
-    assert!(message.contains("spline"), "{message}");
+fn a_coordinate_value_beyond_1e15_is_an_error_at_its_own_row_and_column() {
+    for knee in ["1e250", "1e306", "-1e16", "1.0000001e15"] {
+        let (file, line, element, message) = model_error(id(&motion_with_knee(knee)));
+        assert_eq!(
+            (file.as_str(), line, element.as_str()),
+            ("m.mot", 10, "column \"knee_angle\""),
+            "knee {knee}: {message}"
+        );
+        assert!(
+            message.contains("beyond ±1e15 rad") && message.contains(knee),
+            "{message}"
+        );
+    }
+    // In degrees, the message gives both the file's value and the radians.
+    let text = motion_with_knee("1e300").replace("inDegrees=no", "inDegrees=yes");
+    let (_, line, _, message) = model_error(id(&text));
+    assert_eq!(line, 10);
+    assert!(message.contains("1e300°") && message.contains("rad)"), "{message}");
+    // The bound itself is a (nonsensical but representable) pose: read, with the degrees
+    // suspicion warning.
+    id(&motion_with_knee("1e15")).expect("1e15 rad is read");
 }
 
 #[test]
@@ -420,9 +424,15 @@ fn the_cli_never_prints_line_0_or_an_element_index_for_bad_coordinates() {
         ),
     )
     .unwrap();
-    for (knee, line) in [("1e250", None), ("1e306", Some(7))] {
+    // Every value is refused at its row (line 10), in radians or in degrees, by `muscles`
+    // as by `id` and `so` (it once read 1e300° without a word).
+    for (knee, degrees) in [("1e250", false), ("1e306", false), ("1e300", true)] {
         let mot = d.join("m.mot");
-        std::fs::write(&mot, motion_with_knee(knee)).unwrap();
+        let mut text = motion_with_knee(knee);
+        if degrees {
+            text = text.replace("inDegrees=no", "inDegrees=yes");
+        }
+        std::fs::write(&mot, text).unwrap();
         for (pattern, paths) in [
             ("id --model {} --coordinates {} -o {}", [&model, &mot, &out]),
             (
@@ -443,16 +453,11 @@ fn the_cli_never_prints_line_0_or_an_element_index_for_bad_coordinates() {
                 stderr.contains("column \"knee_angle\""),
                 "{pattern}: {stderr}"
             );
-            if let Some(l) = line {
-                assert!(
-                    stderr.contains(&format!("m.mot:{l}:")),
-                    "{pattern}: {stderr}"
-                );
-            }
+            assert!(stderr.contains("m.mot:10:"), "{pattern}: {stderr}");
         }
         let (ok, _, stderr) = musculo_cli("muscles {} --coords {} -o {}", &[&model, &mot, &out]);
         assert!(
-            !ok && stderr.contains("m.mot:") && !stderr.contains(":0:"),
+            !ok && stderr.contains("m.mot:10:") && stderr.contains("beyond ±1e15 rad"),
             "{stderr}"
         );
         assert!(stderr.contains("column \"knee_angle\""), "{stderr}");

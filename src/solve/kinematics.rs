@@ -16,6 +16,7 @@
 
 use super::filter::{cutoff_problem, lowpass_butterworth3, pad_odd};
 use crate::error::Error;
+use crate::io::text::short_number;
 use crate::io::{Table, TableLocator};
 use crate::model::natural_spline::NaturalSpline;
 use crate::model::{Model, MotionType};
@@ -184,9 +185,18 @@ impl CoordinateTrajectory {
     }
 }
 
+/// The largest magnitude of a coordinate value read from a motion, in radians or metres.
+/// Beyond it a value is a typing or unit error, not a pose: near 10¹⁵ adjacent doubles are
+/// 0.125 apart, so an angle no longer resolves 7°, and no body travels 10¹⁵ m. Such a value
+/// makes inverse dynamics and static optimization fail on a NaN force at another row (the
+/// spline through it overflows its derivatives at the neighbouring rows), and the muscle
+/// paths compute finite nonsense from the sine of it; refused at its own row instead.
+pub const MAX_COORDINATE_MAGNITUDE: f64 = 1e15;
+
 /// The values of every independent coordinate of `model` in `table`, one column per
 /// coordinate in q order, in radians (rotational coordinates are converted when the table
-/// says `inDegrees=yes`). A missing column is an error naming it.
+/// says `inDegrees=yes`). A missing column is an error naming it; a value beyond
+/// ±[`MAX_COORDINATE_MAGNITUDE`] (or not finite) is an error at its row's line and column.
 pub fn independent_columns(
     model: &Model,
     table: &Table,
@@ -214,11 +224,34 @@ pub fn independent_columns(
         } else {
             1.0
         };
-        columns.push(
-            (0..table.n_rows())
-                .map(|r| table.value(r, col).unwrap_or(f64::NAN) * scale)
-                .collect(),
-        );
+        let values: Vec<f64> = (0..table.n_rows())
+            .map(|r| table.value(r, col).unwrap_or(f64::NAN) * scale)
+            .collect();
+        if let Some(r) = values
+            .iter()
+            .position(|v| !(v.abs() <= MAX_COORDINATE_MAGNITUDE))
+        {
+            let unit = match coord.motion_type {
+                MotionType::Rotational => "rad",
+                MotionType::Translational => "m",
+                MotionType::Coupled => "rad or m",
+            };
+            let value = short_number(table.value(r, col).unwrap_or(f64::NAN));
+            let value = if scale == 1.0 {
+                format!("{value} {unit}")
+            } else {
+                format!("{value}° ({} rad)", short_number(values[r]))
+            };
+            return Err(table.locator(source).row(
+                r,
+                format!("column \"{}\"", coord.name),
+                format!(
+                    "the value {value} is beyond ±{MAX_COORDINATE_MAGNITUDE:e} {unit}, which no \
+                     coordinate reaches: a typing or unit error"
+                ),
+            ));
+        }
+        columns.push(values);
     }
     Ok(columns)
 }
