@@ -397,9 +397,21 @@ fn component_names_with_characters_opensim_forbids_are_errors_naming_the_element
     let cases = [
         (r#"<Body name="thigh">"#, "Body", "thigh"),
         (r#"<PinJoint name="ankle">"#, "PinJoint", "ankle"),
-        (r#"<Coordinate name="knee_angle">"#, "Coordinate", "knee_angle"),
-        (r#"<WrapCylinder name="knee_wrap">"#, "WrapCylinder", "knee_wrap"),
-        (r#"<Thelen2003Muscle name="vasti">"#, "Thelen2003Muscle", "vasti"),
+        (
+            r#"<Coordinate name="knee_angle">"#,
+            "Coordinate",
+            "knee_angle",
+        ),
+        (
+            r#"<WrapCylinder name="knee_wrap">"#,
+            "WrapCylinder",
+            "knee_wrap",
+        ),
+        (
+            r#"<Thelen2003Muscle name="vasti">"#,
+            "Thelen2003Muscle",
+            "vasti",
+        ),
         (r#"<PathPoint name="vasti-P1">"#, "PathPoint", "vasti-P1"),
         (r#"<Marker name="toe">"#, "Marker", "toe"),
         (
@@ -447,7 +459,12 @@ fn component_names_with_characters_opensim_forbids_are_errors_naming_the_element
         r#"<Model name="demo/leg">"#,
     );
     let line = line_of(&xml, r#"<Model name="demo/leg">"#);
-    assert_model_error(load(&xml), "<Model>", line, &["\"demo/leg\"", "contains `/`"]);
+    assert_model_error(
+        load(&xml),
+        "<Model>",
+        line,
+        &["\"demo/leg\"", "contains `/`"],
+    );
 }
 
 /// Characters OpenSim allows in names (`-`, `.`, `:`, `|`, digits) and surrounding

@@ -375,7 +375,10 @@ fn a_coordinate_value_beyond_1e15_is_an_error_at_its_own_row_and_column() {
     let text = motion_with_knee("1e300").replace("inDegrees=no", "inDegrees=yes");
     let (_, line, _, message) = model_error(id(&text));
     assert_eq!(line, 10);
-    assert!(message.contains("1e300°") && message.contains("rad)"), "{message}");
+    assert!(
+        message.contains("1e300°") && message.contains("rad)"),
+        "{message}"
+    );
     // The bound itself is a (nonsensical but representable) pose: read, with the degrees
     // suspicion warning.
     id(&motion_with_knee("1e15")).expect("1e15 rad is read");

@@ -189,7 +189,11 @@ fn whitespace_in_a_name_is_removed_in_an_old_force_set_file_and_refused_in_a_new
         .iter()
         .find(|w| w.message.contains("\"knee reserve\""))
         .unwrap_or_else(|| panic!("no warning names the renamed force: {:?}", old.warnings));
-    assert!(warning.message.contains("\"kneereserve\""), "{}", warning.message);
+    assert!(
+        warning.message.contains("\"kneereserve\""),
+        "{}",
+        warning.message
+    );
     let e = read(set(40000)).unwrap_err().to_string();
     assert!(
         e.contains("reserves.xml:5") && e.contains("\"knee reserve\" contains a space"),
