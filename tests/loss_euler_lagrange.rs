@@ -273,7 +273,7 @@ fn tensor_files_without_frames_or_with_bad_arrays_are_named_errors() {
         musculo::motion::npy::write_npz(&path, &views, false).unwrap();
         (path, arrays)
     };
-    let cases: [(&str, [usize; 4], &dyn Fn(&str, &mut [f64]), &str); 3] = [
+    let cases: [(&str, [usize; 4], &dyn Fn(&str, &mut [f64]), &str); 4] = [
         ("empty.npz", [0; 4], &|_, _| {}, "has 0 frames"),
         (
             "mismatch.npz",
@@ -291,6 +291,16 @@ fn tensor_files_without_frames_or_with_bad_arrays_are_named_errors() {
             },
             &format!("`tau` is NaN at frame 1 (value 7 of the frame's {n})"),
         ),
+        (
+            "huge.npz",
+            [3; 4],
+            &|a, v| {
+                if a == "q" {
+                    v[2 * n + 4] = 7.9e32;
+                }
+            },
+            &format!("`q` is 7.9e32 at frame 2 (value 4 of the frame's {n}), beyond ±1e15"),
+        ),
     ];
     for (name, frames, edit, said) in cases {
         let (path, arrays) = write(name, frames, edit);
@@ -301,6 +311,15 @@ fn tensor_files_without_frames_or_with_bad_arrays_are_named_errors() {
         assert!(!e.contains("Some("), "{e}");
         let (ok, stdout, err) = musculo_cli("loss {}", &[&path]);
         assert!(!ok, "{name}: musculo loss succeeded: {stdout}");
+        assert!(err.contains(name) && err.contains(said), "{err}");
+        // evaluate and report read tensor files through the same reader: the clip fails
+        let out = dir.join(&format!("{name}.json"));
+        let (ok, stdout, err) = musculo_cli("evaluate --input {} --out {}", &[&path, &out]);
+        assert!(!ok, "{name}: musculo evaluate succeeded: {stdout}");
+        assert!(err.contains(name) && err.contains(said), "{err}");
+        let pages = dir.join(&format!("{name}-report"));
+        let (ok, stdout, err) = musculo_cli("report {} --out {}", &[&path, &pages]);
+        assert!(!ok, "{name}: musculo report succeeded: {stdout}");
         assert!(err.contains(name) && err.contains(said), "{err}");
     }
 }

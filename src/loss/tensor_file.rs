@@ -26,9 +26,18 @@ use super::{
     EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LayoutEulerLagrange,
     LayoutEulerLagrangeBatch, LayoutEulerLagrangeOutput, MuscleBatch, MuscleLoss, MuscleLossOutput,
 };
+use crate::io::text::short_number;
 use crate::model::Model;
 use crate::motion::npy::read_npz_as_f64;
+use crate::solve::kinematics::MAX_COORDINATE_MAGNITUDE;
 use std::path::Path;
+
+/// The largest magnitude of any value of a tensor file. For `q` it is the coordinates' bound
+/// ([`MAX_COORDINATE_MAGNITUDE`]: rad or m, where adjacent doubles no longer resolve a pose);
+/// no rate, acceleration, force, activation or time of a body comes near 10¹⁵ either (rad/s,
+/// N, N·m, s), so one bound serves every array. A file scaled by 10³⁰ is read as a pose
+/// 10³⁰ m above the floor otherwise, and `evaluate` prints a Float of 10³² mm.
+pub const MAX_TENSOR_MAGNITUDE: f64 = MAX_COORDINATE_MAGNITUDE;
 
 /// The frames of a tensor file, widened to f64.
 #[derive(Clone, Debug)]
@@ -181,7 +190,13 @@ impl TensorFrames {
             ("grf", &grf),
             ("contact_force", &contact_force),
         ] {
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            // Beyond ±MAX_TENSOR_MAGNITUDE (or not finite) a value is a scaling or unit error,
+            // not a motion; the metrics of such a file would be finite nonsense.
+            if let Some((i, v)) = values
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.abs() <= MAX_TENSOR_MAGNITUDE))
+            {
                 // the arrays are frame-major: T rows of `width` values
                 let width = values.len() / frames;
                 let what = if matches!(name, "q" | "qd" | "qdd" | "tau") {
@@ -189,8 +204,17 @@ impl TensorFrames {
                 } else {
                     ""
                 };
+                let beyond = if v.is_finite() {
+                    format!(
+                        ", beyond ±{MAX_TENSOR_MAGNITUDE:e}, which no motion reaches: a \
+                         scaling or unit error"
+                    )
+                } else {
+                    String::new()
+                };
                 return Err(bad(format!(
-                    "{what}`{name}` is {v} at frame {} (value {} of the frame's {width})",
+                    "{what}`{name}` is {} at frame {} (value {} of the frame's {width}){beyond}",
+                    short_number(*v),
                     i / width,
                     i % width
                 )));
