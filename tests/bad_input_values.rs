@@ -219,6 +219,60 @@ fn two_external_forces_with_one_name_are_an_error() {
     assert!(message.contains("line 5"), "{message}");
 }
 
+/// A force, point or torque value of an external loads' data file beyond ±1e7 (N, m, N·m) is a
+/// typing or unit error, refused at its own line and column (a force of 1e300 N gave moments
+/// of 1e160 N·m where a NaN in the same cell was refused); 9.9e6 is still read.
+#[test]
+fn an_external_load_value_beyond_1e7_is_an_error_at_its_line_and_column() {
+    use musculo::solve::external_loads::ExternalLoadSet;
+    let dir = ScratchDir::new("external-load-magnitude");
+    let xml = "<?xml version=\"1.0\"?>\n<OpenSimDocument Version=\"40000\">\n  <ExternalLoads \
+               name=\"grf\">\n    <objects>\n      <ExternalForce name=\"right\">\n        \
+               <applied_to_body>foot</applied_to_body>\n        \
+               <force_identifier>f_v</force_identifier>\n        \
+               <point_identifier>f_p</point_identifier>\n        \
+               <torque_identifier>t_</torque_identifier>\n      </ExternalForce>\n    \
+               </objects>\n    <datafile>grf.mot</datafile>\n  </ExternalLoads>\n\
+               </OpenSimDocument>\n";
+    std::fs::write(dir.join("grf.xml"), xml).unwrap();
+    let labels = ["f_vx", "f_vy", "f_vz", "f_px", "f_py", "f_pz", "t_x", "t_y", "t_z"];
+    // `value` in column `col` at row 3 (line 11; the labels are on line 7)
+    let data = |col: usize, value: &str| {
+        let mut s = format!(
+            "grf\nversion=1\nnRows=5\nnColumns=10\ninDegrees=no\nendheader\ntime\t{}\n",
+            labels.join("\t")
+        );
+        for r in 0..5 {
+            let row: Vec<&str> = (0..9)
+                .map(|c| if r == 3 && c == col { value } else { "1" })
+                .collect();
+            s.push_str(&format!("{}\t{}\n", r as f64 * 0.01, row.join("\t")));
+        }
+        s
+    };
+    let model = Model::demo();
+    for (col, value, unit) in [
+        (1, "1e300", "N"),
+        (1, "-2e7", "N"),
+        (4, "1e300", "m"),
+        (8, "1e10", "N·m"),
+    ] {
+        std::fs::write(dir.join("grf.mot"), data(col, value)).unwrap();
+        let e = ExternalLoadSet::read(&model, &dir.join("grf.xml"))
+            .expect_err(value)
+            .to_string();
+        assert!(
+            e.contains("grf.mot:11")
+                && e.contains(&format!("column \"{}\"", labels[col]))
+                && e.contains(&format!("{value} is beyond ±1e7 {unit}"))
+                && e.contains("ExternalForce \"right\""),
+            "{e}"
+        );
+    }
+    std::fs::write(dir.join("grf.mot"), data(1, "9.9e6")).unwrap();
+    ExternalLoadSet::read(&model, &dir.join("grf.xml")).unwrap();
+}
+
 // ---------------------------------------------------------------------------------------
 // Text that is not UTF-8
 

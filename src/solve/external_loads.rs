@@ -30,11 +30,20 @@ use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
 use crate::io::external_loads::ExternalLoads;
+use crate::io::text::short_number;
 use crate::model::Model;
 use crate::model::function::{Function, PiecewiseLinear};
 use crate::model::natural_spline::NaturalSpline;
 use crate::spatial::Vec3;
 use std::path::Path;
+
+/// The largest magnitude of a force (N), point (m) or torque (N·m) value in an external
+/// loads' data file. Force plates are rated to some 10⁴ N, and the largest loads bodies
+/// survive (impacts, a landing elephant) stay below 10⁵ N; a point 10⁷ m from the origin lies
+/// outside the Earth (radius 6.4·10⁶ m), and 10⁷ N·m is 10⁷ N at a metre. A value beyond it is
+/// a typing or unit error; read as a load it gives moments of 10¹⁶⁰ N·m for a force of 10³⁰⁰ N
+/// where a NaN is refused.
+pub const MAX_EXTERNAL_LOAD_MAGNITUDE: f64 = 1e7;
 
 /// One external force, resolved against a model and a data file.
 #[derive(Clone, Debug)]
@@ -230,6 +239,34 @@ impl ExternalLoadSet {
                     let mut make = |c: usize| -> crate::Result<Function> {
                         columns.push(table.labels[c].clone());
                         let y = table.column_at(c).unwrap_or_default();
+                        if let Some(r) = y
+                            .iter()
+                            .position(|v| !(v.abs() <= MAX_EXTERNAL_LOAD_MAGNITUDE))
+                        {
+                            let unit = match what {
+                                "force" => "N",
+                                "point" => "m",
+                                _ => "N·m",
+                            };
+                            return Err(locator.row(
+                                r,
+                                format!("column \"{}\"", table.labels[c]),
+                                format!(
+                                    "the {what} value {} is beyond ±{MAX_EXTERNAL_LOAD_MAGNITUDE:e} \
+                                     {unit}, which no external load on a body reaches: a typing \
+                                     or unit error (ExternalForce \"{}\" of {}{})",
+                                    short_number(y[r]),
+                                    f.name,
+                                    loads.source,
+                                    // (a force built from a C3D's plates has no line)
+                                    if f.line > 0 {
+                                        format!(", line {}", f.line)
+                                    } else {
+                                        String::new()
+                                    }
+                                ),
+                            ));
+                        }
                         time_function(&table.time, y)
                             .map_err(|m| err(format!("column \"{}\"", table.labels[c]), m))
                     };
