@@ -185,6 +185,68 @@ fn thread_and_pose_counts_are_bounded() {
     assert!(e.to_string().contains("random_poses"), "{e}");
 }
 
+/// The floor and contact options of `evaluate` and `report` are physical quantities with a
+/// range: a floor within ±1 km, a floor velocity within ±100 m/s per axis, a contact height in
+/// (0, 1] m. Before, a velocity of 1e300 printed a skate speed of `inf`, a floor of −1e300 a
+/// 300-digit Float and a contact height of 1e300 passed; the library's validation agrees.
+#[test]
+fn evaluate_floor_and_contact_options_are_bounded() {
+    for command in ["evaluate --input x --out y.json", "report x --out y"] {
+        for (flag, value, said) in [
+            ("--floor", "-1e300", "within ±1000"),
+            ("--floor", "1001", "within ±1000"),
+            ("--floor", "NaN", "within ±1000"),
+            ("--floor-velocity", "1e300,0,0", "each within ±100"),
+            ("--floor-velocity", "0,0,-101", "each within ±100"),
+            ("--floor-velocity", "inf,0,0", "each within ±100"),
+        ] {
+            let (ok, _, stderr) = musculo_cli(&format!("{command} {flag}={value}"), &[]);
+            assert!(!ok, "{command} {flag}={value} was accepted");
+            assert!(
+                stderr.contains(flag) && stderr.contains(value) && stderr.contains(said),
+                "{command} {flag}={value}: {stderr}"
+            );
+        }
+    }
+    for value in ["1e300", "1.5", "0", "-0.02", "NaN"] {
+        let command = format!("evaluate --input x --out y.json --contact-height={value}");
+        let (ok, _, stderr) = musculo_cli(&command, &[]);
+        assert!(!ok, "{command} was accepted");
+        assert!(
+            stderr.contains("--contact-height") && stderr.contains("in (0, 1]"),
+            "{command}: {stderr}"
+        );
+    }
+    use musculo::evaluate::EvaluateOptions;
+    use musculo::spatial::Vec3;
+    let base = EvaluateOptions::default();
+    let bad = [
+        EvaluateOptions {
+            floor_height: Some(-1e300),
+            ..base.clone()
+        },
+        EvaluateOptions {
+            floor_velocity: Some(Vec3::new(1e300, 0.0, 0.0)),
+            ..base.clone()
+        },
+        EvaluateOptions {
+            contact_height: 1e300,
+            ..base.clone()
+        },
+    ];
+    for (o, name) in bad.iter().zip(["floor_height", "floor_velocity", "contact_height"]) {
+        let e = o.validate().unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains("1e300"), "{e}");
+    }
+    let edge = EvaluateOptions {
+        floor_height: Some(-1000.0),
+        floor_velocity: Some(Vec3::new(100.0, 0.0, -100.0)),
+        contact_height: 1.0,
+        ..base
+    };
+    edge.validate().unwrap();
+}
+
 #[test]
 fn check_grid_points_are_bounded() {
     let (ok, _, stderr) = musculo_cli("check --demo --grid-points 100000000000", &[]);

@@ -86,7 +86,21 @@ pub use capacity::{CapacityCurves, capacity_at, isometric_forces};
 pub use clip::{Capacity, Control, evaluate_clip};
 pub use set::{ClipFile, SetOptions, SetReport, collect, evaluate_set, model_of};
 
+use crate::io::text::short_number;
 use serde::{Deserialize, Serialize};
+
+/// The largest floor height from the data's origin (m): no capture volume spans a kilometre,
+/// so a floor beyond it is a unit error (millimetres given as metres), and its heights would
+/// print as figures of hundreds of digits.
+pub const MAX_FLOOR_HEIGHT: f64 = 1e3;
+
+/// The largest component of the floor's velocity (m/s): ten times the fastest treadmill belt
+/// or sprint (about 10 m/s). Beyond it skating speeds are meaningless (10³⁰⁰ gave `inf`).
+pub const MAX_FLOOR_SPEED: f64 = 100.0;
+
+/// The largest contact height (m): a foot sphere a metre above the ground level is at a
+/// person's hip, never in contact; a larger threshold calls every frame's feet in contact.
+pub const MAX_CONTACT_HEIGHT: f64 = 1.0;
 
 /// Thresholds of the metrics (see the module documentation); defaults in [`Default`].
 #[derive(Clone, Debug, PartialEq)]
@@ -137,40 +151,54 @@ impl EvaluateOptions {
             (
                 "floor_height",
                 self.floor_height.unwrap_or(0.0),
-                self.floor_height.is_none_or(f64::is_finite),
+                self.floor_height
+                    .is_none_or(|h| h.abs() <= MAX_FLOOR_HEIGHT),
+                format!("|h| ≤ {MAX_FLOOR_HEIGHT} m"),
             ),
             (
                 "contact_height",
                 self.contact_height,
-                self.contact_height > 0.0,
+                self.contact_height > 0.0 && self.contact_height <= MAX_CONTACT_HEIGHT,
+                format!("(0, {MAX_CONTACT_HEIGHT}] m"),
             ),
-            ("skate_speed", self.skate_speed, self.skate_speed > 0.0),
+            (
+                "skate_speed",
+                self.skate_speed,
+                self.skate_speed > 0.0,
+                "> 0 m/s".into(),
+            ),
             (
                 "support_threshold",
                 self.support_threshold,
                 self.support_threshold >= 0.0,
+                "≥ 0".into(),
             ),
             (
                 "control_threshold",
                 self.control_threshold,
                 self.control_threshold > 0.0,
+                "> 0 m".into(),
             ),
         ];
-        for (name, value, ok) in checks {
+        for (name, value, ok, range) in checks {
             if !(ok && value.is_finite()) {
                 return Err(crate::Error::invalid(
                     name,
-                    format!("{value} is out of range"),
+                    format!("{} is out of range (must be {range})", short_number(value)),
                 ));
             }
         }
-        if self
-            .floor_velocity
-            .is_some_and(|v| !v.iter().all(|x| x.is_finite()))
+        if let Some(v) = self.floor_velocity
+            && !v.iter().all(|x| x.abs() <= MAX_FLOOR_SPEED)
         {
             return Err(crate::Error::invalid(
                 "floor_velocity",
-                "a component is not finite",
+                format!(
+                    "({}, {}, {}) has a component beyond ±{MAX_FLOOR_SPEED} m/s (or not finite)",
+                    short_number(v.x),
+                    short_number(v.y),
+                    short_number(v.z)
+                ),
             ));
         }
         if self.skate_window == 0 || self.skate_window.is_multiple_of(2) {

@@ -3,7 +3,7 @@
 
 use crate::tool::invalid;
 use indicatif::{ProgressBar, ProgressStyle};
-use musculo::evaluate::evaluate_set;
+use musculo::evaluate::{MAX_CONTACT_HEIGHT, evaluate_set};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -46,6 +46,16 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             ));
         }
     };
+    if !(args.contact_height > 0.0 && args.contact_height <= MAX_CONTACT_HEIGHT) {
+        return Err(invalid(
+            "--contact-height",
+            format!(
+                "{}: give a height in metres in (0, {MAX_CONTACT_HEIGHT}] (a foot a metre above \
+                 the ground is at a hip's height, never in contact)",
+                musculo::io::text::short_number(args.contact_height)
+            ),
+        ));
+    }
     let (clips, mut options) = args.set.clips_and_options(&args.input)?;
     options.control = args.control.clone();
     options.metrics.contact_height = args.contact_height;

@@ -2,7 +2,9 @@
 //! page with the distributions of the plausibility metrics and the worst clips linked.
 
 use crate::tool::{FrameProgress, invalid};
-use musculo::evaluate::{EvaluateOptions, SetOptions, collect, evaluate_set};
+use musculo::evaluate::{
+    EvaluateOptions, MAX_FLOOR_HEIGHT, MAX_FLOOR_SPEED, SetOptions, collect, evaluate_set,
+};
 use std::path::{Path, PathBuf};
 
 /// The arguments `evaluate` and `report` share: which model, reference and floor, and how
@@ -52,12 +54,20 @@ impl SetArgs {
     ) -> Result<(Vec<musculo::evaluate::ClipFile>, SetOptions), musculo::Error> {
         let floor = match self.floor.as_str() {
             "clip" => None,
-            text => Some(text.parse::<f64>().map_err(|_| {
-                invalid(
-                    "--floor",
-                    format!("{text}: give a height in metres or `clip`"),
-                )
-            })?),
+            text => Some(
+                text.parse::<f64>()
+                    .ok()
+                    .filter(|h| h.abs() <= MAX_FLOOR_HEIGHT)
+                    .ok_or_else(|| {
+                        invalid(
+                            "--floor",
+                            format!(
+                                "{text}: give a height in metres within ±{MAX_FLOOR_HEIGHT} \
+                                 (no capture volume spans a kilometre) or `clip`"
+                            ),
+                        )
+                    })?,
+            ),
         };
         let floor_velocity = match self.floor_velocity.as_str() {
             "clip" => None,
@@ -67,11 +77,16 @@ impl SetArgs {
                     .map(|c| c.trim().parse::<f64>())
                     .collect::<Result<_, _>>()
                     .ok()
-                    .filter(|v: &Vec<f64>| v.len() == 3)
+                    .filter(|v: &Vec<f64>| {
+                        v.len() == 3 && v.iter().all(|x| x.abs() <= MAX_FLOOR_SPEED)
+                    })
                     .ok_or_else(|| {
                         invalid(
                             "--floor-velocity",
-                            format!("{text}: give X,Y,Z in m/s or `clip`"),
+                            format!(
+                                "{text}: give X,Y,Z in m/s, each within ±{MAX_FLOOR_SPEED} (ten \
+                                 times the fastest treadmill belt), or `clip`"
+                            ),
                         )
                     })?;
                 Some(musculo::spatial::Vec3::new(v[0], v[1], v[2]))
