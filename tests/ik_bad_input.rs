@@ -263,6 +263,71 @@ fn a_trc_file_with_every_marker_missing_in_every_frame_is_an_error_naming_it() {
     assert!(e.contains("no frame of"), "{e}");
 }
 
+/// A TRC of arm26's three markers in mm, 3 frames (lines 6 to 8), with `value` for
+/// r_acromion's X at the last frame.
+fn arm_trc(value: &str) -> String {
+    let mut s = "PathFileType\t4\t(X/Y/Z)\tarm.trc\n\
+                 DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t\
+                 OrigDataStartFrame\tOrigNumFrames\n120\t120\t3\t3\tmm\t120\t1\t3\n\
+                 Frame#\tTime\tr_acromion\t\t\tr_humerus_epicondyle\t\t\tr_radius_styloid\n\
+                 \t\tX1\tY1\tZ1\tX2\tY2\tZ2\tX3\tY3\tZ3\n"
+        .to_string();
+    for f in 0..3 {
+        let x = if f == 2 { value } else { "-13.05" };
+        s.push_str(&format!(
+            "{}\t{}\t{x}\t839.5\t169.5\t-12.56\t502.59\t199.99\t-13.12\t266.43\t251.42\n",
+            f + 1,
+            f as f64 / 120.0
+        ));
+    }
+    s
+}
+
+/// A marker coordinate beyond ±1e6 m (after the file's unit) is a typing or unit error,
+/// refused at its line and column when the TRC is read; before, 1e300 reached IK and the
+/// error named IK's output column `total_squared_error`. A NaN or infinite `--time-range`
+/// is refused with the flag (NaN was reported as "no frame lies in [NaN, 1]").
+#[test]
+fn a_marker_beyond_1e6_m_and_a_non_finite_time_range_are_refused_where_they_are_given() {
+    for value in ["1e300", "-2e9"] {
+        let e = Trc::parse(&arm_trc(value), "arm.trc")
+            .expect_err(value)
+            .to_string();
+        assert!(
+            e.contains("arm.trc:8")
+                && e.contains("r_acromion")
+                && e.contains("X1")
+                && e.contains(&format!("`{value}` mm"))
+                && e.contains("beyond ±1e6 m"),
+            "{e}"
+        );
+    }
+    // 900 km in mm is still read
+    Trc::parse(&arm_trc("9e8"), "arm.trc").unwrap();
+    let dir = ScratchDir::new("ik-bad-huge-marker");
+    let path = dir.join("arm.trc");
+    std::fs::write(&path, arm_trc("1e300")).unwrap();
+    let out = dir.join("arm.mot");
+    if let Some(model) = reference_file("opensim-models/Models/Arm26/arm26.osim") {
+        let (ok, _, err) = musculo_cli("ik --model {} --input {} -o {}", &[&model, &path, &out]);
+        assert!(!ok, "musculo ik solved a marker at 1e300 mm");
+        assert!(
+            err.contains("arm.trc:8") && err.contains("beyond ±1e6 m"),
+            "{err}"
+        );
+        assert!(!out.exists(), "wrote {}", out.display());
+    }
+    for range in ["NaN 1", "0 inf", "0 NaN"] {
+        let command = format!("ik --model {{}} --input {{}} -o {{}} --time-range {range}");
+        let (ok, _, err) = musculo_cli(&command, &[&path, &path, &out]);
+        assert!(!ok, "{command} was accepted");
+        assert!(
+            err.contains("--time-range") && err.contains("give a finite time in seconds"),
+            "{command}: {err}"
+        );
+    }
+}
+
 #[test]
 fn gaps_in_joint_centres_are_left_out_and_a_joint_missing_everywhere_is_an_error() {
     let Some(hml) = reference_file(HML_JOINTS) else {

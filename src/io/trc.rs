@@ -50,8 +50,15 @@
 //! it is exact.)
 
 use crate::error::Error;
+use crate::io::text::short_number;
 use crate::spatial::Vec3;
 use std::path::Path;
+
+/// The largest magnitude of a marker coordinate (m, after the file's unit). Capture volumes
+/// span tens of metres, and a marker a thousand kilometres away is a typing or unit error.
+/// Such a value reaches IK as a target: 1e300 m squares to an infinite marker error, and the
+/// failure then names IK's output table instead of the file's cell.
+pub const MAX_MARKER_COORDINATE: f64 = 1e6;
 
 /// Length unit of a `.trc` file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -549,6 +556,20 @@ impl Trc {
                             )
                         })?
                         / per_metre;
+                    if !(p[k].abs() <= MAX_MARKER_COORDINATE) {
+                        return Err(err(
+                            line,
+                            column_name(c + k),
+                            format!(
+                                "`{}` {} is {} m from the origin, beyond \
+                                 ±{MAX_MARKER_COORDINATE:e} m, which no capture volume reaches: \
+                                 a typing or unit error",
+                                parts[k],
+                                units.symbol(),
+                                short_number(p[k])
+                            ),
+                        ));
+                    }
                 }
                 positions.push(p);
             }

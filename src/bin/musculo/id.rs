@@ -30,7 +30,13 @@ pub struct Args {
     #[arg(long, allow_negative_numbers = true, value_name = "HZ", value_parser = crate::tool::lowpass_hz)]
     lowpass: Option<f64>,
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
-    #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
+    #[arg(
+        long,
+        num_args = 2,
+        value_names = ["START", "END"],
+        allow_negative_numbers = true,
+        value_parser = crate::tool::time_s
+    )]
     time_range: Option<Vec<f64>>,
     /// Output .sto file; a path ending in `/` is a folder (the setup's output_gen_force_file,
     /// else inverse_dynamics.sto, in it). It may not be an input. Default: the setup's

@@ -59,7 +59,13 @@ pub struct Args {
     #[arg(long, value_parser = ["range", "clamped", "none"])]
     bounds: Option<String>,
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
-    #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
+    #[arg(
+        long,
+        num_args = 2,
+        value_names = ["START", "END"],
+        allow_negative_numbers = true,
+        value_parser = crate::tool::time_s
+    )]
     time_range: Option<Vec<f64>>,
     /// Output .mot file; with several inputs, or ending in `/`, a folder receiving
     /// <input stem>.mot each (with --setup: the setup's output file name). Written with the

@@ -41,7 +41,13 @@ pub struct Args {
     lowpass: Option<f64>,
     /// Time range START END (s). Default: the setup's initial_time and final_time, else the
     /// whole motion.
-    #[arg(long, num_args = 2, value_names = ["START", "END"], allow_negative_numbers = true)]
+    #[arg(
+        long,
+        num_args = 2,
+        value_names = ["START", "END"],
+        allow_negative_numbers = true,
+        value_parser = crate::tool::time_s
+    )]
     time_range: Option<Vec<f64>>,
     /// Solve every k-th frame (and the first and last). Default: the setup's step_interval,
     /// else 1.

@@ -159,6 +159,16 @@ pub fn lowpass_hz(text: &str) -> Result<f64, String> {
     Ok(hz)
 }
 
+/// A time of `--time-range START END` (s): a finite number, refused when the arguments are
+/// parsed (NaN selected no frame and was reported as an empty range; give the motion's last
+/// time, or leave the flag out, for the whole motion).
+pub fn time_s(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(t) if t.is_finite() => Ok(t),
+        _ => Err(format!("`{text}`: give a finite time in seconds")),
+    }
+}
+
 /// `--jobs`: 1 to 1024 worker threads (a larger count would start thousands of threads
 /// before the system refused one).
 pub fn jobs(text: &str) -> Result<usize, String> {
