@@ -1068,6 +1068,40 @@ fn bad_setups_are_errors_naming_file_and_line() {
             "{what}: {e}"
         );
     }
+    // manual factors outside [0.01, 100] are typing or unit errors, at their <Scale> (line 8);
+    // 1e300 overflowed the inertias and was blamed on the model file
+    for factors in ["1e300 1 1", "1 101 1", "1 1 0.005", "1 1 0"] {
+        let text = setup("M1 M3", "shank", "thigh")
+            .replace("<scales>1 1 1</scales>", &format!("<scales>{factors}</scales>"));
+        let e = run(text).unwrap_err().to_string();
+        assert!(
+            e.contains("setup.xml:8") && e.contains("must lie in [0.01, 100]"),
+            "{factors}: {e}"
+        );
+    }
+    let text = setup("M1 M3", "shank", "thigh")
+        .replace("<scales>1 1 1</scales>", "<scales>0.01 100 1</scales>");
+    run(text).unwrap();
+    // a marker placement whose every task has weight 0 has nothing to fit: an error at the
+    // MarkerPlacer (line 11), not markers moved onto the trial from the default pose
+    let placer = |w1: &str, w3: &str| {
+        setup("M1 M3", "shank", "thigh").replace(
+            "</ModelScaler>",
+            &format!(
+                "</ModelScaler>\n<MarkerPlacer><apply>true</apply><IKTaskSet><objects>\
+                 <IKMarkerTask name=\"M1\"><apply>true</apply><weight>{w1}</weight></IKMarkerTask>\
+                 <IKMarkerTask name=\"M3\"><apply>true</apply><weight>{w3}</weight></IKMarkerTask>\
+                 </objects></IKTaskSet><marker_file>static.trc</marker_file>\
+                 <time_range>0 0.03</time_range></MarkerPlacer>"
+            ),
+        )
+    };
+    let e = run(placer("0", "0")).unwrap_err().to_string();
+    assert!(
+        e.contains("setup.xml:11") && e.contains("has weight 0") && e.contains("nothing to fit"),
+        "{e}"
+    );
+    run(placer("1", "0")).unwrap();
     // a marker missing from the trial altogether
     let mut gone = setup("M1 M3", "shank", "thigh");
     gone = gone.replace("static.trc", "static2.trc");

@@ -24,7 +24,8 @@
 //! warning (OpenSim ignores it silently; the Gait2392 setup lists `patella_r`, which that
 //! model does not have).
 
-use super::ScaleSet;
+use super::{MAX_SCALE_FACTOR, MIN_SCALE_FACTOR, ScaleSet};
+use crate::io::text::short_number;
 use crate::io::scale_setup::{Measurement, ModelScaler, ScalingStep};
 use crate::io::setup::SetupWarning;
 use crate::model::Model;
@@ -217,10 +218,13 @@ pub fn scale_set(
                             .place
                             .error(format!("no body \"{}\" in the model", s.body)));
                     }
-                    if !s.factors.iter().all(|f| *f > 0.0 && f.is_finite()) {
+                    if !s.factors.iter().all(|f| super::scale_factor_is_plausible(*f)) {
                         return Err(s.place.error(format!(
-                            "factors ({}, {}, {}) must be positive and finite",
-                            s.factors.x, s.factors.y, s.factors.z
+                            "factors ({}, {}, {}) must lie in [{MIN_SCALE_FACTOR}, \
+                             {MAX_SCALE_FACTOR}]: a factor beyond them is a typing or unit error",
+                            short_number(s.factors.x),
+                            short_number(s.factors.y),
+                            short_number(s.factors.z)
                         )));
                     }
                     set.set(&s.body, s.factors);

@@ -50,6 +50,19 @@ use crate::error::Error;
 use crate::model::{LoadOptions, Model};
 use crate::spatial::Vec3;
 
+/// The range of a manual scale factor of a Scale setup. Bodies of people differ by a factor
+/// of a few (a child and a tall adult); 100 turns a 1.8 m model into 180 m and 0.01 into
+/// 1.8 cm, sizes of no musculoskeletal subject. A factor near 1000 or 0.001 is a millimetre
+/// and metre mix-up, and 10³⁰⁰ overflowed the inertias to `inf` (blamed on the model file).
+pub const MIN_SCALE_FACTOR: f64 = 0.01;
+/// See [`MIN_SCALE_FACTOR`].
+pub const MAX_SCALE_FACTOR: f64 = 100.0;
+
+/// True for a factor in [[`MIN_SCALE_FACTOR`], [`MAX_SCALE_FACTOR`]] (NaN is not).
+pub fn scale_factor_is_plausible(factor: f64) -> bool {
+    (MIN_SCALE_FACTOR..=MAX_SCALE_FACTOR).contains(&factor)
+}
+
 /// Per-body scale factors (OpenSim's `ScaleSet`): body name → (fx, fy, fz).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ScaleSet {

@@ -296,6 +296,19 @@ fn tasks(
             .place
             .error("no model marker has a counterpart in the static trial"));
     }
+    // With every weight 0 the objective is 0 at any pose: the solver stops at the default
+    // pose and the markers are moved onto the trial from there (by hundreds of millimetres).
+    if out.markers.iter().all(|t| t.weight == 0.0)
+        && out.coordinates.iter().all(|t| t.weight == 0.0)
+    {
+        return Err(placer.place.error(format!(
+            "every applied task of the IKTaskSet ({} marker and {} coordinate task(s) used) has \
+             weight 0: the static pose has nothing to fit; give the markers to fit a positive \
+             weight",
+            out.markers.len(),
+            out.coordinates.len()
+        )));
+    }
     Ok(out)
 }
 
