@@ -234,7 +234,10 @@ fn evaluate_floor_and_contact_options_are_bounded() {
             ..base.clone()
         },
     ];
-    for (o, name) in bad.iter().zip(["floor_height", "floor_velocity", "contact_height"]) {
+    for (o, name) in bad
+        .iter()
+        .zip(["floor_height", "floor_velocity", "contact_height"])
+    {
         let e = o.validate().unwrap_err().to_string();
         assert!(e.contains(name) && e.contains("1e300"), "{e}");
     }

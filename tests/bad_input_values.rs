@@ -235,7 +235,9 @@ fn an_external_load_value_beyond_1e7_is_an_error_at_its_line_and_column() {
                </objects>\n    <datafile>grf.mot</datafile>\n  </ExternalLoads>\n\
                </OpenSimDocument>\n";
     std::fs::write(dir.join("grf.xml"), xml).unwrap();
-    let labels = ["f_vx", "f_vy", "f_vz", "f_px", "f_py", "f_pz", "t_x", "t_y", "t_z"];
+    let labels = [
+        "f_vx", "f_vy", "f_vz", "f_px", "f_py", "f_pz", "t_x", "t_y", "t_z",
+    ];
     // `value` in column `col` at row 3 (line 11; the labels are on line 7)
     let data = |col: usize, value: &str| {
         let mut s = format!(

@@ -1071,8 +1071,10 @@ fn bad_setups_are_errors_naming_file_and_line() {
     // manual factors outside [0.01, 100] are typing or unit errors, at their <Scale> (line 8);
     // 1e300 overflowed the inertias and was blamed on the model file
     for factors in ["1e300 1 1", "1 101 1", "1 1 0.005", "1 1 0"] {
-        let text = setup("M1 M3", "shank", "thigh")
-            .replace("<scales>1 1 1</scales>", &format!("<scales>{factors}</scales>"));
+        let text = setup("M1 M3", "shank", "thigh").replace(
+            "<scales>1 1 1</scales>",
+            &format!("<scales>{factors}</scales>"),
+        );
         let e = run(text).unwrap_err().to_string();
         assert!(
             e.contains("setup.xml:8") && e.contains("must lie in [0.01, 100]"),

@@ -25,9 +25,9 @@
 //! model does not have).
 
 use super::{MAX_SCALE_FACTOR, MIN_SCALE_FACTOR, ScaleSet};
-use crate::io::text::short_number;
 use crate::io::scale_setup::{Measurement, ModelScaler, ScalingStep};
 use crate::io::setup::SetupWarning;
+use crate::io::text::short_number;
 use crate::model::Model;
 use crate::motion::Motion;
 use crate::spatial::Vec3;
@@ -218,7 +218,11 @@ pub fn scale_set(
                             .place
                             .error(format!("no body \"{}\" in the model", s.body)));
                     }
-                    if !s.factors.iter().all(|f| super::scale_factor_is_plausible(*f)) {
+                    if !s
+                        .factors
+                        .iter()
+                        .all(|f| super::scale_factor_is_plausible(*f))
+                    {
                         return Err(s.place.error(format!(
                             "factors ({}, {}, {}) must lie in [{MIN_SCALE_FACTOR}, \
                              {MAX_SCALE_FACTOR}]: a factor beyond them is a typing or unit error",
