@@ -205,51 +205,50 @@ impl ExternalLoadSet {
                 return Err(xml_err("a point is specified for no applied force".into()));
             }
             let mut columns = Vec::new();
-            let mut functions = |identifier: &Option<String>,
-                                 what: &str|
-             -> crate::Result<Option<[Function; 3]>> {
-                let Some(id) = identifier else {
-                    return Ok(None);
-                };
-                let found: Vec<usize> = (0..table.n_columns())
-                    .filter(|&c| table.labels[c].starts_with(id.as_str()))
-                    .collect();
-                if found.len() != 3 {
-                    let listed = found
-                        .iter()
-                        .map(|&c| format!("`{}`", table.labels[c]))
-                        .collect::<Vec<_>>()
-                        .join(", ");
-                    return Err(err(
-                        format!("column \"{id}*\""),
-                        format!(
-                            "ExternalForce \"{}\" ({}, line {}): {what}_identifier `{id}` must \
+            let mut functions =
+                |identifier: &Option<String>, what: &str| -> crate::Result<Option<[Function; 3]>> {
+                    let Some(id) = identifier else {
+                        return Ok(None);
+                    };
+                    let found: Vec<usize> = (0..table.n_columns())
+                        .filter(|&c| table.labels[c].starts_with(id.as_str()))
+                        .collect();
+                    if found.len() != 3 {
+                        let listed = found
+                            .iter()
+                            .map(|&c| format!("`{}`", table.labels[c]))
+                            .collect::<Vec<_>>()
+                            .join(", ");
+                        return Err(err(
+                            format!("column \"{id}*\""),
+                            format!(
+                                "ExternalForce \"{}\" ({}, line {}): {what}_identifier `{id}` must \
                              match exactly 3 columns (labels starting with it), found {}{}",
-                            f.name,
-                            loads.source,
-                            f.line,
-                            found.len(),
-                            if listed.is_empty() {
-                                String::new()
-                            } else {
-                                format!(": {listed}")
-                            }
-                        ),
-                    ));
-                }
-                let mut make = |c: usize| -> crate::Result<Function> {
-                    columns.push(table.labels[c].clone());
-                    let y = table.column_at(c).unwrap_or_default();
-                    if let Some(r) = y
-                        .iter()
-                        .position(|v| !(v.abs() <= MAX_EXTERNAL_LOAD_MAGNITUDE))
-                    {
-                        let unit = match what {
-                            "force" => "N",
-                            "point" => "m",
-                            _ => "N·m",
-                        };
-                        return Err(locator.row(
+                                f.name,
+                                loads.source,
+                                f.line,
+                                found.len(),
+                                if listed.is_empty() {
+                                    String::new()
+                                } else {
+                                    format!(": {listed}")
+                                }
+                            ),
+                        ));
+                    }
+                    let mut make = |c: usize| -> crate::Result<Function> {
+                        columns.push(table.labels[c].clone());
+                        let y = table.column_at(c).unwrap_or_default();
+                        if let Some(r) = y
+                            .iter()
+                            .position(|v| !(v.abs() <= MAX_EXTERNAL_LOAD_MAGNITUDE))
+                        {
+                            let unit = match what {
+                                "force" => "N",
+                                "point" => "m",
+                                _ => "N·m",
+                            };
+                            return Err(locator.row(
                             r,
                             format!("column \"{}\"", table.labels[c]),
                             format!(
@@ -267,12 +266,12 @@ impl ExternalLoadSet {
                                 }
                             ),
                         ));
-                    }
-                    time_function(&table.time, y)
-                        .map_err(|m| err(format!("column \"{}\"", table.labels[c]), m))
+                        }
+                        time_function(&table.time, y)
+                            .map_err(|m| err(format!("column \"{}\"", table.labels[c]), m))
+                    };
+                    Ok(Some([make(found[0])?, make(found[1])?, make(found[2])?]))
                 };
-                Ok(Some([make(found[0])?, make(found[1])?, make(found[2])?]))
-            };
             let force = functions(&f.force_identifier, "force")?;
             let point = functions(&f.point_identifier, "point")?;
             let torque = functions(&f.torque_identifier, "torque")?;
