@@ -198,21 +198,43 @@ pub fn expect_rank<'a, A, D: Dimension>(
     })
 }
 
-/// Every member of an `.npz` archive (NumPy's `savez`/`savez_compressed`), in archive order,
-/// named without the `.npy` suffix, each parsed with `parse` (e.g. [`parse_array::<f32>`]).
-fn read_npz_with<T>(
-    path: &Path,
-    parse: impl Fn(&[u8], &str) -> crate::Result<T>,
-) -> crate::Result<Vec<(String, T)>> {
+/// An `.npz` file opened as a zip archive, with the file's name for messages.
+fn open_npz(path: &Path) -> crate::Result<(String, NpzArchive)> {
     let source = path.display().to_string();
     let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
-    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
+    let zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
         motion_error(
             &source,
             "archive",
             format!("not an .npz (zip) archive: {e}"),
         )
     })?;
+    Ok((source, zip))
+}
+
+type NpzArchive = zip::ZipArchive<std::io::BufReader<std::fs::File>>;
+
+/// The bytes of archive member `name` into `bytes` (cleared first).
+fn read_member(
+    member: &mut impl Read,
+    source: &str,
+    name: &str,
+    bytes: &mut Vec<u8>,
+) -> crate::Result<()> {
+    bytes.clear();
+    member
+        .read_to_end(bytes)
+        .map_err(|e| motion_error(source, &format!("archive member \"{name}\""), e.to_string()))?;
+    Ok(())
+}
+
+/// Every member of an `.npz` archive (NumPy's `savez`/`savez_compressed`), in archive order,
+/// named without the `.npy` suffix, each parsed with `parse` (e.g. [`parse_array::<f32>`]).
+fn read_npz_with<T>(
+    path: &Path,
+    parse: impl Fn(&[u8], &str) -> crate::Result<T>,
+) -> crate::Result<Vec<(String, T)>> {
+    let (source, mut zip) = open_npz(path)?;
     let mut out = Vec::with_capacity(zip.len().min(1024));
     let mut bytes = Vec::new();
     for i in 0..zip.len() {
@@ -220,14 +242,7 @@ fn read_npz_with<T>(
             .by_index(i)
             .map_err(|e| motion_error(&source, &format!("archive member {i}"), e.to_string()))?;
         let name = member.name().to_string();
-        bytes.clear();
-        member.read_to_end(&mut bytes).map_err(|e| {
-            motion_error(
-                &source,
-                &format!("archive member \"{name}\""),
-                e.to_string(),
-            )
-        })?;
+        read_member(&mut member, &source, &name, &mut bytes)?;
         let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
         let array = parse(&bytes, &format!("{source} [{name}]"))?;
         out.push((key, array));
@@ -258,15 +273,7 @@ pub fn read_npz_some_as_f64(
     path: &Path,
     wanted: &[&str],
 ) -> crate::Result<Vec<(String, Option<ArrayD<f64>>)>> {
-    let source = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
-    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
-        motion_error(
-            &source,
-            "archive",
-            format!("not an .npz (zip) archive: {e}"),
-        )
-    })?;
+    let (source, mut zip) = open_npz(path)?;
     let mut out = Vec::with_capacity(zip.len().min(1024));
     for i in 0..zip.len() {
         let mut member = zip
@@ -276,13 +283,7 @@ pub fn read_npz_some_as_f64(
         let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
         let array = if wanted.contains(&key.as_str()) {
             let mut bytes = Vec::new();
-            member.read_to_end(&mut bytes).map_err(|e| {
-                motion_error(
-                    &source,
-                    &format!("archive member \"{name}\""),
-                    e.to_string(),
-                )
-            })?;
+            read_member(&mut member, &source, &name, &mut bytes)?;
             Some(parse_array_as_f64(&bytes, &format!("{source} [{name}]"))?)
         } else {
             None
