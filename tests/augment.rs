@@ -512,7 +512,51 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
         .unwrap();
     assert!(!again.status.success());
     assert!(String::from_utf8_lossy(&again.stderr).contains("--resume"));
-    for d in [dir, out] {
+    // sharded: each shard exits as its clips went, and so does the merge, which writes the
+    // same manifest as the one run and names the failed clip with its reason
+    let sharded = temp_dir("failing-sharded");
+    for k in 0..2 {
+        let shard = std::process::Command::new(exe)
+            .args(["augment", "--input"])
+            .arg(&dir)
+            .args([
+                "--format",
+                "humanml3d",
+                "--shard",
+                &format!("{k}/2"),
+                "--out",
+            ])
+            .arg(&sharded)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&shard.stderr);
+        assert_eq!(
+            shard.status.success(),
+            !text.contains("failed: sub/broken"),
+            "{text}"
+        );
+    }
+    let merged = std::process::Command::new(exe)
+        .arg("merge")
+        .arg(&sharded)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&merged.stderr);
+    assert!(
+        !merged.status.success(),
+        "merge exits non-zero when a clip failed: {text}"
+    );
+    assert!(
+        text.contains("failed: sub/broken (") && text.contains("broken.npy"),
+        "{text}"
+    );
+    assert!(text.contains("merged: 1 clip(s) ok, 1 failed"), "{text}");
+    assert_eq!(
+        std::fs::read(sharded.join("manifest.json")).unwrap(),
+        std::fs::read(out.join("manifest.json")).unwrap(),
+        "the merged manifest is the one run's"
+    );
+    for d in [dir, out, sharded] {
         let _ = std::fs::remove_dir_all(d);
     }
 }

@@ -309,8 +309,31 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     Ok(failed.is_empty())
 }
 
-pub fn merge(args: &MergeArgs) -> Result<(), musculo::Error> {
+/// Merges the shards of `args.out`; Ok(false) when the merged manifest records failed clips
+/// (as `augment` exits non-zero when a clip failed), after writing it and naming them.
+pub fn merge(args: &MergeArgs) -> Result<bool, musculo::Error> {
     let manifest = runner::merge(&args.out)?;
+    let failed: Vec<_> = manifest
+        .clips
+        .iter()
+        .filter(|c| c.reason.is_some())
+        .collect();
+    const SHOWN: usize = 10;
+    for c in failed.iter().take(SHOWN) {
+        eprintln!(
+            "failed: {} ({}): {}",
+            c.clip,
+            c.input,
+            c.reason.as_deref().unwrap_or("")
+        );
+    }
+    if failed.len() > SHOWN {
+        eprintln!(
+            "failed: … and {} more clip(s), each with its reason in {}",
+            failed.len() - SHOWN,
+            args.out.join("manifest.json").display()
+        );
+    }
     eprintln!(
         "merged: {} clip(s) ok, {} failed, {} frames; wrote {}",
         manifest.summary.clips_ok,
@@ -326,5 +349,5 @@ pub fn merge(args: &MergeArgs) -> Result<(), musculo::Error> {
         let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
         eprintln!("wrote {}", page.display());
     }
-    Ok(())
+    Ok(manifest.summary.clips_failed == 0)
 }

@@ -84,7 +84,8 @@ enum Command {
     /// activations of the model (IK, inverse dynamics, contacts, static optimization), as
     /// float32 .npz tensors with a manifest and statistics. Resumable and shardable.
     Augment(augment::Args),
-    /// Combine the shards of an `augment --shard K/N` run into one manifest and statistics.
+    /// Combine the shards of an `augment --shard K/N` run into one manifest and statistics;
+    /// like `augment`, exits non-zero (naming them) when clips failed.
     Merge(augment::MergeArgs),
     /// The Euler–Lagrange residual M q̈ + C q̇ + G − τ − J_cᵀλ of a tensor file (an augmented
     /// clip or a generated motion): L_euler, per-frame and per-coordinate figures.
@@ -128,7 +129,11 @@ fn main() -> ExitCode {
             Ok(false) => return ExitCode::FAILURE,
             Err(e) => Err(e),
         },
-        Command::Merge(args) => augment::merge(&args),
+        Command::Merge(args) => match augment::merge(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(e) => Err(e),
+        },
         Command::Loss(args) => loss::run(&args),
         Command::TrainAe(args) => return learn::run("train-ae", &args),
         Command::Reconstruct(args) => return learn::run("reconstruct", &args),
