@@ -1245,6 +1245,15 @@ fn inconsistent_files_are_errors_naming_file_and_place() {
             "not finite",
         ),
         (
+            "marker a thousand kilometres away",
+            Box::new(|s: &mut Spec| {
+                s.points[2][4] = Some([0.0, 2e9, 0.0]); // mm
+                None
+            }),
+            "frame 2, marker \"LTH3\"",
+            "beyond ±1e6 m",
+        ),
+        (
             "infinite analog",
             Box::new(|s: &mut Spec| {
                 s.analog[4][7] = f64::INFINITY;

@@ -12,7 +12,8 @@
 //!
 //! * **Markers.** A point sample is missing when its residual word is negative (the sign bit
 //!   of the fourth value, as ezc3d reads it); its coordinates are then NaN. Positions are
-//!   converted from `POINT:UNITS` (mm, cm, m, in) to metres. Points listed in `POINT:ANGLES`,
+//!   converted from `POINT:UNITS` (mm, cm, m, in) to metres; one beyond ±1e6 m is an error
+//!   naming frame and marker, as in `.trc` files. Points listed in `POINT:ANGLES`,
 //!   `FORCES`, `MOMENTS`, `POWERS`, `SCALARS` or `REACTIONS` (model outputs that Vicon stores
 //!   as points, in other units) are not markers and are left out, as OpenSim does.
 //! * **Analog.** value = (raw − `OFFSET`) × `SCALE` × `GEN_SCALE` per channel, in the
@@ -92,6 +93,8 @@ pub use plates::ForcePlate;
 use super::Motion;
 use crate::error::Error;
 use crate::io::storage::Table;
+use crate::io::text::short_number;
+use crate::io::trc::MAX_MARKER_COORDINATE;
 use crate::spatial::Vec3;
 use binary::{Parameters, error};
 use std::path::Path;
@@ -562,7 +565,22 @@ impl Layout {
                         ),
                     ));
                 }
-                positions.push(p * scale);
+                let p = p * scale;
+                if !(p.amax() <= MAX_MARKER_COORDINATE) {
+                    return Err(error(
+                        &params.source,
+                        format!("frame {f}, marker \"{}\"", labels[i]),
+                        format!(
+                            "position ({}, {}, {}) m is beyond ±{MAX_MARKER_COORDINATE:e} m, \
+                             which no capture volume reaches: a corrupt value or a wrong \
+                             POINT:SCALE or POINT:UNITS",
+                            short_number(p.x),
+                            short_number(p.y),
+                            short_number(p.z)
+                        ),
+                    ));
+                }
+                positions.push(p);
             }
         }
         let names = kept.iter().map(|&i| labels[i].clone()).collect();
