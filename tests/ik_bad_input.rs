@@ -759,6 +759,49 @@ fn ik_setups_naming_markers_the_model_lacks_warn_or_fail() {
     assert!(!dir.join("none.mot").exists());
 }
 
+/// A coordinate task weighs against marker weights that OpenSim's IK normalizes to sum 1, so
+/// its weight is only a pin's stiffness: the Gait2392 setup's pins (subtalar and mtp, 1000)
+/// at 10¹⁵ or 10³⁰³ fit the markers as well (from 10¹⁴ on, the damping they set for every
+/// coordinate stopped IK at its starting pose, 635 mm RMSE, without a word).
+#[test]
+fn stiff_coordinate_tasks_do_not_stall_the_fit() {
+    let dir = ScratchDir::new("ik-stiff-pins");
+    let Some(path) = gait_setup(&dir, "stiff", "", false) else {
+        return;
+    };
+    let (_, model) = gait_model().unwrap();
+    let setup = IkSetup::read(&path).unwrap();
+    let markers = read(setup.marker_file.as_ref().unwrap()).unwrap();
+    let markers = ik_tool::select_frames(&markers, setup.time_range).unwrap();
+    let (tasks, _) = ik_tool::tasks_from_setup(&model, &setup, &markers, None).unwrap();
+    assert!(tasks.coordinates.len() >= 4 && tasks.coordinates.iter().all(|t| t.weight == 1000.0));
+    let fit = |factor: f64| {
+        let mut t = tasks.clone();
+        for c in &mut t.coordinates {
+            c.weight *= factor;
+        }
+        ik::solve_motion(&model, &markers, &t, &opensim_settings(), &|_| {}).unwrap()
+    };
+    let base = fit(1.0);
+    assert!(base.rmse.iter().all(|r| *r < 0.05), "{:?}", base.rmse);
+    for factor in [1e12, 1e300] {
+        let stiff = fit(factor);
+        for (f, (a, b)) in base.rmse.iter().zip(&stiff.rmse).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-3 * a,
+                "×{factor:e}, frame {f}: RMSE {b} vs {a}"
+            );
+        }
+        let worst = base
+            .q
+            .iter()
+            .zip(&stiff.q)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-3, "×{factor:e}: coordinates differ by {worst}");
+    }
+}
+
 #[test]
 fn inputs_with_the_same_stem_do_not_overwrite_each_other() {
     let Some(hml) = reference_file(HML_JOINTS) else {

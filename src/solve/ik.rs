@@ -319,6 +319,9 @@ pub struct IkWorkspace {
     force: Vec<Force>,
     /// Marquardt's damping, carried from frame to frame.
     mu: f64,
+    /// The largest diagonal entry of H without the coordinate tasks' weights (see
+    /// [`damped_step`]).
+    diagonal_scale: f64,
     /// Evaluations of f in the current frame.
     evaluations: u32,
     lo: Vec<f64>,
@@ -367,6 +370,7 @@ impl IkWorkspace {
             inertia: vec![SpatialInertia::ZERO; model.bodies.len()],
             force: vec![Force::ZERO; model.bodies.len()],
             mu: 1e-3,
+            diagonal_scale: 0.0,
             evaluations: 0,
             lo,
             hi,
@@ -538,16 +542,17 @@ fn normal_equations(
             h[k + j * n] += v;
         }
     }
-    for t in &tasks.coordinates {
-        let v = t.value[if t.value.len() == 1 { 0 } else { frame.index }];
-        ws.hessian[(t.q, t.q)] += t.weight;
-        ws.gradient[t.q] += t.weight * (ws.q[t.q] - v);
-    }
     if frame.smoothness > 0.0 {
         for j in 0..n {
             ws.hessian[(j, j)] += frame.smoothness;
             ws.gradient[j] += frame.smoothness * (ws.q[j] - ws.q_prev[j]);
         }
+    }
+    ws.diagonal_scale = (0..n).map(|j| ws.hessian[(j, j)]).fold(0.0f64, f64::max);
+    for t in &tasks.coordinates {
+        let v = t.value[if t.value.len() == 1 { 0 } else { frame.index }];
+        ws.hessian[(t.q, t.q)] += t.weight;
+        ws.gradient[t.q] += t.weight * (ws.q[t.q] - v);
     }
     Ok(())
 }
@@ -562,8 +567,17 @@ fn damped_step(ws: &mut IkWorkspace, mu: f64) -> bool {
     let h = ws.hessian.as_slice(); // column-major n × n, symmetric
     // Marquardt's scaling D = diag H, floored at 10⁻² of its largest entry so that poorly
     // determined coordinates (a forearm's roll seen by one joint centre) cannot take long
-    // steps that the next iterations must walk back.
-    let floor = 1e-2 * (0..n).map(|j| h[j + j * n]).fold(0.0f64, f64::max);
+    // steps that the next iterations must walk back. The largest entry is taken without
+    // the coordinate tasks' weights: a task that pins a coordinate (OpenSim's setups weight
+    // them 1000 against markers whose weights sum to 1) would otherwise damp every other
+    // coordinate by its weight, and from ~10¹⁴ on, the steps fell below the tolerance at
+    // once and IK returned the starting pose as its solution.
+    let largest = if ws.diagonal_scale > 0.0 {
+        ws.diagonal_scale
+    } else {
+        (0..n).map(|j| h[j + j * n]).fold(0.0f64, f64::max)
+    };
+    let floor = 1e-2 * largest;
     // packed rows (`ltl`): row k holds k and its ancestors (n² ≥ any tree's storage)
     let l = &mut ws.chol[..ws.tree.storage_len()];
     for k in 0..n {
