@@ -392,6 +392,14 @@ fn humanml3d_bad_input_is_an_error_naming_file_frame_and_joint() {
     let (_, location, _) =
         motion_message(&humanml3d::from_joints(nan.view(), "c", &options).unwrap_err());
     assert_eq!(location, "frame 57, joint \"left_knee\"");
+    // A finite value no capture volume holds (it passed the implied height, a median over
+    // frames, and reached IK as a target) names the frame and the joint.
+    let mut far = good.clone();
+    far[[5, 4, 1]] = 1e30;
+    let (_, location, message) =
+        motion_message(&humanml3d::from_joints(far.view(), "c", &options).unwrap_err());
+    assert_eq!(location, "frame 5, target \"left_knee\"");
+    assert!(message.contains("beyond ±1e6 m"), "{message}");
     // A clip in centimetres read as metres is refused, saying which unit fits.
     let cm = good.mapv(|v| v * 100.0);
     let (_, _, message) =

@@ -21,6 +21,7 @@ pub mod npy;
 pub mod skeleton;
 
 use crate::error::Error;
+use crate::io::text::short_number;
 use crate::io::trc::Trc;
 use crate::spatial::Vec3;
 use std::path::Path;
@@ -301,7 +302,8 @@ impl Motion {
     }
 
     /// Checks sizes, unique non-empty names, a positive rate, finite strictly increasing
-    /// times, and positions that are finite or NaN (missing) — never infinite, and never
+    /// times, and positions that are finite or NaN (missing) — never infinite, never beyond
+    /// ±[`MAX_MARKER_COORDINATE`](crate::io::trc::MAX_MARKER_COORDINATE) m, and never
     /// partly missing (a target is missing in all three coordinates or in none).
     pub fn validate(&self) -> crate::Result<()> {
         let n = self.names.len();
@@ -354,6 +356,20 @@ impl Motion {
                     format!(
                         "position ({}, {}, {}) is infinite or partly missing",
                         p.x, p.y, p.z
+                    ),
+                ));
+            }
+            // NaN (missing) passes: only a present coordinate is compared
+            if p.amax() > crate::io::trc::MAX_MARKER_COORDINATE {
+                return Err(self.error(
+                    format!("frame {}, target \"{}\"", k / n, self.names[k % n]),
+                    format!(
+                        "position ({}, {}, {}) m is beyond ±{:e} m, which no capture volume \
+                         reaches: a corrupt value or a wrong length unit",
+                        short_number(p.x),
+                        short_number(p.y),
+                        short_number(p.z),
+                        crate::io::trc::MAX_MARKER_COORDINATE
                     ),
                 ));
             }
