@@ -277,9 +277,10 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     });
     for (clip, q) in worst.iter().take(3) {
         eprintln!(
-            "  {clip}: IK RMSE {:.1} mm, unexplained force ≤ {:.2} BW, reserves {:.2} % of \
-             joint moments, {} clamped excitation(s)",
+            "  {clip}: IK RMSE {:.1} mm (median; worst error {:.0} mm), unexplained force ≤ \
+             {:.2} BW, reserves {:.2} % of joint moments, {} clamped excitation(s)",
             q.ik_rmse_median * 1e3,
+            q.ik_error_max * 1e3,
             q.residual_force_max_bw,
             100.0 * q.reserve_share,
             q.clamped_excitations
