@@ -82,7 +82,8 @@ pub struct IkTasks {
 /// Which coordinate ranges bound the solution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Bounds {
-    /// Every independent coordinate stays within its range.
+    /// Every independent coordinate stays within its range, except the translations of a
+    /// joint to ground (see [`floating_base_translation`]).
     Range,
     /// Only coordinates marked `clamped` (OpenSim's IK: the assembler restricts clamped
     /// coordinates to their ranges).
@@ -210,7 +211,7 @@ pub fn coordinate_bounds(model: &Model, bounds: Bounds) -> (Vec<f64>, Vec<f64>) 
     for (j, &c) in model.reduction.independent.iter().enumerate() {
         let coord = &model.coordinates[c];
         let bounded = match bounds {
-            Bounds::Range => true,
+            Bounds::Range => !floating_base_translation(model, c),
             Bounds::Clamped => coord.clamped,
             Bounds::None => false,
         };
@@ -220,6 +221,80 @@ pub fn coordinate_bounds(model: &Model, bounds: Bounds) -> (Vec<f64>, Vec<f64>) 
         }
     }
     (lo, hi)
+}
+
+/// A translation of a joint to ground (the floating base's position in the room): its range
+/// is a slider's (gait2392's ±5 m, ±3 m), not a limit of the body, and bounding it would stop
+/// a clip that walks further from the origin than that.
+pub fn floating_base_translation(model: &Model, c: usize) -> bool {
+    let coordinate = &model.coordinates[c];
+    coordinate.motion_type == crate::model::MotionType::Translational
+        && model.joints[coordinate.joint].parent_body == 0
+}
+
+/// Moves the start pose by the floating base's translations so that the weighted centroid of
+/// the model markers falls on that of the first frame's targets (least squares over the
+/// translation coordinates, within their bounds), so that IK does not depend on where in the
+/// room a clip was recorded: from the model's default pose at the origin, a clip 10 m away
+/// ended its first frame in another local minimum (the upper arms' roll 150° apart), and every
+/// later frame followed from there. Nothing moves without such coordinates or targets.
+fn move_start_to_targets(
+    model: &Model,
+    ws: &mut IkWorkspace,
+    tasks: &IkTasks,
+    frame: &[Vec3],
+) -> crate::Result<()> {
+    let translations: Vec<usize> = (model.reduction.independent.iter().enumerate())
+        .filter(|&(_, &c)| floating_base_translation(model, c))
+        .map(|(j, _)| j)
+        .collect();
+    if translations.is_empty() {
+        return Ok(());
+    }
+    // the weighted centroid of the markers whose targets are present, at q
+    let centroid = |data: &mut Data, q: &[f64]| -> crate::Result<Option<Vec3>> {
+        body_poses_only(model, data, q)?;
+        let (mut sum, mut weight) = (Vec3::zeros(), 0.0);
+        for t in tasks.markers.iter().filter(|t| t.weight > 0.0) {
+            if !frame[t.target].x.is_nan() {
+                let m = &model.markers[t.marker];
+                sum += data.point_position(m.body, &m.location_in_body) * t.weight;
+                weight += t.weight;
+            }
+        }
+        Ok((weight > 0.0).then(|| sum / weight))
+    };
+    let (mut sum, mut weight) = (Vec3::zeros(), 0.0);
+    for t in tasks.markers.iter().filter(|t| t.weight > 0.0) {
+        if !frame[t.target].x.is_nan() {
+            sum += frame[t.target] * t.weight;
+            weight += t.weight;
+        }
+    }
+    let Some(at_start) = centroid(&mut ws.data, &ws.q)? else {
+        return Ok(());
+    };
+    let target = sum / weight;
+    // a translation moves every point alike: column k of T is the centroid's motion per
+    // unit of translation coordinate k (exact for any step; 1 m taken)
+    let mut t = DMatrix::zeros(3, translations.len());
+    let mut q = ws.q.clone();
+    for (k, &j) in translations.iter().enumerate() {
+        q[j] += 1.0;
+        if let Some(moved) = centroid(&mut ws.data, &q)? {
+            t.column_mut(k).copy_from(&(moved - at_start));
+        }
+        q[j] -= 1.0;
+    }
+    let gap = DVector::from_column_slice((target - at_start).as_slice());
+    if let Ok(step) = t.svd(true, true).solve(&gap, 1e-9) {
+        for (k, &j) in translations.iter().enumerate() {
+            if step[k].is_finite() {
+                ws.q[j] = (ws.q[j] + step[k]).clamp(ws.lo[j], ws.hi[j]);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Checks tasks against the model and the targets.
@@ -824,6 +899,9 @@ fn solve(
     };
     for j in 0..n {
         ws.q[j] = start[j].clamp(ws.lo[j], ws.hi[j]);
+    }
+    if starts.is_none() && settings.initial_q.is_none() {
+        move_start_to_targets(model, &mut ws, tasks, targets.frame(0))?;
     }
     ws.q_prev.copy_from_slice(&ws.q);
     ws.q_prev2.copy_from_slice(&ws.q);

@@ -54,8 +54,9 @@ pub struct Args {
     /// unsettled is mostly poorly determined coordinates (a forearm's roll).
     #[arg(long, default_value_t = ik::RELATIVE_DECREASE)]
     relative_decrease: f64,
-    /// Bound every coordinate by its range (`range`, default for datasets), only clamped
-    /// coordinates (`clamped`, OpenSim's rule and the default with --setup), or none.
+    /// Bound every coordinate by its range (`range`, default for datasets; the floating
+    /// base's position in the room excepted), only clamped coordinates (`clamped`, OpenSim's
+    /// rule and the default with --setup), or none.
     #[arg(long, value_parser = ["range", "clamped", "none"])]
     bounds: Option<String>,
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
