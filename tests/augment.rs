@@ -1443,3 +1443,49 @@ fn the_joint_layout_maps_back_to_the_coordinates() {
         );
     }
 }
+
+/// A clip whose results leave float32's range fails with a reason naming the array, instead
+/// of writing infinities as an ok clip (muscles × 10³⁰⁰: 55,035 infinite muscle forces, exit
+/// 0; a model of 10³⁰⁰ kg wrote a record it could not read back, and every `--resume` then
+/// failed on it). A clip IK cannot follow (the demo walk turned upside down) is augmented
+/// with a warning that says so, naming the worst frame and marker.
+#[test]
+fn out_of_range_results_fail_the_clip_and_a_fit_that_fails_is_reported() {
+    let huge = Chain::default_model(ChainOptions {
+        muscle_strength: 1e300,
+        ..ChainOptions::default()
+    })
+    .unwrap();
+    let (_, walk) = demo::clips(&huge.model).unwrap().remove(0);
+    let e = huge.run(&walk, None, &Variant::identity()).unwrap_err();
+    assert!(
+        e.to_string().contains("array `muscle_force` holds inf")
+            && e.to_string().contains("float32"),
+        "{e}"
+    );
+    let plain = chain();
+    let ok = plain.run(&walk, None, &Variant::identity()).unwrap();
+    assert!(
+        !ok.warnings
+            .iter()
+            .any(|w| w.contains("IK could not follow")),
+        "{:?}",
+        ok.warnings
+    );
+    let mut flipped = walk.clone();
+    for p in &mut flipped.positions {
+        p.y = 2.0 - p.y;
+    }
+    let out = plain.run(&flipped, None, &Variant::identity()).unwrap();
+    let warning = out
+        .warnings
+        .iter()
+        .find(|w| w.contains("IK could not follow"))
+        .unwrap_or_else(|| panic!("no warning: {:?}", out.warnings));
+    assert!(
+        out.quality.ik_error_max > musculo::augment::chain::IK_ERROR_WARNED
+            && warning.contains("worst error")
+            && warning.contains("frame "),
+        "{warning}"
+    );
+}

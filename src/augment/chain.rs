@@ -570,6 +570,26 @@ impl Chain {
                 motion.source, quality.so_unsolved_frames
             ));
         }
+        if quality.ik_error_max > IK_ERROR_WARNED {
+            let nm = tasks.markers.len();
+            let worst = (solution.marker_error.iter().enumerate())
+                .filter(|(_, e)| e.is_finite())
+                .max_by(|a, b| a.1.total_cmp(b.1))
+                .map(|(k, _)| k);
+            if let Some(k) = worst {
+                warnings.push(format!(
+                    "{}: IK could not follow the clip: its worst error is {:.0} mm (frame {}, \
+                     {}; median RMSE {:.0} mm), and {} frame(s) ended with a coordinate at its \
+                     bound (check the skeleton map, its axes and the length unit)",
+                    motion.source,
+                    quality.ik_error_max * 1e3,
+                    k / nm,
+                    model.markers[tasks.markers[k % nm].marker].name,
+                    quality.ik_rmse_median * 1e3,
+                    quality.ik_frames_at_bound
+                ));
+            }
+        }
         let (tables, model_xml) = if self.options.opensim_files {
             let plain = variant.mass_scale == 1.0 && variant.load_kg == 0.0;
             let xml = if plain {
@@ -622,6 +642,7 @@ impl Chain {
                 )
             });
         }
+        check_finite(&arrays)?;
         Ok(ClipOutput {
             arrays,
             quality,
@@ -630,6 +651,38 @@ impl Chain {
             warnings,
         })
     }
+}
+
+/// IK's worst single error (m) above which a clip's warnings say that IK could not follow
+/// it: a fitting map leaves tens of millimetres (HumanML3D's sample 176 mm at most, with its
+/// arms overhead beyond the model's ranges); metres mean a wrong map, axes or unit.
+pub const IK_ERROR_WARNED: f64 = 0.3;
+
+/// Every emitted value finite (NaN only in `ik_marker_error`, where a target was missing):
+/// a value beyond float32's range (a model of 10³⁰⁰ kg, a muscle strength of 10³⁰⁰, a
+/// sampling rate of 1 GHz) fails the clip, naming the array, rather than writing infinities.
+fn check_finite(arrays: &[Array]) -> crate::Result<()> {
+    for a in arrays {
+        let nan_allowed = a.name == "ik_marker_error";
+        if let Some(k) =
+            (a.values.iter()).position(|v| v.is_infinite() || (!nan_allowed && v.is_nan()))
+        {
+            let per_frame = a.shape.iter().skip(1).product::<usize>().max(1);
+            return Err(Error::invalid(
+                "motion",
+                format!(
+                    "array `{}` holds {} at frame {} (column {}): beyond float32's range — \
+                     the model or the motion is far out of scale (body mass, muscle strength, \
+                     sampling rate)",
+                    a.name,
+                    a.values[k],
+                    k / per_frame,
+                    k % per_frame
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The contact points of `model`: its ContactSpheres, or, for a model without any that has
