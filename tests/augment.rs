@@ -1489,3 +1489,53 @@ fn out_of_range_results_fail_the_clip_and_a_fit_that_fails_is_reported() {
         "{warning}"
     );
 }
+
+/// Output names are checked over the whole dataset before anything is written: variant 1 of
+/// clip `a` and a clip named `a_v1` would write the same files (the manifest listed `a_v1`
+/// twice, and which clip's arrays survived depended on the threads), and a clip named `stats`
+/// was overwritten by the dataset statistics' `stats.npz`.
+#[test]
+fn output_names_that_collide_are_refused_before_anything_is_written() {
+    let chain = chain();
+    let layout = describe(&chain).unwrap();
+    let base = demo_inputs(&chain);
+    let named = |names: &[&str]| -> Vec<ClipInput> {
+        names
+            .iter()
+            .zip(base.iter().cycle())
+            .map(|(n, c)| ClipInput {
+                name: n.to_string(),
+                input: format!("{n}.npy"),
+                ..c.clone()
+            })
+            .collect()
+    };
+    let cases: [(&[&str], usize, &str); 3] = [
+        (
+            &["a", "a_v1"],
+            2,
+            "variant 1 of a.npy and a_v1.npy would both be written as a_v1.npz",
+        ),
+        (
+            &["stats", "walk"],
+            1,
+            "stats.npy would be written as stats.npz",
+        ),
+        (&["data", "stats_v1"], 1, ""),
+    ];
+    for (names, variants, expected) in cases {
+        let out = temp_dir("collide");
+        let mut options = options(&out);
+        options.variants = variants;
+        let result = runner::run(&chain, &layout, &named(names), &options, &|_| {});
+        if expected.is_empty() {
+            // not a collision: `stats_v1` is not the statistics' name
+            assert!(result.is_ok(), "{names:?}: {:?}", result.err());
+        } else {
+            let e = result.unwrap_err().to_string();
+            assert!(e.contains(expected), "{names:?}: {e}");
+            assert!(!out.exists(), "{names:?}: the output folder was made");
+        }
+        let _ = std::fs::remove_dir_all(out);
+    }
+}

@@ -217,6 +217,49 @@ pub fn variant_name(name: &str, v: usize) -> String {
     }
 }
 
+/// Every output name of the dataset (all clips, not only a shard's, with their variants) is
+/// its own and none is the statistics' `stats`: clip `a_v1` and variant 1 of clip `a` would
+/// write the same files (which of the two survived depended on the threads), and a clip named
+/// `stats` was overwritten by the dataset's `stats.npz` at the end of the run.
+fn check_output_names(clips: &[ClipInput], variants: usize) -> crate::Result<()> {
+    let mut seen: std::collections::HashMap<String, (&ClipInput, usize)> =
+        std::collections::HashMap::with_capacity(clips.len() * variants);
+    let describe = |c: &ClipInput, v: usize| {
+        if v == 0 {
+            c.input.clone()
+        } else {
+            format!("variant {v} of {}", c.input)
+        }
+    };
+    for c in clips {
+        for v in 0..variants {
+            let name = variant_name(&c.name, v);
+            if name == "stats" {
+                return Err(Error::invalid(
+                    "--input",
+                    format!(
+                        "{} would be written as stats.npz, the file of the dataset's \
+                         statistics: rename it",
+                        describe(c, v)
+                    ),
+                ));
+            }
+            if let Some((other, w)) = seen.insert(name.clone(), (c, v)) {
+                return Err(Error::invalid(
+                    "--input",
+                    format!(
+                        "{} and {} would both be written as {name}.npz: rename one, or run \
+                         them into separate output folders",
+                        describe(other, w),
+                        describe(c, v)
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The clips of shard k of N (all clips without a shard).
 pub fn shard_clips(clips: &[ClipInput], shard: Option<(usize, usize)>) -> Vec<&ClipInput> {
     clips
@@ -260,6 +303,7 @@ pub fn run(
     for c in clips {
         output::check_clip_name(&c.name, &c.input)?;
     }
+    check_output_names(clips, options.variants)?;
     if options.force_plates && options.variants != 1 {
         return Err(Error::invalid(
             "--force-plates",
