@@ -1539,3 +1539,33 @@ fn output_names_that_collide_are_refused_before_anything_is_written() {
         let _ = std::fs::remove_dir_all(out);
     }
 }
+
+/// Measured loads stand in for the contact estimate, so they must cover the clip: the
+/// HumanML3D sample (8.45 s) with gait2392's plates (0–2.5 s) fails naming both spans
+/// (extrapolated, the vertical force reached −17 kN at the end, under exit status 0).
+#[test]
+fn measured_loads_that_do_not_cover_the_clip_are_refused() {
+    let (Some(clip), Some(loads)) = (
+        reference_file("humanml3d/new_joints_012314.npy"),
+        reference_file("opensim-models/Pipelines/Gait2392_Simbody/subject01_walk1_grf.xml"),
+    ) else {
+        return;
+    };
+    let out = temp_dir("loads-span");
+    let (ok, _, stderr) = run_musculo(&[
+        "augment".as_ref(),
+        "--input".as_ref(),
+        clip.as_os_str(),
+        "--external-loads".as_ref(),
+        loads.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(!ok, "{stderr}");
+    assert!(
+        stderr.contains("the measured loads span 0 s to 2.5 s")
+            && stderr.contains("the loads must cover the clip"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(out);
+}

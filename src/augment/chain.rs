@@ -403,7 +403,31 @@ impl Chain {
         }
         let loads = match external_loads {
             None => None,
-            Some(MeasuredLoads::ExternalLoads(p)) => Some(ExternalLoadSet::read(&model, p)?),
+            Some(MeasuredLoads::ExternalLoads(p)) => {
+                let set = ExternalLoadSet::read(&model, p)?;
+                // Beyond its data a load is extrapolated (linearly, as OpenSim's splines are):
+                // `id` computes such rows with a warning, as OpenSim does; here the loads stand
+                // in for the contact estimate, and a clip beyond them would get invented
+                // reactions (HumanML3D's 8.45 s against gait2392's 2.5 s of plates: −17 kN).
+                let [l0, l1] = set.time_span;
+                let slack = 0.5 * dt;
+                if times[0] < l0 - slack || times[frames - 1] > l1 + slack {
+                    return Err(Error::invalid(
+                        "--external-loads",
+                        format!(
+                            "{}: the measured loads span {} s to {} s, but {} runs from {} s \
+                             to {} s: the loads must cover the clip",
+                            set.data_source,
+                            short_number(l0),
+                            short_number(l1),
+                            motion.source,
+                            short_number(times[0]),
+                            short_number(times[frames - 1])
+                        ),
+                    ));
+                }
+                Some(set)
+            }
             Some(MeasuredLoads::ForcePlates(p)) => Some(plate_loads(&model, p, &times, &q)?),
         };
         // --- contacts, inverse dynamics, static optimization, per frame ---
