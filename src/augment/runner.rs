@@ -124,8 +124,7 @@ pub fn list_inputs(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<
             source,
         })?;
         if meta.is_dir() {
-            let mut files = Vec::new();
-            walk(input, &mut files)?;
+            let files = crate::io::folder::files_below(input, false)?;
             for path in files {
                 let ext = path
                     .extension()
@@ -186,26 +185,6 @@ pub fn list_inputs(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<
         ));
     }
     Ok(clips)
-}
-
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> crate::Result<()> {
-    let entries = std::fs::read_dir(dir).map_err(|source| Error::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    for entry in entries {
-        let entry = entry.map_err(|source| Error::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
-        let path = entry.path();
-        if path.is_dir() {
-            walk(&path, out)?;
-        } else {
-            out.push(path);
-        }
-    }
-    Ok(())
 }
 
 /// The output name of variant `v` of clip `name`.

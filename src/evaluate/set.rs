@@ -57,39 +57,25 @@ pub fn collect(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<Vec<
     let mut clips = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            let mut stack = vec![input.clone()];
-            while let Some(dir) = stack.pop() {
-                let entries = std::fs::read_dir(&dir).map_err(|source| Error::Io {
-                    path: dir.clone(),
-                    source,
-                })?;
-                for entry in entries {
-                    let entry = entry.map_err(|source| Error::Io {
-                        path: dir.clone(),
-                        source,
-                    })?;
-                    let path = entry.path();
-                    let file_name = entry.file_name().to_string_lossy().into_owned();
-                    if file_name.starts_with('.') {
+            for path in crate::io::folder::files_below(input, true)? {
+                let Some(file_name) = path.file_name().map(|n| n.to_string_lossy().into_owned())
+                else {
+                    continue;
+                };
+                if let Some((stem, ext)) = file_name.rsplit_once('.') {
+                    let ext = ext.to_ascii_lowercase();
+                    if ext != "npz" && !MOTION_EXTENSIONS.contains(&ext.as_str()) {
                         continue;
                     }
-                    if path.is_dir() {
-                        stack.push(path);
-                    } else if let Some((stem, ext)) = file_name.rsplit_once('.') {
-                        let ext = ext.to_ascii_lowercase();
-                        if ext != "npz" && !MOTION_EXTENSIONS.contains(&ext.as_str()) {
-                            continue;
-                        }
-                        if dir == *input && stem == "stats" && ext == "npz" {
-                            continue;
-                        }
-                        let relative = path.strip_prefix(input).unwrap_or(&path);
-                        let name = relative
-                            .with_extension("")
-                            .to_string_lossy()
-                            .replace('\\', "/");
-                        clips.push(clip_of(name, path, format)?);
+                    if path.parent() == Some(input.as_path()) && stem == "stats" && ext == "npz" {
+                        continue;
                     }
+                    let relative = path.strip_prefix(input).unwrap_or(&path);
+                    let name = relative
+                        .with_extension("")
+                        .to_string_lossy()
+                        .replace('\\', "/");
+                    clips.push(clip_of(name, path, format)?);
                 }
             }
         } else if input.is_file() {

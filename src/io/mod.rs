@@ -4,9 +4,11 @@
 //! * [`external_loads`]: OpenSim ExternalLoads `.xml` (forces applied to bodies from data columns).
 //! * [`trc`]: marker trajectories (`.trc`), read and written.
 //! * [`output`]: writing a command's output files whole or not at all.
+//! * [`folder`]: the files below a folder of clips (links followed, loops refused).
 //! * [`setup`]: OpenSim tool setup files (Inverse Dynamics, Analyze with Static Optimization).
 
 pub mod external_loads;
+pub mod folder;
 pub mod ik_setup;
 pub mod output;
 pub mod scale_setup;
