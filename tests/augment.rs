@@ -1445,22 +1445,28 @@ fn the_joint_layout_maps_back_to_the_coordinates() {
 }
 
 /// A clip whose results leave float32's range fails with a reason naming the array, instead
-/// of writing infinities as an ok clip (muscles × 10³⁰⁰: 55,035 infinite muscle forces, exit
-/// 0; a model of 10³⁰⁰ kg wrote a record it could not read back, and every `--resume` then
-/// failed on it). A clip IK cannot follow (the demo walk turned upside down) is augmented
+/// of writing infinities as an ok clip (a model of 10³⁰⁰ kg wrote a record it could not read
+/// back, and every `--resume` then failed on it; muscles × 10³⁰⁰ wrote 55,035 infinite
+/// forces, a factor now refused). A clip IK cannot follow (the demo walk turned upside down) is augmented
 /// with a warning that says so, naming the worst frame and marker.
 #[test]
 fn out_of_range_results_fail_the_clip_and_a_fit_that_fails_is_reported() {
-    let huge = Chain::default_model(ChainOptions {
-        muscle_strength: 1e300,
-        ..ChainOptions::default()
-    })
-    .unwrap();
+    // every body 10³⁰⁰ times heavier (as `model scale --mass 1e300` made it)
+    let mut heavy = String::new();
+    let mut rest = musculo::DEFAULT_MODEL_OSIM;
+    while let Some(i) = rest.find("<mass>") {
+        let j = i + rest[i..].find("</mass>").unwrap();
+        let mass: f64 = rest[i + 6..j].trim().parse().unwrap();
+        heavy.push_str(&rest[..i + 6]);
+        heavy.push_str(&format!("{:e}", mass * 1e300));
+        rest = &rest[j..];
+    }
+    heavy.push_str(rest);
+    let huge = Chain::new(heavy, "heavy.osim".into(), ChainOptions::default()).unwrap();
     let (_, walk) = demo::clips(&huge.model).unwrap().remove(0);
     let e = huge.run(&walk, None, &Variant::identity()).unwrap_err();
     assert!(
-        e.to_string().contains("array `muscle_force` holds inf")
-            && e.to_string().contains("float32"),
+        e.to_string().contains("holds") && e.to_string().contains("beyond float32's range"),
         "{e}"
     );
     let plain = chain();

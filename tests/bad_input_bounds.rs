@@ -161,7 +161,11 @@ fn lowpass_cutoffs_that_cannot_filter_are_refused_by_the_cli() {
 fn thread_and_pose_counts_are_bounded() {
     // 100,000 threads ran for minutes before the system refused one; ten million random
     // poses would take most of a day.
-    for command in ["evaluate --input x --out y.json", "report x --out y"] {
+    for command in [
+        "evaluate --input x --out y.json",
+        "report x --out y",
+        "merge x --report",
+    ] {
         for jobs in ["100000", "0"] {
             let (ok, _, stderr) = musculo_cli(&format!("{command} --jobs {jobs}"), &[]);
             assert!(!ok, "{command} --jobs {jobs} was accepted");
@@ -191,7 +195,11 @@ fn thread_and_pose_counts_are_bounded() {
 /// 300-digit Float and a contact height of 1e300 passed; the library's validation agrees.
 #[test]
 fn evaluate_floor_and_contact_options_are_bounded() {
-    for command in ["evaluate --input x --out y.json", "report x --out y"] {
+    for command in [
+        "evaluate --input x --out y.json",
+        "report x --out y",
+        "merge x --report",
+    ] {
         for (flag, value, said) in [
             ("--floor", "-1e300", "within ±1000"),
             ("--floor", "1001", "within ±1000"),

@@ -103,7 +103,7 @@ pub struct MergeArgs {
     #[arg(long)]
     report: bool,
     /// Threads of the evaluation (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::tool::jobs)]
     jobs: Option<usize>,
 }
 
@@ -143,10 +143,14 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             format!("{} must be ≥ 0 (0: no filter)", args.lowpass),
         ));
     }
-    if !(args.muscle_strength > 0.0 && args.muscle_strength.is_finite()) {
+    use musculo::solve::scale::strength::{MAX_STRENGTH_FACTOR, MIN_STRENGTH_FACTOR};
+    if !(MIN_STRENGTH_FACTOR..=MAX_STRENGTH_FACTOR).contains(&args.muscle_strength) {
         return Err(invalid(
             "--muscle-strength",
-            format!("{} must be positive and finite", args.muscle_strength),
+            format!(
+                "{} must be from {MIN_STRENGTH_FACTOR} to {MAX_STRENGTH_FACTOR}",
+                args.muscle_strength
+            ),
         ));
     }
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;

@@ -14,18 +14,27 @@ use super::frames::{child, text_node};
 use super::markers::splice;
 use crate::error::Error;
 
+/// The range of a strength factor. Strengthened models for tasks beyond walking take 1.5–3;
+/// 10⁻³⁰⁰ or 10³⁰⁰ are typing errors, and the second put infinite forces in float32 outputs.
+pub const MIN_STRENGTH_FACTOR: f64 = 0.01;
+pub const MAX_STRENGTH_FACTOR: f64 = 100.0;
+
 /// `xml` (read as `source`) with every muscle's `<max_isometric_force>` × `factor` (written in
-/// the shortest form that reads back to the same `f64`). Returns the text and the number of
+/// the shortest form that reads back to the same `f64`; `factor` within
+/// [`MIN_STRENGTH_FACTOR`]..=[`MAX_STRENGTH_FACTOR`]). Returns the text and the number of
 /// muscles changed.
 pub fn scale_muscle_strength(
     xml: &str,
     source: &str,
     factor: f64,
 ) -> crate::Result<(String, usize)> {
-    if !(factor > 0.0 && factor.is_finite()) {
+    if !(MIN_STRENGTH_FACTOR..=MAX_STRENGTH_FACTOR).contains(&factor) {
         return Err(Error::invalid(
             "factor",
-            format!("{factor}: a muscle strength factor must be positive and finite"),
+            format!(
+                "{factor}: a muscle strength factor must be from {MIN_STRENGTH_FACTOR} to \
+                 {MAX_STRENGTH_FACTOR}"
+            ),
         ));
     }
     let doc = super::parse_document(xml, source)?;
@@ -102,7 +111,16 @@ mod tests {
 
     #[test]
     fn bad_factors_and_files_are_errors() {
-        for k in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        for k in [
+            0.0,
+            -1.0,
+            f64::NAN,
+            f64::INFINITY,
+            1e-300,
+            0.009,
+            100.5,
+            1e300,
+        ] {
             let e = scale_muscle_strength(crate::DEFAULT_MODEL_OSIM, "default", k).unwrap_err();
             assert!(e.to_string().contains("factor"), "{e}");
         }
