@@ -450,6 +450,15 @@ fn bvh_errors_name_the_line_or_frame() {
     assert_eq!(location, "line 17");
     let (location, _) = parse_error(&SMALL.replace("Frame Time: 0.01", "Frame Time: 0"));
     assert_eq!(location, "line 18");
+    // A rate no capture has (1 GHz gave accelerations of 10¹⁹ m/s²; a frame every 10⁹ s
+    // failed in the low-pass filter) is refused when the motion is made.
+    for time in ["1e-9", "1e9"] {
+        let text = SMALL.replace("Frame Time: 0.01", &format!("Frame Time: {time}"));
+        let e = bvh::parse(&text, "small.bvh", &metres()).unwrap_err();
+        let (location, message) = motion_error(&e);
+        assert_eq!(location, "frame rate");
+        assert!(message.contains("is not a motion capture's"), "{message}");
+    }
     let (location, message) = parse_error(&SMALL.replace("Frames: 3", "Frames: 2"));
     assert_eq!(location, "line 21");
     assert!(message.contains("more frame lines"), "{message}");

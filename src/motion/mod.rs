@@ -237,6 +237,12 @@ pub struct Motion {
     pub positions: Vec<Vec3>,
 }
 
+/// The frame rates a motion may have. Capture systems record markers at up to a few kHz;
+/// a BVH `Frame Time: 1e-9` (1 GHz) turned a squat's accelerations into 10¹⁹ m/s², and a
+/// frame every 10⁹ s failed in the low-pass filter with a message about the cutoff.
+pub const MIN_RATE_HZ: f64 = 0.01;
+pub const MAX_RATE_HZ: f64 = 1e5;
+
 impl Motion {
     /// A motion sampled at `rate_hz` from time 0, checked with [`Motion::validate`].
     pub fn uniform(
@@ -334,10 +340,15 @@ impl Motion {
                 ));
             }
         }
-        if !(self.rate_hz > 0.0 && self.rate_hz.is_finite()) {
+        if !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&self.rate_hz) {
             return Err(self.error(
                 "frame rate".into(),
-                format!("{} Hz must be positive and finite", self.rate_hz),
+                format!(
+                    "{} Hz (a frame every {} s) is not a motion capture's: give a rate from \
+                     {MIN_RATE_HZ} to {MAX_RATE_HZ:e} Hz",
+                    short_number(self.rate_hz),
+                    short_number(1.0 / self.rate_hz)
+                ),
             ));
         }
         for (f, t) in self.time.iter().enumerate() {
