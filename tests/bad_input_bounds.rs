@@ -195,11 +195,7 @@ fn thread_and_pose_counts_are_bounded() {
 /// 300-digit Float and a contact height of 1e300 passed; the library's validation agrees.
 #[test]
 fn evaluate_floor_and_contact_options_are_bounded() {
-    for command in [
-        "evaluate --input x --out y.json",
-        "report x --out y",
-        "merge x --report",
-    ] {
+    for command in ["evaluate --input x --out y.json", "report x --out y"] {
         for (flag, value, said) in [
             ("--floor", "-1e300", "within ±1000"),
             ("--floor", "1001", "within ±1000"),

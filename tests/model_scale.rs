@@ -150,4 +150,24 @@ fn bad_factors_are_errors() {
         assert!(scale_uniform(&xml, "demo", &model, f).is_err());
     }
     assert!(ScaleFactors::for_subject(&model, 1.75, 0.0, 1.7).is_err());
+    // a subject 10³⁰⁰ times heavier (a model `augment` then overflowed float32 on), 10⁶ m
+    // tall, or of 10⁻³⁰⁰ kg: factors outside [0.01, 100] are no subject's
+    let m = model.total_mass();
+    for (model_height, mass, height, argument) in [
+        (1.75, 1e300, 1.7, "mass"),
+        (1.75, 1e-300, 1.7, "mass"),
+        (1.75, 101.0 * m, 1.7, "mass"),
+        (1.75, m, 1e6, "height"),
+        (1.75, m, 0.0174, "height"),
+        (1e300, m, 1.7, "height"),
+    ] {
+        let e = ScaleFactors::for_subject(&model, model_height, mass, height).unwrap_err();
+        assert!(
+            matches!(&e, musculo::Error::InvalidArgument { argument: a, message }
+                if *a == argument && message.contains("outside 0.01 to 100")),
+            "{e}"
+        );
+    }
+    let f = ScaleFactors::for_subject(&model, 1.75, 99.0 * m, 1.75 * 0.011).unwrap();
+    assert!((f.mass - 99.0).abs() < 1e-9 && (f.length - 0.011).abs() < 1e-12);
 }

@@ -196,7 +196,8 @@ pub struct ScaleFactors {
 
 impl ScaleFactors {
     /// The factors taking `model` (standing height `model_height`, m) to a subject of
-    /// `mass` (kg) and `height` (m).
+    /// `mass` (kg) and `height` (m); each must lie within [`MIN_SCALE_FACTOR`] and
+    /// [`MAX_SCALE_FACTOR`].
     pub fn for_subject(
         model: &Model,
         model_height: f64,
@@ -215,10 +216,30 @@ impl ScaleFactors {
                 ));
             }
         }
-        Ok(ScaleFactors {
+        let factors = ScaleFactors {
             length: height / model_height,
             mass: mass / model.total_mass(),
-        })
+        };
+        // Factors outside [MIN_SCALE_FACTOR, MAX_SCALE_FACTOR] describe no subject (a mass of
+        // 10³⁰⁰ kg was written, and every clip augmented on it overflowed float32).
+        for (argument, factor, value, unit, of_model) in [
+            ("height", factors.length, height, "m", model_height),
+            ("mass", factors.mass, mass, "kg", model.total_mass()),
+        ] {
+            if !(MIN_SCALE_FACTOR..=MAX_SCALE_FACTOR).contains(&factor) {
+                return Err(Error::invalid(
+                    argument,
+                    format!(
+                        "{} {unit} against the model's {} {unit} is a factor of {}, outside \
+                         {MIN_SCALE_FACTOR} to {MAX_SCALE_FACTOR}: no subject's",
+                        crate::io::text::short_number(value),
+                        crate::io::text::short_number(of_model),
+                        crate::io::text::short_number(factor)
+                    ),
+                ));
+            }
+        }
+        Ok(factors)
     }
 }
 
