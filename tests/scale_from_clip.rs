@@ -167,3 +167,41 @@ fn clips_of_one_skeleton_share_a_scaled_model_and_get_what_they_would_alone() {
         assert_eq!(shared.len(), (k + 1).min(ScaledModels::CAPACITY));
     }
 }
+
+/// A skeleton map's `scale` multiplies positions after the reader checked the body's height
+/// in its own unit: a scale that leaves no person is refused where it acts — `"scale": 100`
+/// on HumanML3D's metres (a 150 m body, fitted with 50 m of error under exit status 0) when
+/// the map is applied, `1e300` when the segments are measured (it reached the XML scaling
+/// and was blamed on the model's inertias).
+#[test]
+fn a_map_scale_that_leaves_no_person_is_refused() {
+    let Some(path) = reference_file(CLIP) else {
+        return;
+    };
+    let clip = motion::read(&path, None, &ReadOptions::default()).unwrap();
+    let model = Model::default_fullbody();
+    let mut map = SkeletonMap::builtin("humanml3d").unwrap();
+    assert!(map.apply(&model, &clip).is_ok());
+    map.scale = 100.0;
+    let e = map.apply(&model, &clip).unwrap_err().to_string();
+    assert!(
+        e.contains("scale 100") && e.contains("not a person's"),
+        "{e}"
+    );
+    map.scale = 1e300;
+    let e = musculo::solve::scale_from_clip::segment_factors(&model, &map, &clip)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("outside 0.01 to 100") && e.contains("segment"),
+        "{e}"
+    );
+    // a scale that keeps a person is accepted (centimetres read as metres, undone)
+    let cm: Vec<_> = clip.positions.iter().map(|p| p * 100.0).collect();
+    let clip_cm = motion::Motion {
+        positions: cm,
+        ..clip.clone()
+    };
+    map.scale = 0.01;
+    assert!(map.apply(&model, &clip_cm).is_ok());
+}

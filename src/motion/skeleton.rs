@@ -381,6 +381,26 @@ impl SkeletonMap {
                 positions.push(a * p);
             }
         }
+        // The reader checked the body's height in its own unit; a map that scales again must
+        // leave a person (`"scale": 100` on metres made a 170 m body, fitted with 50 m of
+        // error under exit status 0).
+        if self.scale != 1.0 {
+            let height = super::humanml3d::implied_height(n, &positions);
+            let [lo, hi] = super::PLAUSIBLE_HEIGHT_M;
+            if !(lo..=hi).contains(&height) {
+                return Err(Error::invalid(
+                    "map",
+                    format!(
+                        "{}: the skeleton map {}'s scale {} (metres per input unit) makes the \
+                         clip's body {} m tall, not a person's ({lo}–{hi} m)",
+                        motion.source,
+                        self.source,
+                        crate::io::text::short_number(self.scale),
+                        crate::io::text::short_number((height * 1e3).round() / 1e3)
+                    ),
+                ));
+            }
+        }
         let out = Motion {
             source: motion.source.clone(),
             names: self.targets.iter().map(|t| t.marker.clone()).collect(),

@@ -238,7 +238,25 @@ pub fn segment_factors(
             }
             sum += median(&mut distances) / model_distance;
         }
-        out.push((seg.name.clone(), sum / seg.pairs.len() as f64));
+        let factor = sum / seg.pairs.len() as f64;
+        // as a Scale setup's manual factors: outside [0.01, 100] no subject's segment (a map
+        // `"scale": 1e300` reached the XML scaling and was blamed on the model's inertias)
+        use crate::solve::scale::{MAX_SCALE_FACTOR, MIN_SCALE_FACTOR};
+        if !(MIN_SCALE_FACTOR..=MAX_SCALE_FACTOR).contains(&factor) {
+            return Err(Error::Motion {
+                file: clip.source.clone(),
+                location: format!("segment \"{}\"", seg.name),
+                message: format!(
+                    "the clip's bones are {} times the model's (with the skeleton map {}'s \
+                     scale {}), outside {MIN_SCALE_FACTOR} to {MAX_SCALE_FACTOR}: a wrong \
+                     length unit or map scale",
+                    crate::io::text::short_number(factor),
+                    map.source,
+                    crate::io::text::short_number(map.scale)
+                ),
+            });
+        }
+        out.push((seg.name.clone(), factor));
     }
     Ok(out)
 }
