@@ -428,10 +428,14 @@ fn bvh_errors_name_the_line_or_frame() {
         message.contains("8 values where the hierarchy has 9 channels"),
         "{message}"
     );
-    // A NaN value names the frame and the channel.
-    let (location, message) = parse_error(&SMALL.replace("0 1 0 20 0", "0 1 0 nan 0"));
-    assert_eq!(location, "frame 2 (line 21)");
-    assert!(message.contains("joint \"Hips\" Zrotation"), "{message}");
+    // A NaN value, or one beyond ±1e6 (an angle of 1e300° made pseudo-random poses), names
+    // the frame and the channel.
+    for value in ["nan", "1e300", "-2e6"] {
+        let (location, message) =
+            parse_error(&SMALL.replace("0 1 0 20 0", &format!("0 1 0 {value} 0")));
+        assert_eq!(location, "frame 2 (line 21)");
+        assert!(message.contains("joint \"Hips\" Zrotation"), "{message}");
+    }
     // Bad keyword, unknown channel, bad offset, unclosed joint, bad header lines.
     let (location, message) = parse_error(&SMALL.replace("JOINT Spine", "JIONT Spine"));
     assert_eq!(location, "line 6");

@@ -729,6 +729,19 @@ pub fn contact_set(model: &Model) -> crate::Result<ContactSet> {
                     None,
                 )?;
                 ContactSet::from_points(model, points)
+            } else if !spheres {
+                // the library's hint (`ContactSet::from_points`) is no way out on the
+                // command line
+                Err(Error::invalid(
+                    "model",
+                    format!(
+                        "model \"{}\" ({}) has no ContactSphere for the ground contacts and \
+                         not gait2392's foot bodies (calcn_r/l, toes_r/l) to put them on: add \
+                         ContactSpheres to its ContactGeometrySet, as the default model has \
+                         on its feet",
+                        model.name, model.source
+                    ),
+                ))
             } else {
                 Err(e)
             }

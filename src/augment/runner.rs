@@ -307,6 +307,15 @@ pub fn run(
             source,
         })?;
     }
+    if options.out.exists() && !options.out.is_dir() {
+        return Err(Error::invalid(
+            "--out",
+            format!(
+                "{} is a file, not a folder: give the folder to write the clips into",
+                options.out.display()
+            ),
+        ));
+    }
     std::fs::create_dir_all(&options.out).map_err(|source| Error::Io {
         path: options.out.clone(),
         source,

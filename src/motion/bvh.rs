@@ -31,13 +31,16 @@
 //! wrong unit is refused with the unit that would fit.
 //!
 //! Errors name the file and the 1-based line for syntax errors, and the frame (and line) for
-//! a wrong number of values or a non-finite one.
+//! a wrong number of values or a non-finite one (or one beyond ±[`MAX_CHANNEL_VALUE`]).
 
 use super::{LengthUnit, Motion, PLAUSIBLE_HEIGHT_M, check_plausible_height};
 use crate::error::Error;
 use crate::spatial::Vec3;
 use nalgebra::Matrix3;
 use std::path::Path;
+
+/// The largest magnitude of a channel value (degrees, or file units for positions).
+pub const MAX_CHANNEL_VALUE: f64 = 1e6;
 
 /// One channel of a joint.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -332,14 +335,17 @@ impl Bvh {
             let start = values.len();
             for word in line.split_ascii_whitespace() {
                 let column = values.len() - start;
+                // within ±10⁶ (degrees, or file units): an angle of 10³⁰⁰° turned each
+                // frame to a pseudo-random pose that IK then fitted
                 match word.parse::<f64>() {
-                    Ok(v) if v.is_finite() => values.push(v),
+                    Ok(v) if v.abs() <= MAX_CHANNEL_VALUE => values.push(v),
                     _ => {
                         return Err(Error::Motion {
                             file: source.to_string(),
                             location: format!("frame {frame} (line {n})"),
                             message: format!(
-                                "value {} ({}) '{word}' is not a finite number",
+                                "value {} ({}) '{word}' is not a finite number within \
+                                 ±{MAX_CHANNEL_VALUE:e}",
                                 column + 1,
                                 channel_name(&joints, column)
                             ),

@@ -469,7 +469,9 @@ impl LengthUnit {
         }
     }
 
-    /// Parses `m`, `cm`, `mm`, `in`, or a number (metres per unit).
+    /// Parses `m`, `cm`, `mm`, `in`, or a number of metres per unit from 10⁻⁶ (a micrometre)
+    /// to 10³ (a kilometre): outside, no recording's unit (10³⁰⁰ overflowed the body's size,
+    /// which then read as 0 m).
     pub fn parse(text: &str) -> Option<LengthUnit> {
         match text.trim().to_ascii_lowercase().as_str() {
             "m" | "metre" | "metres" | "meter" | "meters" => Some(LengthUnit::Metres),
@@ -479,7 +481,7 @@ impl LengthUnit {
             t => t
                 .parse::<f64>()
                 .ok()
-                .filter(|v| *v > 0.0 && v.is_finite())
+                .filter(|v| (1e-6..=1e3).contains(v))
                 .map(LengthUnit::Custom),
         }
     }
@@ -495,6 +497,16 @@ pub fn check_plausible_height(source: &str, height: f64, unit: LengthUnit) -> cr
     let [lo, hi] = PLAUSIBLE_HEIGHT_M;
     if height >= lo && height <= hi {
         return Ok(());
+    }
+    if height == 0.0 {
+        // no unit makes a body of this: the joints all lie on one point
+        return Err(Error::Motion {
+            file: source.to_string(),
+            location: "skeleton".into(),
+            message: "every joint lies on the same point in every frame (implied body height \
+                      0 m): there is no skeleton to fit"
+                .into(),
+        });
     }
     let raw = height / unit.metres();
     // The unit that makes the skeleton closest to an adult's 1.7 m.
@@ -519,9 +531,14 @@ pub fn check_plausible_height(source: &str, height: f64, unit: LengthUnit) -> cr
         file: source.to_string(),
         location: "skeleton".into(),
         message: format!(
-            "implied body height {height:.3} m is not a person's ({lo}–{hi} m): wrong length unit \
+            "implied body height {} m is not a person's ({lo}–{hi} m): wrong length unit \
              ({} m per file unit)?{suggestion}",
-            unit.metres()
+            if (1e-3..1e6).contains(&height) {
+                format!("{height:.3}")
+            } else {
+                format!("{height:.3e}")
+            },
+            short_number(unit.metres())
         ),
     })
 }

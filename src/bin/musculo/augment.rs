@@ -80,7 +80,7 @@ pub struct Args {
     external_loads: Option<PathBuf>,
     /// Use each C3D input's force plates as measured ground reactions (each plate applied to
     /// the calcaneus nearest its centre of pressure).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "external_loads")]
     force_plates: bool,
     /// Also write OpenSim files per clip: `<clip>_ik.mot`, `_tau.sto`, `_activation.sto`,
     /// `_grf.mot` and the scaled model `<clip>.osim`, so a clip opens in OpenSim's GUI.

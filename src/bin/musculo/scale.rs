@@ -94,7 +94,7 @@ fn run_from_clip(args: &Args, clip_path: &Path) -> Result<(), musculo::Error> {
         Some(u) => Some(LengthUnit::parse(u).ok_or_else(|| {
             invalid(
                 "--length-unit",
-                format!("`{u}`: use m, cm, mm, in or a number"),
+                format!("`{u}`: use m, cm, mm, in or a number of metres per unit from 1e-6 to 1e3"),
             )
         })?),
         None => None,

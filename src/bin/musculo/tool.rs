@@ -136,7 +136,7 @@ pub fn read_options(
                 musculo::motion::LengthUnit::parse(u).ok_or_else(|| {
                     invalid(
                         "--length-unit",
-                        format!("`{u}`: use m, cm, mm, in or a number"),
+                        format!("`{u}`: use m, cm, mm, in or a number of metres per unit from 1e-6 to 1e3"),
                     )
                 })
             })
