@@ -463,3 +463,43 @@ fn a_megabyte_long_bad_value_is_not_echoed_whole() {
     assert!(stderr.contains("bytes left out"), "{stderr}");
     assert!(stderr.len() < 2000, "{} bytes on stderr", stderr.len());
 }
+
+/// Inputs of `augment` and `ik` that a sweep found accepted or misreported, each refused with
+/// its reason: a length unit of 10³⁰⁰ m (the body's size overflowed and read as 0 m), a
+/// skeleton whose joints all lie on one point (blamed on the length unit), `--out` naming an
+/// existing file ("File exists"), force plates beside an ExternalLoads file (the plates were
+/// ignored), and a model without contact spheres (the message named a library function).
+#[test]
+fn augment_inputs_are_refused_with_their_reason() {
+    let dir = ScratchDir::new("augment-inputs");
+    let zeros = dir.join("zeros.npy");
+    let array = ndarray::ArrayD::<f32>::zeros(ndarray::IxDyn(&[10, 22, 3]));
+    musculo::motion::npy::write_npy(&zeros, array.view()).unwrap();
+    let out = dir.join("out");
+    let (ok, _, stderr) = musculo_cli("ik --input {} --length-unit 1e300 -o {}", &[&zeros, &out]);
+    assert!(!ok && stderr.contains("from 1e-6 to 1e3"), "{stderr}");
+    let (ok, _, stderr) = musculo_cli("ik --input {} -o {}", &[&zeros, &out]);
+    assert!(
+        !ok && stderr.contains("every joint lies on the same point"),
+        "{stderr}"
+    );
+    let (ok, _, stderr) = musculo_cli("augment --input {} --out {}", &[&zeros, &zeros]);
+    assert!(
+        !ok && stderr.contains("is a file, not a folder"),
+        "{stderr}"
+    );
+    let (ok, _, stderr) = musculo_cli(
+        "augment --input {} --force-plates --external-loads {} --out {}",
+        &[&zeros, &zeros, &out],
+    );
+    assert!(!ok && stderr.contains("cannot be used with"), "{stderr}");
+    let Some(arm) = common::reference_file("opensim-models/Models/Arm26/arm26.osim") else {
+        return;
+    };
+    let (ok, _, stderr) = musculo_cli("augment --demo --model {} --out {}", &[&arm, &out]);
+    assert!(
+        !ok && stderr.contains("has no ContactSphere for the ground contacts")
+            && !stderr.contains("from_points"),
+        "{stderr}"
+    );
+}
