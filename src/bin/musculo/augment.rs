@@ -229,24 +229,13 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             report.temporaries_removed
         );
     }
-    // the first few failures in full; all of them are in the manifest
-    const SHOWN: usize = 10;
-    for r in failed.iter().take(SHOWN) {
-        eprintln!(
-            "failed: {} ({}): {}",
-            r.clip,
-            r.input,
-            r.reason.as_deref().unwrap_or("")
-        );
-    }
-    if failed.len() > SHOWN {
-        eprintln!(
-            "failed: … and {} more clip(s), each with its reason in {} (after `musculo merge` \
-             for a sharded run)",
-            failed.len() - SHOWN,
-            args.out.join("manifest.json").display()
-        );
-    }
+    print_failures(
+        failed
+            .iter()
+            .map(|r| (r.clip.as_str(), r.input.as_str(), r.reason.as_deref())),
+        &args.out,
+        " (after `musculo merge` for a sharded run)",
+    );
     // what the clips' chains accepted but reported, the first few in full (all of them are
     // in the manifest, with their clips)
     let warnings: Vec<&String> = report.records.iter().flat_map(|r| &r.warnings).collect();
@@ -314,31 +303,43 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     Ok(failed.is_empty())
 }
 
+/// How many failed clips and warnings are printed in full (all are in the manifest).
+const SHOWN: usize = 10;
+
+/// The failed clips (clip, input, reason), the first few in full and a count of the rest,
+/// whose reasons are in OUT's manifest (`where_note` follows its path).
+fn print_failures<'a>(
+    failed: impl Iterator<Item = (&'a str, &'a str, Option<&'a str>)>,
+    out: &std::path::Path,
+    where_note: &str,
+) {
+    let mut count = 0;
+    for (clip, input, reason) in failed {
+        if count < SHOWN {
+            eprintln!("failed: {clip} ({input}): {}", reason.unwrap_or(""));
+        }
+        count += 1;
+    }
+    if count > SHOWN {
+        eprintln!(
+            "failed: … and {} more clip(s), each with its reason in {}{where_note}",
+            count - SHOWN,
+            out.join("manifest.json").display()
+        );
+    }
+}
+
 /// Merges the shards of `args.out`; Ok(false) when the merged manifest records failed clips
 /// (as `augment` exits non-zero when a clip failed), after writing it and naming them.
 pub fn merge(args: &MergeArgs) -> Result<bool, musculo::Error> {
     let manifest = runner::merge(&args.out)?;
-    let failed: Vec<_> = manifest
-        .clips
-        .iter()
-        .filter(|c| c.reason.is_some())
-        .collect();
-    const SHOWN: usize = 10;
-    for c in failed.iter().take(SHOWN) {
-        eprintln!(
-            "failed: {} ({}): {}",
-            c.clip,
-            c.input,
-            c.reason.as_deref().unwrap_or("")
-        );
-    }
-    if failed.len() > SHOWN {
-        eprintln!(
-            "failed: … and {} more clip(s), each with its reason in {}",
-            failed.len() - SHOWN,
-            args.out.join("manifest.json").display()
-        );
-    }
+    print_failures(
+        (manifest.clips.iter())
+            .filter(|c| c.reason.is_some())
+            .map(|c| (c.clip.as_str(), c.input.as_str(), c.reason.as_deref())),
+        &args.out,
+        "",
+    );
     eprintln!(
         "merged: {} clip(s) ok, {} failed, {} frames; wrote {}",
         manifest.summary.clips_ok,
