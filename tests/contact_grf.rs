@@ -107,7 +107,7 @@ fn walk(
         prepared.trajectory.eval(t, a, b, c);
     }
     let t0 = std::time::Instant::now();
-    let states = contact::detect(&model, &set, options, &q, &qd, rate).unwrap();
+    let states = contact::detect(&model, &set, options, &q, &qd, &qdd, rate).unwrap();
     let detect_micros = 1e6 * t0.elapsed().as_secs_f64() / frames as f64;
     let set = set.with_floor(states.floor);
     eprintln!(
@@ -514,7 +514,8 @@ fn a_frame_in_the_air_gets_no_force_and_the_whole_residual() {
         floor_height: Some(0.0),
         ..ContactOptions::default()
     };
-    let states = contact::detect(&model, &set, &options, &q, &qd, rate).unwrap();
+    let qdd = vec![0.0; q.len()];
+    let states = contact::detect(&model, &set, &options, &q, &qd, &qdd, rate).unwrap();
     assert!((0..8).all(|p| states.in_contact[p]), "standing: in contact");
     assert!(states.factor.iter().all(|f| (0.0..=1.0).contains(f)));
     let last = frames - 1;
@@ -652,7 +653,8 @@ fn bad_input_is_an_error_naming_the_argument() {
     let q: Vec<f64> = (0..3).flat_map(|_| q1.clone()).collect();
     let qd = vec![0.0; q.len()];
     let detect = |q: &[f64], qd: &[f64], rate: f64, o: &ContactOptions| {
-        invalid(contact::detect(&model, &set, o, q, qd, rate).unwrap_err())
+        let qdd = vec![0.0; q.len()];
+        invalid(contact::detect(&model, &set, o, q, qd, &qdd, rate).unwrap_err())
     };
     assert_eq!(detect(&q[1..], &qd[1..], 60.0, &options).0, "q");
     assert_eq!(detect(&[], &[], 60.0, &options).0, "q");
@@ -668,10 +670,10 @@ fn bad_input_is_an_error_naming_the_argument() {
     nan[5] = f64::INFINITY;
     assert_eq!(detect(&q, &nan, 60.0, &options).0, "qd");
     let bad_options = ContactOptions {
-        height_off: 0.01,
+        height_scale: 0.0,
         ..ContactOptions::default()
     };
-    assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "height_off");
+    assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "height_scale");
     let bad_options = ContactOptions {
         friction: Some(f64::NAN),
         ..ContactOptions::default()

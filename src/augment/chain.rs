@@ -147,6 +147,13 @@ pub struct ClipQuality {
     pub contact_fraction: f64,
     /// Body mass (kg) and height scale of the model used.
     pub body_mass: f64,
+    /// Whether the contact estimate took the floor as a treadmill (given, or detected from
+    /// the stance feet), and the belt's velocity in ground (m/s; zeros for a floor at rest or
+    /// measured loads).
+    #[serde(default)]
+    pub treadmill: bool,
+    #[serde(default)]
+    pub belt_velocity: [f64; 3],
 }
 
 /// Everything the chain computed for one clip.
@@ -438,6 +445,7 @@ impl Chain {
             &self.options.contact,
             &q,
             &qd,
+            &qdd,
             targets.rate_hz,
         )?;
         let set = set.with_floor(states.floor);
@@ -578,6 +586,10 @@ impl Chain {
             }
         }
         let mut quality = per_frame.quality(&model, &solution, frames, targets.rate_hz, clamped);
+        if loads.is_none() {
+            quality.treadmill = states.treadmill;
+            quality.belt_velocity = states.floor_velocity.into();
+        }
         quality.ik_markers = tasks
             .markers
             .iter()
@@ -1280,6 +1292,8 @@ impl FrameArrays {
             clamped_excitations: clamped,
             contact_fraction: self.in_contact as f64 / frames as f64,
             body_mass: mass,
+            treadmill: false,
+            belt_velocity: [0.0; 3],
         }
     }
 

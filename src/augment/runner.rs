@@ -606,7 +606,20 @@ fn process(
                     builtin = SkeletonMap::builtin(name)?;
                     Some(&builtin)
                 }
-                (None, None) => None,
+                // a marker file naming few of the model's markers, that a built-in map
+                // reads whole (C3D's joint-centre gait sets): that map
+                (None, None) => match SkeletonMap::builtin_matching(&motion) {
+                    Some(m)
+                        if m.targets.len()
+                            > crate::solve::ik::tasks_by_name(&chain.model, &motion)
+                                .markers
+                                .len() =>
+                    {
+                        builtin = m;
+                        Some(&builtin)
+                    }
+                    _ => None,
+                },
             };
             let loads = match (&options.external_loads, options.force_plates) {
                 (Some(p), _) => Some(MeasuredLoads::ExternalLoads(p.clone())),

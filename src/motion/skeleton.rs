@@ -328,6 +328,17 @@ impl SkeletonMap {
         self.source_columns(motion).iter().all(Option::is_some)
     }
 
+    /// The built-in map whose every source joint or marker `motion` has (the one with the
+    /// most targets when several do), or None: how a marker file (C3D, TRC) that names no
+    /// model marker finds its map without `--map`.
+    pub fn builtin_matching(motion: &Motion) -> Option<SkeletonMap> {
+        BUILTIN
+            .iter()
+            .filter_map(|(n, _)| Self::builtin(n).ok())
+            .filter(|m| m.matches(motion))
+            .max_by_key(|m| m.targets.len())
+    }
+
     /// The targets in the model's frame and metres, one column per map target (named after
     /// its model marker), and the IK marker tasks pairing each with its model marker.
     pub fn apply(&self, model: &Model, motion: &Motion) -> crate::Result<(Motion, IkTasks)> {

@@ -69,9 +69,14 @@ pub struct Args {
     )]
     muscle_strength: f64,
     /// The clips were recorded on a treadmill: contact speeds are taken relative to the belt,
-    /// whose velocity is estimated per clip (default: a floor at rest).
+    /// at SPEED (m/s, its direction from the stance feet) or at the speed estimated per clip.
+    /// Default: detected per clip from the stance feet (a treadmill when they move together at
+    /// 0.2 m/s or more); the manifest records what each clip got.
+    #[arg(long, value_name = "SPEED", num_args = 0..=1, conflicts_with = "overground")]
+    treadmill: Option<Option<f64>>,
+    /// The clips were recorded on a floor at rest (no treadmill detection).
     #[arg(long)]
-    treadmill: bool,
+    overground: bool,
     #[command(flatten)]
     strict: crate::warnings::Strict,
     /// Measured ground reactions for a single trial (an OpenSim ExternalLoads .xml and its
@@ -163,8 +168,11 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         ..ChainOptions::default()
     };
     let mut options = options;
-    if args.treadmill {
-        options.contact.floor_velocity = None;
+    if let Some(speed) = args.treadmill {
+        options.contact.floor_motion = musculo::solve::contact::FloorMotion::Treadmill { speed };
+    }
+    if args.overground {
+        options.contact.floor_velocity = Some(musculo::spatial::Vec3::zeros());
     }
     // Read once here for `--strict` and the model's warnings; the chain reads the same text.
     args.strict.load_str(&xml, &source)?;

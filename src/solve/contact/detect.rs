@@ -1,24 +1,62 @@
-//! Contact detection over a whole clip.
+//! Contact detection over a whole clip: a hidden-Markov decision over the contact states of
+//! the groups (feet, hands), from the kinematics of every point and from what the dynamics
+//! demand, decided by one Viterbi pass over all frames.
 //!
-//! For every frame t and point p, with n the floor normal, c the sphere centre and r its
-//! radius, the point's lowest point b = c − r n has
+//! **Kinematic evidence.** For every frame t and point p, with n the floor normal, c the sphere
+//! centre and r its radius, the point's lowest point b = c − r n has
 //!   height  h = n·b − h_floor,      speed  s = ‖v_b − v_floor‖
 //! (v_b the velocity of the body-fixed point at b). The floor height h_floor is given or the
-//! `floor_percentile` of all h; the floor velocity is given (0 for still ground, the belt for a
-//! treadmill) or the median tangential velocity of the low points.
+//! `floor_percentile` of all h. Each point rests at its own level μ_p in stance — a fitted
+//! foot is seldom exactly flat (a foot pitched by a few degrees lifts its heel centimetres) —
+//! taken as the `floor_percentile` of its own heights, at most `max_point_offset` above the
+//! floor. With e_p = ½[((h − μ_p)⁺/σ_h)² + (s/σ_s)²] (σ_h = `height_scale`, σ_s =
+//! `speed_scale`) the point's contact likelihood is ℓ_p = exp(−e_p) and a group's (a foot
+//! touches when any of its points does) ℓ_g = max_p ℓ_p; a group in contact costs −ln ℓ_g, a
+//! group in the air −ln(1 − ℓ_g) (capped at [`COST_CAP`]).
 //!
-//! Contact state with hysteresis: off → on when h ≤ h_on and s ≤ s_on; on → off when h > h_off
-//! or s > s_off. While on, the factor is
-//!   φ = S((h_off − h)/(h_off − h_full)) · S((s_off − s)/(s_off − s_on)) · ramp_in · ramp_out,
-//! S the smoothstep, ramp_in = S(time since the contact began / T_tr) and ramp_out =
-//! S(time until it ends / T_tr) (no ramp at the clip's ends): φ rises from 0 and falls back to 0
-//! within the contact, so the distribution's weights 1/φ move load smoothly between points.
+//! **The floor's motion.** A treadmill belt moves the stance feet backward at its speed. The
+//! velocity v̂ is the median tangential velocity of the points within σ_h of their level; it is
+//! the floor's velocity when it is at least `belt_speed_min` (a still floor leaves stance feet
+//! still within IK's noise), else the floor is still. A given velocity or a forced treadmill
+//! (`floor_velocity`, `floor_motion`) overrides the decision.
+//!
+//! **Dynamic evidence.** The ground must supply F = Σ_b m_b (a_b − g) (a_b the acceleration of
+//! body b's centre of mass). Its normal component relative to the body weight,
+//! d = n·F / (M ‖g‖), says whether any contact is needed: with no group in contact the
+//! unexplained support costs ½(d⁺/σ_d)², with some group in contact a pull the floor cannot
+//! give costs ½(d⁻/σ_d)² (σ_d = `demand_scale`; fading to zero over `end_time` at the clip's
+//! ends, where the accelerations rest on the filter's end conditions). A running flight phase (d < 0) thus has no
+//! contact however low the feet, and support (d > 0) goes to the foot the kinematics favour.
+//!
+//! **Decision.** The states are the 2^G subsets of the G groups in contact; the cost of a
+//! state is the sum of its groups' kinematic costs and its dynamic cost; a group changing
+//! state between frames costs ln(rate / `transition_rate`) (the negative log-probability of a
+//! change in one frame at `transition_rate` changes per second). Viterbi gives the sequence
+//! of least total cost over the clip.
+//!
+//! **Factors.** Within a group in contact each point's factor is ℓ_p / max_q ℓ_q over the
+//! group's points (the best-placed point 1; factors below [`FACTOR_MIN`] are 0), so the foot
+//! rolls from heel to toe. Where a group's contact overlaps another group's at its start or
+//! end (double support), the factor ramps in (or out) with a smoothstep over the overlap,
+//! at most `transition_time`: load passes from the trailing to the leading foot across the
+//! double support, and a running step with no overlap carries its load from the first frame.
 
-use super::{ContactOptions, ContactSet, smoothstep};
-use crate::dynamics::{Data, forward_kinematics_velocity};
+use super::{ContactOptions, ContactSet, FloorMotion, smoothstep};
+use crate::dynamics::{Data, forward_kinematics_acceleration};
 use crate::error::Error;
 use crate::model::Model;
 use crate::spatial::Vec3;
+
+/// Largest cost of a group in the air (nats): a foot resting on the floor may still carry
+/// nothing, and a likelihood of contact within e^−14 ≈ 1e-6 of 1 says no more than that.
+pub const COST_CAP: f64 = 14.0;
+
+/// Point factors below this are zero (the point takes no load).
+pub const FACTOR_MIN: f64 = 1e-3;
+
+/// Groups above which the joint states (2^G) are not enumerated: each group is then decided
+/// on its own, with the dynamic evidence shared out as if the others were in the air.
+pub const MAX_JOINT_GROUPS: usize = 6;
 
 /// Contact over a clip of T frames and P points (arrays frame-major, T × P).
 #[derive(Clone, Debug)]
@@ -27,7 +65,7 @@ pub struct ContactStates {
     pub points: usize,
     /// Contact factor in [0, 1] (1 = fully in contact).
     pub factor: Vec<f64>,
-    /// The hysteresis state (in contact or not).
+    /// Whether each point takes load (its group in contact and its factor above zero).
     pub in_contact: Vec<bool>,
     /// Height of each point's lowest point above the floor (m).
     pub height: Vec<f64>,
@@ -35,14 +73,29 @@ pub struct ContactStates {
     pub speed: Vec<f64>,
     /// The floor height used (given or estimated), along the floor normal.
     pub floor: f64,
-    /// The floor velocity used (given or estimated).
+    /// The floor velocity used (given, estimated belt, or zero).
     pub floor_velocity: Vec3,
+    /// Whether the floor moves (a treadmill): given, or detected from the stance feet.
+    pub treadmill: bool,
+    /// The ground's normal force the motion needs, relative to body weight, per frame
+    /// (n·Σ m_b (a_b − g) / (M ‖g‖); 1 standing still, 0 in flight).
+    pub demand: Vec<f64>,
+    /// Each group's contact state per frame (T × G, the set's group order).
+    pub group_contact: Vec<bool>,
 }
 
 impl ContactStates {
     /// The P factors of frame `t`.
     pub fn frame(&self, t: usize) -> &[f64] {
         &self.factor[t * self.points..(t + 1) * self.points]
+    }
+
+    /// Frames in which group `g` is in contact.
+    pub fn group_frames(&self, g: usize) -> usize {
+        let groups = self.group_contact.len() / self.frames.max(1);
+        (0..self.frames)
+            .filter(|&t| self.group_contact[t * groups + g])
+            .count()
     }
 }
 
@@ -84,8 +137,17 @@ fn percentile(values: &mut [f64], percentile: f64) -> f64 {
     }
 }
 
-/// Detects contact over a clip: `q` and `qd` are T × nq, frame-major, sampled at `rate_hz`.
-/// The returned [`ContactStates::floor`] is the floor used; pass it on with
+/// −ln x, capped at [`COST_CAP`].
+fn cost(x: f64) -> f64 {
+    if x <= (-COST_CAP).exp() {
+        COST_CAP
+    } else {
+        -x.ln()
+    }
+}
+
+/// Detects contact over a clip: `q`, `qd` and `qdd` are T × nq, frame-major, sampled at
+/// `rate_hz`. The returned [`ContactStates::floor`] is the floor used; pass it on with
 /// [`ContactSet::with_floor`] so that [`super::ground_reaction`] puts the centre of pressure
 /// on it. Errors name the argument (and frame and coordinate for non-finite values).
 pub fn detect(
@@ -94,6 +156,7 @@ pub fn detect(
     options: &ContactOptions,
     q: &[f64],
     qd: &[f64],
+    qdd: &[f64],
     rate_hz: f64,
 ) -> crate::Result<ContactStates> {
     options.validate()?;
@@ -105,25 +168,39 @@ pub fn detect(
     }
     let nq = model.nq();
     check_frames(model, "q", q, nq)?;
-    if qd.len() != q.len() {
-        return Err(Error::invalid(
-            "qd",
-            format!("length {} differs from q's {}", qd.len(), q.len()),
-        ));
+    for (name, x) in [("qd", qd), ("qdd", qdd)] {
+        if x.len() != q.len() {
+            return Err(Error::invalid(
+                name,
+                format!("length {} differs from q's {}", x.len(), q.len()),
+            ));
+        }
     }
     check_frames(model, "qd", qd, nq)?;
+    check_frames(model, "qdd", qdd, nq)?;
     let frames = q.len() / nq;
     let np = set.points.len();
     let n = set.floor_normal;
     let (t1, t2) = set.floor_tangents();
+    let o = options;
 
-    // Heights (not yet relative to the floor) and velocities of the lowest points.
+    // Heights (not yet relative to the floor) and velocities of the lowest points, and the
+    // normal force the motion needs: n·Σ m_b (a_b − g).
     let mut data = Data::new(model);
     let mut height = vec![0.0; frames * np];
     let mut velocity = vec![Vec3::zeros(); frames * np];
+    let mut demand = vec![0.0; frames];
+    let mass: f64 = model.bodies.iter().map(|b| b.mass).sum();
+    let weight = mass * model.gravity.norm();
     for t in 0..frames {
         let rows = t * nq..(t + 1) * nq;
-        forward_kinematics_velocity(model, &mut data, &q[rows.clone()], &qd[rows])?;
+        forward_kinematics_acceleration(
+            model,
+            &mut data,
+            &q[rows.clone()],
+            &qd[rows.clone()],
+            &qdd[rows],
+        )?;
         for (p, point) in set.points.iter().enumerate() {
             let (rot, _) = data.body_pose(point.body);
             // b = c − r n, as a point of the body
@@ -131,24 +208,58 @@ pub fn detect(
             height[t * np + p] = n.dot(&data.point_position(point.body, &bottom));
             velocity[t * np + p] = data.point_velocity(point.body, &bottom);
         }
+        if weight > 0.0 {
+            let mut force = Vec3::zeros();
+            for (b, body) in model.bodies.iter().enumerate() {
+                if body.mass > 0.0 {
+                    let (_, a) = data.point_acceleration(b, &body.com_in_body);
+                    force += body.mass * (a - model.gravity);
+                }
+            }
+            demand[t] = n.dot(&force) / weight;
+        }
     }
-    let floor = match options.floor_height {
+    let floor = match o.floor_height {
         Some(h) => h,
-        None => percentile(&mut height.clone(), options.floor_percentile),
+        None => percentile(&mut height.clone(), o.floor_percentile),
     };
     height.iter_mut().for_each(|h| *h -= floor);
-    let floor_velocity = match options.floor_velocity {
-        Some(v) => v,
-        None => {
+    // each point's resting level, at most max_point_offset above the floor
+    let level: Vec<f64> = (0..np)
+        .map(|p| {
+            let mut own: Vec<f64> = (0..frames).map(|t| height[t * np + p]).collect();
+            percentile(&mut own, o.floor_percentile).min(o.max_point_offset)
+        })
+        .collect();
+    let above = |t: usize, p: usize| (height[t * np + p] - level[p]).max(0.0);
+
+    // The floor's velocity: given, or the stance points' median tangential velocity.
+    let (floor_velocity, treadmill) = match (o.floor_velocity, o.floor_motion) {
+        (Some(v), _) => (v, v.norm() > 0.0),
+        (None, motion) => {
             let low: Vec<usize> = (0..frames * np)
-                .filter(|&i| height[i] <= options.height_on)
+                .filter(|&i| above(i / np, i % np) <= o.height_scale)
                 .collect();
-            if low.is_empty() {
+            let estimate = if low.is_empty() {
                 Vec3::zeros()
             } else {
                 let mut a: Vec<f64> = low.iter().map(|&i| t1.dot(&velocity[i])).collect();
                 let mut b: Vec<f64> = low.iter().map(|&i| t2.dot(&velocity[i])).collect();
                 t1 * percentile(&mut a, 50.0) + t2 * percentile(&mut b, 50.0)
+            };
+            match motion {
+                FloorMotion::Detect if estimate.norm() >= o.belt_speed_min => (estimate, true),
+                FloorMotion::Detect => (Vec3::zeros(), false),
+                FloorMotion::Treadmill { speed: None } => (estimate, true),
+                FloorMotion::Treadmill { speed: Some(s) } => {
+                    // the given speed along the estimated direction of the belt
+                    let direction = if estimate.norm() > 0.0 {
+                        estimate.normalize()
+                    } else {
+                        -t1
+                    };
+                    (direction * s, true)
+                }
             }
         }
     };
@@ -157,53 +268,124 @@ pub fn detect(
         .map(|v| (v - floor_velocity).norm())
         .collect();
 
-    // Hysteresis, then the factor.
-    let o = options;
-    let mut in_contact = vec![false; frames * np];
-    let mut factor = vec![0.0; frames * np];
-    let dt = 1.0 / rate_hz;
-    for p in 0..np {
-        let mut on = false;
-        for t in 0..frames {
-            let i = t * np + p;
-            let (h, s) = (height[i], speed[i]);
-            on = if on {
-                h <= o.height_off && s <= o.speed_off
-            } else {
-                h <= o.height_on && s <= o.speed_on
-            };
-            in_contact[i] = on;
-            if on {
-                factor[i] = smoothstep((o.height_off - h) / (o.height_off - o.height_full))
-                    * smoothstep((o.speed_off - s) / (o.speed_off - o.speed_on));
-            }
+    // e_p per frame and point
+    let energy: Vec<f64> = (0..frames * np)
+        .map(|i| {
+            let (t, p) = (i / np, i % np);
+            0.5 * ((above(t, p) / o.height_scale).powi(2) + (speed[i] / o.speed_scale).powi(2))
+        })
+        .collect();
+    let ng = set.groups().len();
+    // group costs in contact / in the air, T × G
+    let mut cost_on = vec![COST_CAP; frames * ng];
+    let mut cost_off = vec![0.0; frames * ng];
+    for t in 0..frames {
+        for g in 0..ng {
+            let best = (0..np)
+                .filter(|&p| set.group_of(p) == g)
+                .map(|p| energy[t * np + p])
+                .fold(f64::INFINITY, f64::min);
+            cost_on[t * ng + g] = best;
+            cost_off[t * ng + g] = cost(1.0 - (-best).exp());
         }
-        // ramps at the contact intervals' ends (not at the clip's ends)
-        if o.transition_time > 0.0 {
-            let mut t = 0;
-            while t < frames {
-                if !in_contact[t * np + p] {
-                    t += 1;
-                    continue;
-                }
-                let start = t;
-                while t < frames && in_contact[t * np + p] {
-                    t += 1;
-                }
-                let end = t; // exclusive
-                for k in start..end {
-                    let mut ramp = 1.0;
-                    if start > 0 {
-                        ramp *= smoothstep((k - start + 1) as f64 * dt / o.transition_time);
-                    }
-                    if end < frames {
-                        ramp *= smoothstep((end - k) as f64 * dt / o.transition_time);
-                    }
-                    factor[k * np + p] *= ramp;
-                }
+    }
+    // the accelerations of the first and last frames rest on the filter's and splines' end
+    // conditions: their evidence fades out towards the clip's ends over `end_time`
+    let end_frames = o.end_time * rate_hz;
+    let dynamic = |t: usize, any: bool| {
+        let d = demand[t];
+        let unexplained = if any { (-d).max(0.0) } else { d.max(0.0) };
+        let from_end = t.min(frames - 1 - t) as f64;
+        let trust = if end_frames > 0.0 {
+            smoothstep(from_end / end_frames)
+        } else {
+            1.0
+        };
+        trust * 0.5 * (unexplained / o.demand_scale).powi(2)
+    };
+    let switch = (rate_hz / o.transition_rate).ln().max(0.0);
+    let group_contact = if ng <= MAX_JOINT_GROUPS {
+        viterbi_joint(frames, ng, &cost_on, &cost_off, &dynamic, switch)
+    } else {
+        viterbi_separate(frames, ng, &cost_on, &cost_off, &dynamic, switch)
+    };
+
+    // factors within each group in contact, then the double-support ramps
+    let mut factor = vec![0.0; frames * np];
+    for t in 0..frames {
+        for g in 0..ng {
+            if !group_contact[t * ng + g] {
+                continue;
+            }
+            let points = (0..np).filter(|&p| set.group_of(p) == g);
+            let best = points
+                .clone()
+                .map(|p| energy[t * np + p])
+                .fold(f64::INFINITY, f64::min);
+            for p in points {
+                let f = (best - energy[t * np + p]).exp();
+                factor[t * np + p] = if f >= FACTOR_MIN { f } else { 0.0 };
             }
         }
     }
+    let others = |t: usize, g: usize| (0..ng).any(|k| k != g && group_contact[t * ng + k]);
+    let intervals = contact_intervals(&group_contact, frames, ng);
+    // The double supports the clip shows whole (a group's contact begins while another's
+    // goes on, and that one ends within it): their median length, at most transition_time,
+    // is the clip's own transfer time, used where the clip's start or end cuts one.
+    let longest = ((o.transition_time * rate_hz).round() as usize).max(1);
+    let mut whole: Vec<usize> = Vec::new();
+    for &(g, start, end) in &intervals {
+        if start > 0 && others(start - 1, g) {
+            let overlap = (start..end).take_while(|&k| others(k, g)).count();
+            if start + overlap < end {
+                whole.push(overlap);
+            }
+        }
+    }
+    whole.sort_unstable();
+    let typical = whole.get(whole.len() / 2).copied().unwrap_or(longest).min(longest);
+    for &(g, start, end) in &intervals {
+        // the overlap at the interval's start: another group in contact before it began
+        // (a transfer onto this group), or at the clip's first frame with this group
+        // outlasting the others (a transfer cut by the clip's start, placed to end where
+        // the others leave)
+        let head = (start..end).take_while(|&k| others(k, g)).count();
+        let ramp_in: Option<(f64, f64)> = if start > 0 && others(start - 1, g) {
+            let cut = start + head == frames;
+            let len = if cut { typical } else { head.min(longest) };
+            Some((start as f64 - 1.0, len as f64))
+        } else if start == 0 && head > 0 && head < end {
+            Some((head as f64 - typical as f64 - 1.0, typical as f64))
+        } else {
+            None
+        };
+        // the overlap at its end, likewise (a transfer away from this group)
+        let tail = (start..end).rev().take_while(|&k| others(k, g)).count();
+        let ramp_out: Option<(f64, f64)> = if end < frames && others(end, g) {
+            let cut = end - tail == 0;
+            let len = if cut { typical } else { tail.min(longest) };
+            Some((end as f64, len as f64))
+        } else if end == frames && tail > 0 && end - tail > start {
+            Some(((end - tail + typical) as f64, typical as f64))
+        } else {
+            None
+        };
+        for k in start..end {
+            let x = k as f64;
+            let mut ramp = 1.0;
+            if let Some((before, len)) = ramp_in {
+                ramp *= smoothstep((x - before) / (len + 1.0));
+            }
+            if let Some((after, len)) = ramp_out {
+                ramp *= smoothstep((after - x) / (len + 1.0));
+            }
+            for p in (0..np).filter(|&p| set.group_of(p) == g) {
+                factor[k * np + p] *= ramp;
+            }
+        }
+    }
+    let in_contact = factor.iter().map(|&f| f > 0.0).collect();
     Ok(ContactStates {
         frames,
         points: np,
@@ -213,5 +395,120 @@ pub fn detect(
         speed,
         floor,
         floor_velocity,
+        treadmill,
+        demand,
+        group_contact,
     })
+}
+
+/// The contact intervals (group, first frame, end frame exclusive) of a T × G state array.
+fn contact_intervals(contact: &[bool], frames: usize, ng: usize) -> Vec<(usize, usize, usize)> {
+    let mut out = Vec::new();
+    for g in 0..ng {
+        let mut t = 0;
+        while t < frames {
+            if !contact[t * ng + g] {
+                t += 1;
+                continue;
+            }
+            let start = t;
+            while t < frames && contact[t * ng + g] {
+                t += 1;
+            }
+            out.push((g, start, t));
+        }
+    }
+    out
+}
+
+/// Viterbi over the 2^G subsets of groups in contact (bit g set: group g in contact).
+fn viterbi_joint(
+    frames: usize,
+    ng: usize,
+    cost_on: &[f64],
+    cost_off: &[f64],
+    dynamic: &dyn Fn(usize, bool) -> f64,
+    switch: f64,
+) -> Vec<bool> {
+    let ns = 1usize << ng;
+    let state_cost = |t: usize, s: usize| {
+        let mut c = dynamic(t, s != 0);
+        for g in 0..ng {
+            c += if s & (1 << g) != 0 {
+                cost_on[t * ng + g]
+            } else {
+                cost_off[t * ng + g]
+            };
+        }
+        c
+    };
+    let mut total: Vec<f64> = (0..ns).map(|s| state_cost(0, s)).collect();
+    let mut back = vec![0u32; frames * ns];
+    let mut next = vec![0.0; ns];
+    for t in 1..frames {
+        for s in 0..ns {
+            let (mut best, mut from) = (f64::INFINITY, 0);
+            for (r, &c) in total.iter().enumerate() {
+                let c = c + switch * (r ^ s).count_ones() as f64;
+                if c < best {
+                    (best, from) = (c, r);
+                }
+            }
+            next[s] = best + state_cost(t, s);
+            back[t * ns + s] = from as u32;
+        }
+        std::mem::swap(&mut total, &mut next);
+    }
+    let mut s = (0..ns)
+        .min_by(|&a, &b| total[a].total_cmp(&total[b]))
+        .unwrap_or(0);
+    let mut out = vec![false; frames * ng];
+    for t in (0..frames).rev() {
+        for g in 0..ng {
+            out[t * ng + g] = s & (1 << g) != 0;
+        }
+        s = back[t * ns + s] as usize;
+    }
+    out
+}
+
+/// Viterbi per group (two states each) for sets with many groups: the dynamic evidence of
+/// "no contact" is charged to a group in the air as if all others were too.
+fn viterbi_separate(
+    frames: usize,
+    ng: usize,
+    cost_on: &[f64],
+    cost_off: &[f64],
+    dynamic: &dyn Fn(usize, bool) -> f64,
+    switch: f64,
+) -> Vec<bool> {
+    let mut out = vec![false; frames * ng];
+    for g in 0..ng {
+        let c = |t: usize, on: bool| {
+            if on {
+                cost_on[t * ng + g] + dynamic(t, true) / ng as f64
+            } else {
+                cost_off[t * ng + g] + dynamic(t, false) / ng as f64
+            }
+        };
+        let mut total = [c(0, false), c(0, true)];
+        let mut back = vec![[0u8; 2]; frames];
+        for t in 1..frames {
+            let mut next = [0.0; 2];
+            for s in 0..2 {
+                let stay = total[s];
+                let change = total[1 - s] + switch;
+                let (best, from) = if stay <= change { (stay, s) } else { (change, 1 - s) };
+                next[s] = best + c(t, s == 1);
+                back[t][s] = from as u8;
+            }
+            total = next;
+        }
+        let mut s = usize::from(total[1] < total[0]);
+        for t in (0..frames).rev() {
+            out[t * ng + g] = s == 1;
+            s = back[t][s] as usize;
+        }
+    }
+    out
 }

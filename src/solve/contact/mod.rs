@@ -12,9 +12,12 @@
 //! 1. describes the contact points ([`ContactSet`]: the model's ContactSpheres, or points given
 //!    by the caller or a JSON file, grouped per foot/hand), their floor (plane n·x = h) and the
 //!    floating-base rows B;
-//! 2. detects contact over a whole clip ([`detect`]): from the height above the floor and the
-//!    speed relative to the floor of every point's lowest point, with hysteresis, as a factor in
-//!    [0, 1] per frame and point that ramps smoothly in and out;
+//! 2. detects contact over a whole clip ([`detect`]): a Viterbi pass over the groups'
+//!    contact states, from every point's height above its resting level and speed relative
+//!    to the floor (a treadmill's belt detected from the stance feet), and from the normal
+//!    support the whole-body motion needs (none in a running flight phase); a factor in
+//!    [0, 1] per frame and point that rolls the load over a foot's points and passes it from
+//!    foot to foot over double support;
 //! 3. distributes the floating-base rows over the points in contact, frame by frame
 //!    ([`ContactWorkspace::distribute`], allocation-free) with a small QP — minimum force plus a
 //!    weighted unexplained residual, normal forces ≥ 0, friction pyramid (μ = 0.8 by default);
@@ -24,7 +27,7 @@
 //! Typical use, per clip (q, q̇, q̈ frame-major, τ from [`crate::dynamics::rnea`]):
 //! ```text
 //! let set = ContactSet::from_model(&model)?;
-//! let states = detect(&model, &set, &options, &q, &qd, rate_hz)?;
+//! let states = detect(&model, &set, &options, &q, &qd, &qdd, rate_hz)?;
 //! let set = set.with_floor(states.floor);
 //! for each frame t:  rnea(&model, &mut data, q_t, qd_t, qdd_t) → τ;
 //!     workspace.distribute(&model, &data, &set, &options, states.frame(t), τ, &mut frame)?;
@@ -435,23 +438,40 @@ pub struct ContactOptions {
     /// Percentile (0–100) used to estimate the floor. Default 5.
     pub floor_percentile: f64,
     /// Velocity of the floor in ground (m/s), e.g. a treadmill belt: speeds are measured
-    /// relative to it. None: estimated per clip as the median horizontal velocity of the points
-    /// lower than `height_on`. Default Some(0).
+    /// relative to it. None: from the clip, as `floor_motion` says. Default None.
     pub floor_velocity: Option<Vec3>,
-    /// Contact starts when a point's lowest point is at most `height_on` above the floor and
-    /// moves at most `speed_on` relative to it; it ends when it rises above `height_off` or
-    /// moves faster than `speed_off` (hysteresis: on < off). Defaults 0.02 m, 0.05 m,
-    /// 0.5 m/s, 1.0 m/s.
-    pub height_on: f64,
-    pub height_off: f64,
-    pub speed_on: f64,
-    pub speed_off: f64,
-    /// While in contact the factor is 1 up to `height_full` and falls smoothly (smoothstep) to
-    /// 0 at `height_off`; likewise 1 up to `speed_on` and 0 at `speed_off`. Default 0.01 m.
-    pub height_full: f64,
-    /// The factor ramps in (smoothstep) over this time after contact starts and out over this
-    /// time before it ends (s): about a walking double-support period, so that load passes
-    /// from the trailing to the leading foot over it. Default 0.2 s.
+    /// Without a given `floor_velocity`: whether to detect a treadmill from the stance feet
+    /// (the default) or take one as known (its speed given or estimated).
+    pub floor_motion: FloorMotion,
+    /// Scale of a point's height above its resting level in contact, σ_h (m): the
+    /// kinematic likelihood of contact falls as exp(−½ (h/σ_h)²). Default 0.02 m, the
+    /// accuracy of a fitted foot's height (skin and shoe-sole movement, marker placement).
+    pub height_scale: f64,
+    /// Scale of a point's speed relative to the floor in contact, σ_s (m/s), likewise.
+    /// Default 0.5 m/s: a rolling foot's contact points move by a few tenths of a metre per
+    /// second; a swinging foot moves at metres per second.
+    pub speed_scale: f64,
+    /// Scale of the normal support the motion needs and no contact gives (or the pull a
+    /// contact would have to give), σ_d, in body weights. Default 0.1: the accuracy of a
+    /// whole-body acceleration from low-pass filtered kinematics.
+    pub demand_scale: f64,
+    /// Time over which the dynamic evidence fades out towards the clip's first and last
+    /// frames (s), whose accelerations rest on the low-pass filter's and the splines' end
+    /// conditions. Default 0.05 s.
+    pub end_time: f64,
+    /// Expected contact changes per second and group (strikes and lifts), which sets the
+    /// cost of a change between frames, ln(rate / this). Default 4 (a stride a second
+    /// walking or running has two per foot; twice that for margin).
+    pub transition_rate: f64,
+    /// The highest a point's resting level may sit above the floor (m): a foot fitted with a
+    /// few degrees of pitch rests with its heel or toe that high. Default 0.1 m.
+    pub max_point_offset: f64,
+    /// The slowest belt taken as a treadmill when detecting one (m/s): stance feet on a still
+    /// floor move less than this. Default 0.2 m/s.
+    pub belt_speed_min: f64,
+    /// The longest time over which load passes from one group to another where their
+    /// contacts overlap (s): the factor ramps over the overlap, at most this long.
+    /// Default 0.2 s, about a walking double-support period.
     pub transition_time: f64,
     /// Friction coefficient μ: each force lies in the pyramid inscribed in the friction cone
     /// (edges n ± μ t₁, n ± μ t₂). None: normal ≥ 0, tangential force free — then the QP may
@@ -484,12 +504,15 @@ impl Default for ContactOptions {
         ContactOptions {
             floor_height: None,
             floor_percentile: 5.0,
-            floor_velocity: Some(Vec3::zeros()),
-            height_on: 0.02,
-            height_off: 0.05,
-            speed_on: 0.5,
-            speed_off: 1.0,
-            height_full: 0.01,
+            floor_velocity: None,
+            floor_motion: FloorMotion::Detect,
+            height_scale: 0.02,
+            speed_scale: 0.5,
+            demand_scale: 0.1,
+            end_time: 0.05,
+            transition_rate: 4.0,
+            max_point_offset: 0.1,
+            belt_speed_min: 0.2,
             transition_time: 0.2,
             friction: Some(0.8),
             tangential_weight: 1.0,
@@ -519,27 +542,29 @@ impl ContactOptions {
         {
             return bad("floor_velocity", v.norm(), "finite");
         }
-        if !(self.height_full >= 0.0 && self.height_full.is_finite()) {
-            return bad("height_full", self.height_full, "≥ 0");
-        }
-        if !(self.height_on >= 0.0 && self.height_on.is_finite()) {
-            return bad("height_on", self.height_on, "≥ 0");
-        }
-        if !(self.height_off > self.height_on
-            && self.height_off > self.height_full
-            && self.height_off.is_finite())
+        if let FloorMotion::Treadmill { speed: Some(v) } = self.floor_motion
+            && !(v >= 0.0 && v.is_finite())
         {
-            return bad(
-                "height_off",
-                self.height_off,
-                "finite and above height_on and height_full",
-            );
+            return bad("floor_motion", v, "a finite speed ≥ 0");
         }
-        if !(self.speed_on >= 0.0 && self.speed_on.is_finite()) {
-            return bad("speed_on", self.speed_on, "≥ 0");
+        for (field, value) in [
+            ("height_scale", self.height_scale),
+            ("speed_scale", self.speed_scale),
+            ("demand_scale", self.demand_scale),
+            ("transition_rate", self.transition_rate),
+        ] {
+            if !(value > 0.0 && value.is_finite()) {
+                return bad(field, value, "positive");
+            }
         }
-        if !(self.speed_off > self.speed_on && self.speed_off.is_finite()) {
-            return bad("speed_off", self.speed_off, "finite and above speed_on");
+        for (field, value) in [
+            ("max_point_offset", self.max_point_offset),
+            ("end_time", self.end_time),
+            ("belt_speed_min", self.belt_speed_min),
+        ] {
+            if !(value >= 0.0 && value.is_finite()) {
+                return bad(field, value, "≥ 0");
+            }
         }
         if !(self.transition_time >= 0.0 && self.transition_time.is_finite()) {
             return bad("transition_time", self.transition_time, "≥ 0");
@@ -569,6 +594,16 @@ impl ContactOptions {
             .validate()
             .map_err(|e| Error::invalid("qp", e.to_string()))
     }
+}
+
+/// How the floor moves when no velocity is given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FloorMotion {
+    /// A treadmill when the stance feet move together at `belt_speed_min` or more, else
+    /// still.
+    Detect,
+    /// A treadmill: its speed given (m/s, direction from the stance feet) or estimated.
+    Treadmill { speed: Option<f64> },
 }
 
 /// smoothstep: 0 for x ≤ 0, 1 for x ≥ 1, 3x² − 2x³ between.
