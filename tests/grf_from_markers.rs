@@ -394,9 +394,9 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
     println!(
         "| trial | foot | frames | vertical RMSE % BW | AP % BW | ML % BW | peak ratio | \
          strike Δ ms (mean abs, worst) | toe-off Δ ms (mean abs, worst) | stances missed / spurious | \
-         plate stances partly off the plate |"
+         plate stances partly off the plate | floor detected |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut worst = Vec::new();
     for trial in &trials {
         let options = ChainOptions {
@@ -416,19 +416,31 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
         let model = chain.clip_model(&trial.motion, map, &v).unwrap();
         let feet = compare(trial, &model, &measured, &estimated);
         let rate = estimated.quality.rate_hz;
+        let belt = estimated.quality.belt_velocity;
+        let floor = if estimated.quality.treadmill {
+            format!(
+                "treadmill, {:.2} m/s",
+                (belt[0] * belt[0] + belt[2] * belt[2]).sqrt()
+            )
+        } else {
+            "at rest".to_string()
+        };
+        // treadmills are told apart from floors at rest without a flag
+        assert_eq!(estimated.quality.treadmill, trial.whole_trial, "{}", trial.name);
         for (g, foot) in feet.iter().enumerate() {
             if foot.frames == 0 {
                 println!(
-                    "| {} | {} | no stance wholly on a plate ({} partly off) |||||||||",
+                    "| {} | {} | no stance wholly on a plate ({} partly off) ||||||||| {} |",
                     trial.name,
                     if g == 0 { "right" } else { "left" },
-                    foot.off_plate
+                    foot.off_plate,
+                    floor
                 );
                 continue;
             }
             let worst_ms = |v: &[f64]| v.iter().map(|x| x.abs()).fold(0.0, f64::max) * 1e3;
             println!(
-                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.0}, {:.0} | {:.0}, {:.0} | {} / {} | {} |",
+                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.0}, {:.0} | {:.0}, {:.0} | {} / {} | {} | {} |",
                 trial.name,
                 if g == 0 { "right" } else { "left" },
                 foot.frames,
@@ -442,7 +454,8 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
                 worst_ms(&foot.toe_offs),
                 foot.missed,
                 foot.spurious,
-                foot.off_plate
+                foot.off_plate,
+                floor
             );
             worst.push((trial.name, g, foot.clone(), rate, estimated.warnings.clone()));
         }
