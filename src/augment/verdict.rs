@@ -437,6 +437,20 @@ mod tests {
     }
 
     #[test]
+    fn a_record_written_before_verdicts_still_loads_without_one() {
+        // the quality figures as records held them before the verdict's figures existed
+        let old = r#"{"frames":10,"rate_hz":100.0,"ik_rmse_median":0.01,"ik_error_max":0.02,
+            "ik_frames_at_bound":0,"residual_force_max_bw":0.1,"residual_moment_max":5.0,
+            "reserve_share":0.01,"reserve_by_coordinate":[],"so_unsolved_frames":0,
+            "clamped_excitations":3,"contact_fraction":1.0,"body_mass":75.0}"#;
+        let q: ClipQuality = serde_json::from_str(old).unwrap();
+        assert_eq!(q.verdict, None);
+        assert_eq!(q.contact_consistency, None);
+        assert_eq!((q.muscle_samples, q.body_weight), (0, 0.0));
+        assert_eq!(q.clamped_excitations, 3);
+    }
+
+    #[test]
     fn verdicts_order_from_ok_to_failed_and_spell_as_the_manifest() {
         assert!(Verdict::Ok < Verdict::Suspect && Verdict::Suspect < Verdict::Failed);
         assert_eq!(
