@@ -550,7 +550,10 @@ fn a_failing_clip_is_recorded_and_the_run_goes_on() {
         text.contains("failed: sub/broken (") && text.contains("broken.npy"),
         "{text}"
     );
-    assert!(text.contains("merged: 1 clip(s) ok, 1 failed"), "{text}");
+    assert!(
+        text.contains("merged: 1 of 2 clip(s) computed, 1 failed"),
+        "{text}"
+    );
     assert_eq!(
         std::fs::read(sharded.join("manifest.json")).unwrap(),
         std::fs::read(out.join("manifest.json")).unwrap(),
@@ -949,7 +952,7 @@ fn strengthened_muscles_carry_the_dataset_clips() {
             out.as_os_str(),
         ]);
         assert!(ok, "{stderr}");
-        let said = stderr.contains("1 clip(s) leave more than 5 % of the joint moments");
+        let said = stderr.contains("1 of 1 clip(s) leave more than 5 % of the joint moments");
         assert_eq!(said, hint, "× {k}: {stderr}");
         let manifest: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();

@@ -19,6 +19,7 @@
 
 use super::layout::{JointFrame, JointLayout};
 use super::perturb::Variant;
+use super::verdict::{self, ClipVerdict};
 use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
@@ -128,23 +129,77 @@ pub struct ClipQuality {
     /// `ik_marker_error`.
     #[serde(default)]
     pub ik_markers: Vec<String>,
-    /// Largest floating-base residual force no contact explained, relative to body weight.
+    /// Share of the frames (of [`ClipQuality::frames`]) that ended IK with a coordinate at its
+    /// bound.
+    #[serde(default)]
+    pub ik_frames_at_bound_share: f64,
+    /// Peak residual force: the largest |τ| over the floating base's translational rows and
+    /// the frames (what no contact explained, carried by the residual actuators), relative
+    /// to body weight m·g.
     pub residual_force_max_bw: f64,
+    /// RMS residual force: the largest over the translational floating-base rows of the RMS
+    /// over frames of that row's τ, relative to body weight (as OpenSim reports the RMS of
+    /// each residual actuator).
+    #[serde(default)]
+    pub residual_force_rms_bw: f64,
     /// Largest residual moment (N·m) about the pelvis coordinates.
     pub residual_moment_max: f64,
+    /// [`ClipQuality::residual_moment_max`] relative to body weight × 1 m (m·g · 1 m).
+    #[serde(default)]
+    pub residual_moment_max_bwm: f64,
+    /// RMS residual moment: the largest over the rotational floating-base rows of the RMS
+    /// over frames, relative to body weight × 1 m.
+    #[serde(default)]
+    pub residual_moment_rms_bwm: f64,
     /// Σ|reserve moments| / Σ|joint moments| over the joint coordinates and frames.
     pub reserve_share: f64,
+    /// The largest, over the joint coordinates, of the coordinate's peak |reserve| over its
+    /// peak |joint moment| (OpenSim's "peak reserve torque / peak joint torque"); 0 without
+    /// muscles. Coordinates whose peak joint moment stays below the reserve's optimal force
+    /// ([`ChainOptions::reserve_optimal_force`], 1 N·m) are left out: there the reserve's
+    /// control stays below 1, where static optimization's cost x² prices it like a muscle's
+    /// activation, and a share of a few hundredths of a N·m (the default model's forearm
+    /// rotation: 0.04 of 0.008 N·m) says nothing about the muscles' strength.
+    #[serde(default)]
+    pub reserve_peak_share: f64,
+    /// The coordinate of [`ClipQuality::reserve_peak_share`].
+    #[serde(default)]
+    pub reserve_peak_coordinate: String,
     /// The coordinates whose reserves carry most, with their share of the same total
     /// (Σ|reserve_c| / Σ|joint moments|), largest first (at most 5).
     pub reserve_by_coordinate: Vec<(String, f64)>,
     /// Frames static optimization could not solve exactly.
     pub so_unsolved_frames: usize,
+    /// Muscle samples of the clip: frames × muscles (0 without muscles); the "of how many"
+    /// of [`ClipQuality::clamped_excitations`] and
+    /// [`ClipQuality::muscle_samples_at_full_activation`].
+    #[serde(default)]
+    pub muscle_samples: usize,
+    /// Muscle samples whose activation static optimization left on its upper bound (1): the
+    /// muscle gives all it has, and any more is carried by the coordinate's reserve. The QP
+    /// projects its iterates onto the bounds, so a saturated activation sits on the bound to
+    /// round-off (counted within 10⁻⁹ of it).
+    #[serde(default)]
+    pub muscle_samples_at_full_activation: usize,
+    /// [`ClipQuality::muscle_samples_at_full_activation`] / [`ClipQuality::muscle_samples`]
+    /// (0 without muscles).
+    #[serde(default)]
+    pub full_activation_share: f64,
     /// Excitation samples that inverse activation dynamics had to clamp to the excitation
     /// range by more than [`CLAMP_REPORTED`]: where static optimization's activations change
     /// faster than activation dynamics allow.
     pub clamped_excitations: usize,
     /// Fraction of frames with at least one contact.
     pub contact_fraction: f64,
+    /// Share of the clip's vertical support demand that the contact forces carry:
+    /// Σ_t min(G_t⁺, D_t⁺) / Σ_t D_t⁺, with D_t = up·(Σ_i m_i (a_i − g)) the vertical
+    /// external force the body's motion needs at frame t (the force the root joint transmits
+    /// in inverse dynamics) and G_t the vertical component of all contact forces at t
+    /// (estimated, or measured with `--external-loads`/`--force-plates`); x⁺ = max(x, 0).
+    /// 1: the contacts carry all the support; what they miss is carried by the residual
+    /// actuators. None when the clip needs no support (no gravity, or all in flight).
+    #[serde(default)]
+    pub contact_consistency: Option<f64>,
     /// Body mass (kg) and height scale of the model used.
     pub body_mass: f64,
     /// Whether the contact estimate took the floor as a treadmill (given, or detected from
@@ -154,6 +209,13 @@ pub struct ClipQuality {
     pub treadmill: bool,
     #[serde(default)]
     pub belt_velocity: [f64; 3],
+    /// Body weight m·g (N) of the model used: the unit of the residual figures.
+    #[serde(default)]
+    pub body_weight: f64,
+    /// The verdict on the clip ([`super::verdict`]); None in records written before verdicts
+    /// existed.
+    #[serde(default)]
+    pub verdict: Option<ClipVerdict>,
 }
 
 /// Everything the chain computed for one clip.
@@ -473,6 +535,7 @@ impl Chain {
             // τ_ID = M q̈ + C q̇ + G
             let tau_id = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r])?;
             tau.copy_from_slice(tau_id.as_slice());
+            let demand = vertical_support_demand(&model, &data);
             external.fill(0.0);
             body_contact.fill(Vec3::zeros());
             match &loads {
@@ -515,6 +578,7 @@ impl Chain {
                     );
                 }
             }
+            per_frame.record_support(demand, vertical(&model, body_contact.iter().sum()));
             if self.options.muscles {
                 so.solve_frame(&model, &data, &tau, &mut so_ws, &mut so_frame)
                     .map_err(|e| at_frame(&motion.source, f, e))?;
@@ -585,7 +649,14 @@ impl Chain {
                 excitation[f * m + k] = estimate.excitation[f] as f32;
             }
         }
-        let mut quality = per_frame.quality(&model, &solution, frames, targets.rate_hz, clamped);
+        let mut quality = per_frame.quality(
+            &model,
+            &solution,
+            frames,
+            targets.rate_hz,
+            clamped,
+            self.options.reserve_optimal_force,
+        );
         if loads.is_none() {
             quality.treadmill = states.treadmill;
             quality.belt_velocity = states.floor_velocity.into();
@@ -599,6 +670,11 @@ impl Chain {
             quality.so_unsolved_frames = 0;
             quality.reserve_share = 0.0;
             quality.reserve_by_coordinate.clear();
+            quality.reserve_peak_share = 0.0;
+            quality.reserve_peak_coordinate.clear();
+            quality.muscle_samples = 0;
+            quality.muscle_samples_at_full_activation = 0;
+            quality.full_activation_share = 0.0;
         }
         if quality.so_unsolved_frames > 0 {
             warnings.push(format!(
@@ -679,6 +755,7 @@ impl Chain {
             });
         }
         check_finite(&arrays)?;
+        quality.verdict = Some(verdict::judge(&quality));
         Ok(ClipOutput {
             arrays,
             quality,
@@ -687,6 +764,38 @@ impl Chain {
             warnings,
         })
     }
+}
+
+/// The unit vector up: against gravity (+y for a model without gravity).
+fn up(model: &Model) -> Vec3 {
+    let g = model.gravity;
+    if g.norm() > 0.0 {
+        -g / g.norm()
+    } else {
+        Vec3::y()
+    }
+}
+
+/// The vertical component (along [`up`]) of `force`; 0 for a model without gravity.
+fn vertical(model: &Model, force: Vec3) -> f64 {
+    if model.gravity.norm() > 0.0 {
+        up(model).dot(&force)
+    } else {
+        0.0
+    }
+}
+
+/// The vertical external force the motion needs at the frame of the last inverse dynamics
+/// (`data` after [`dynamics::rnea`]): D = up·Σ_i m_i (a_i − g), the linear part of the spatial
+/// force each joint attached to ground transmits (RNEA's backward pass accumulates every
+/// body's I a + v ×* I v, with gravity entering as ground's upward acceleration, into the
+/// root of its subtree). Bodies welded to ground carry nothing the contacts must supply.
+fn vertical_support_demand(model: &Model, data: &Data) -> f64 {
+    let needed: Vec3 = (model.joints.iter())
+        .filter(|j| j.parent_body == 0 && !j.coordinates.is_empty())
+        .map(|j| data.body_force[j.child_body].lin)
+        .sum();
+    vertical(model, needed)
 }
 
 /// IK's worst single error (m) above which a clip's warnings say that IK could not follow
@@ -1100,11 +1209,23 @@ struct FrameArrays {
     joint_abs: f64,
     /// Σ|reserve| per reserve column (same order as `reserve_columns`).
     reserve_by_column: Vec<f64>,
+    /// max_t |reserve| and max_t |τ| per reserve column.
+    reserve_peak_by_column: Vec<f64>,
+    joint_peak_by_column: Vec<f64>,
+    /// Upper activation bound of each muscle (`muscle_columns` order), and the muscle
+    /// samples that reached it.
+    muscle_upper: Vec<f64>,
+    at_full_activation: usize,
+    /// Σ_t D_t⁺ and Σ_t min(G_t⁺, D_t⁺) of [`ClipQuality::contact_consistency`].
+    support_demand: f64,
+    support_carried: f64,
     unsolved: usize,
     in_contact: usize,
     muscle_columns: Vec<usize>,
     reserve_columns: Vec<(usize, usize)>,
     floating: Vec<usize>,
+    /// Whether each floating-base row is a rotation ([`ContactSet::floating_base_rotational`]).
+    floating_rotational: Vec<bool>,
     groups: usize,
 }
 
@@ -1125,6 +1246,12 @@ impl FrameArrays {
                     .iter()
                     .position(|a| a.muscle == Some(k))
                     .expect("every muscle is an actuator")
+            })
+            .collect();
+        let muscle_upper = (0..m)
+            .map(|k| {
+                let column = so.actuators.iter().position(|a| a.muscle == Some(k));
+                column.map_or(1.0, |c| so.actuators[c].max_control)
             })
             .collect();
         let floating = set.floating_base.clone();
@@ -1158,11 +1285,18 @@ impl FrameArrays {
             reserve_abs: 0.0,
             joint_abs: 0.0,
             reserve_by_column: Vec::new(),
+            reserve_peak_by_column: Vec::new(),
+            joint_peak_by_column: Vec::new(),
+            muscle_upper,
+            at_full_activation: 0,
+            support_demand: 0.0,
+            support_carried: 0.0,
             unsolved: 0,
             in_contact: 0,
             muscle_columns,
             reserve_columns,
             floating,
+            floating_rotational: set.floating_base_rotational.clone(),
             groups: g,
         }
     }
@@ -1184,6 +1318,10 @@ impl FrameArrays {
             self.activation.push(so_frame.controls[k]);
         }
         let acts = &self.activation[start..];
+        // on the bound to round-off: the QP projects onto it
+        self.at_full_activation += (acts.iter().zip(&self.muscle_upper))
+            .filter(|(a, hi)| **a >= **hi - 1e-9 * hi.abs().max(1.0))
+            .count();
         layout.flatten(joint, acts, &mut self.x);
         for (i, &k) in self.muscle_columns.iter().enumerate() {
             let (fiber_length, fiber_velocity) = so.fiber_kinematics(so_ws, i);
@@ -1199,8 +1337,15 @@ impl FrameArrays {
         }
         self.reserve_by_column
             .resize(self.reserve_columns.len(), 0.0);
-        for (i, &(k, _)) in self.reserve_columns.iter().enumerate() {
-            self.reserve_by_column[i] += so_frame.forces[k].abs();
+        self.reserve_peak_by_column
+            .resize(self.reserve_columns.len(), 0.0);
+        self.joint_peak_by_column
+            .resize(self.reserve_columns.len(), 0.0);
+        for (i, &(k, j)) in self.reserve_columns.iter().enumerate() {
+            let reserve = so_frame.forces[k].abs();
+            self.reserve_by_column[i] += reserve;
+            self.reserve_peak_by_column[i] = self.reserve_peak_by_column[i].max(reserve);
+            self.joint_peak_by_column[i] = self.joint_peak_by_column[i].max(tau[j].abs());
         }
         if so_frame.status != SoStatus::Solved {
             self.unsolved += 1;
@@ -1230,6 +1375,14 @@ impl FrameArrays {
         }
     }
 
+    /// One frame's vertical support demand D and the vertical contact force G
+    /// ([`ClipQuality::contact_consistency`]).
+    fn record_support(&mut self, demand: f64, carried: f64) {
+        let d = demand.max(0.0);
+        self.support_demand += d;
+        self.support_carried += carried.max(0.0).min(d);
+    }
+
     fn quality(
         &self,
         model: &Model,
@@ -1237,23 +1390,45 @@ impl FrameArrays {
         frames: usize,
         rate_hz: f64,
         clamped: usize,
+        reserve_optimal_force: f64,
     ) -> ClipQuality {
         let mass: f64 = model.bodies.iter().map(|b| b.mass).sum();
         let weight = mass * model.gravity.norm();
         let nf = self.floating.len().max(1);
+        // peak over rows and frames; RMS over frames per row, the largest row
         let (mut force, mut moment) = (0.0f64, 0.0f64);
-        for f in 0..frames {
-            for (i, &j) in self.floating.iter().enumerate() {
-                let v = self.residual[f * nf + i].abs();
-                if model.coordinates[model.reduction.independent[j]].motion_type
-                    == crate::model::MotionType::Translational
-                {
-                    force = force.max(v);
-                } else {
-                    moment = moment.max(v);
-                }
+        let (mut force_rms, mut moment_rms) = (0.0f64, 0.0f64);
+        for i in 0..self.floating.len() {
+            let (mut peak, mut sum_sq) = (0.0f64, 0.0);
+            for f in 0..frames {
+                let v = self.residual[f * nf + i];
+                peak = peak.max(v.abs());
+                sum_sq += v * v;
+            }
+            let rms = (sum_sq / frames.max(1) as f64).sqrt();
+            // (the contact set's classification, from the root joint's axes: a model file's
+            // coordinates may leave their motion type to the joint, as gait2392's pelvis_t* do)
+            if !self.floating_rotational[i] {
+                force = force.max(peak);
+                force_rms = force_rms.max(rms);
+            } else {
+                moment = moment.max(peak);
+                moment_rms = moment_rms.max(rms);
             }
         }
+        // the coordinate whose peak reserve is the largest share of its peak joint moment
+        let names = model.q_names();
+        let (reserve_peak_share, reserve_peak_coordinate) = (self.reserve_columns.iter())
+            .zip(
+                self.reserve_peak_by_column
+                    .iter()
+                    .zip(&self.joint_peak_by_column),
+            )
+            .filter(|(_, (r, t))| **r > 0.0 && **t >= reserve_optimal_force)
+            .map(|(&(_, j), (r, t))| (r / t.max(1e-300), names[j].to_string()))
+            .max_by(|a, b| a.0.total_cmp(&b.0).then_with(|| b.1.cmp(&a.1)))
+            .unwrap_or((0.0, String::new()));
+        let muscle_samples = frames * self.muscle_upper.len();
         let mut rmse: Vec<f64> = ik.rmse.iter().copied().filter(|v| v.is_finite()).collect();
         rmse.sort_by(f64::total_cmp);
         ClipQuality {
@@ -1267,16 +1442,21 @@ impl FrameArrays {
                 .filter(|v| v.is_finite())
                 .fold(0.0, f64::max),
             ik_frames_at_bound: ik.frames_at_limit(),
+            ik_frames_at_bound_share: ik.frames_at_limit() as f64 / frames.max(1) as f64,
             ik_markers: Vec::new(),
             residual_force_max_bw: force / weight,
+            residual_force_rms_bw: force_rms / weight,
             residual_moment_max: moment,
+            residual_moment_max_bwm: moment / weight,
+            residual_moment_rms_bwm: moment_rms / weight,
             reserve_share: if self.joint_abs > 0.0 {
                 self.reserve_abs / self.joint_abs
             } else {
                 0.0
             },
+            reserve_peak_share,
+            reserve_peak_coordinate,
             reserve_by_coordinate: {
-                let names = model.q_names();
                 let mut v: Vec<(String, f64)> = self
                     .reserve_columns
                     .iter()
@@ -1289,11 +1469,18 @@ impl FrameArrays {
                 v
             },
             so_unsolved_frames: self.unsolved,
+            muscle_samples,
+            muscle_samples_at_full_activation: self.at_full_activation,
+            full_activation_share: self.at_full_activation as f64 / muscle_samples.max(1) as f64,
             clamped_excitations: clamped,
             contact_fraction: self.in_contact as f64 / frames as f64,
+            contact_consistency: (self.support_demand > 0.0)
+                .then(|| self.support_carried / self.support_demand),
             body_mass: mass,
             treadmill: false,
             belt_velocity: [0.0; 3],
+            body_weight: weight,
+            verdict: None,
         }
     }
 

@@ -8,6 +8,7 @@
 //! - [`perturb`]: seeded variants (height, mass, carried load, speed);
 //! - [`output`]: the files (`.npz`, records, manifest, statistics), written atomically;
 //! - [`runner`]: the dataset run — shards, resume, parallel clips — and `merge`;
+//! - [`verdict`]: ok / suspect / failed per clip, from its quality figures;
 //! - [`demo`]: the shipped sample clips of `musculo augment --demo`.
 
 pub mod chain;
@@ -18,6 +19,7 @@ pub mod layout_inverse_vjp;
 pub mod output;
 pub mod perturb;
 pub mod runner;
+pub mod verdict;
 
 use layout::JointLayout;
 use output::LayoutDescription;

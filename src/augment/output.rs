@@ -21,6 +21,7 @@
 use super::chain::{Array, ClipQuality};
 use super::layout::BlockRange;
 use super::perturb::{PerturbationRanges, Variant};
+use super::verdict::{ClipVerdict, Verdict};
 use crate::error::Error;
 use crate::motion::npy;
 use ndarray::{ArrayD, IxDyn};
@@ -254,6 +255,7 @@ pub struct ClipRecordSummary {
 /// Totals over the clips.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
+    /// Clips the chain computed (whatever their verdict), and clips it could not compute.
     pub clips_ok: usize,
     pub clips_failed: usize,
     pub frames: usize,
@@ -262,6 +264,75 @@ pub struct Summary {
     pub worst_residuals: Vec<(String, f64)>,
     /// Largest reserve share of any clip.
     pub reserve_share_max: f64,
+    /// The clips grouped by verdict ([`super::verdict`]); absent from manifests written
+    /// before verdicts existed.
+    #[serde(default)]
+    pub verdicts: VerdictSummary,
+}
+
+/// The clips of a run grouped by verdict: the counts of how many clips, and each suspect or
+/// failed clip with the one reason that decided it.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VerdictSummary {
+    /// All clips (variants included): the "of how many" of the counts.
+    pub clips: usize,
+    pub ok: usize,
+    pub suspect: usize,
+    /// Clips judged `failed`, and clips the chain could not compute.
+    pub failed: usize,
+    /// Clips whose record holds no verdict (recorded before verdicts existed).
+    pub unjudged: usize,
+    /// (clip, reason), in clip order.
+    pub suspect_clips: Vec<(String, String)>,
+    pub failed_clips: Vec<(String, String)>,
+}
+
+impl VerdictSummary {
+    /// Counts one clip with its verdict (None: unjudged).
+    pub fn add(&mut self, clip: &str, verdict: Option<&ClipVerdict>) {
+        self.clips += 1;
+        let Some(v) = verdict else {
+            self.unjudged += 1;
+            return;
+        };
+        let reason = || (clip.to_string(), v.reason.clone().unwrap_or_default());
+        match v.verdict {
+            Verdict::Ok => self.ok += 1,
+            Verdict::Suspect => {
+                self.suspect += 1;
+                self.suspect_clips.push(reason());
+            }
+            Verdict::Failed => {
+                self.failed += 1;
+                self.failed_clips.push(reason());
+            }
+        }
+    }
+
+    /// The number of clips at `level` or worse (`suspect`: suspect and failed).
+    pub fn at_least(&self, level: Verdict) -> usize {
+        match level {
+            Verdict::Ok => self.clips - self.unjudged,
+            Verdict::Suspect => self.suspect + self.failed,
+            Verdict::Failed => self.failed,
+        }
+    }
+}
+
+/// The verdict of a clip from its record's fields: its quality's verdict when the chain
+/// computed it, `failed` with the error when it could not (None for a computed clip recorded
+/// before verdicts existed).
+pub fn clip_verdict(
+    status: ClipStatus,
+    reason: Option<&str>,
+    quality: Option<&ClipQuality>,
+) -> Option<ClipVerdict> {
+    match (status, quality) {
+        (ClipStatus::Ok, Some(q)) => q.verdict.clone(),
+        _ => Some(ClipVerdict::not_computed(
+            reason.unwrap_or("no quality figures"),
+        )),
+    }
 }
 
 /// Refuses a clip name that would put its files outside the output folder: every file of a
@@ -482,6 +553,7 @@ pub fn write_manifest(
     let width = layout.map_or(0, |l| l.x.last().map_or(0, |b| b.end));
     let (mut sum, mut sq, mut count) = (vec![0.0; width], vec![0.0; width], 0usize);
     let mut residuals = Vec::new();
+    let mut verdicts = VerdictSummary::default();
     let mut entries = Vec::with_capacity(clips.len());
     for name in clips {
         let r = read_record(out, name)?.ok_or_else(|| {
@@ -519,6 +591,8 @@ pub fn write_manifest(
             }
             _ => summary.clips_failed += 1,
         }
+        let verdict = clip_verdict(r.status, r.reason.as_deref(), r.quality.as_ref());
+        verdicts.add(&r.clip, verdict.as_ref());
         entries.push(ClipRecordSummary {
             clip: r.clip,
             input: r.input,
@@ -532,6 +606,7 @@ pub fn write_manifest(
     residuals.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
     residuals.truncate(5);
     summary.worst_residuals = residuals;
+    summary.verdicts = verdicts;
     // mean and (population) standard deviation per feature, as HumanML3D's Mean/Std
     let n = count.max(1) as f64;
     let mean: Vec<f32> = sum.iter().map(|s| (s / n) as f32).collect();

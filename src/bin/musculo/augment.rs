@@ -5,8 +5,10 @@
 use crate::tool::{invalid, model_text, read_options, skeleton_map};
 use indicatif::{ProgressBar, ProgressStyle};
 use musculo::augment::chain::{Chain, ChainOptions};
+use musculo::augment::output::{self, VerdictSummary};
 use musculo::augment::perturb::PerturbationRanges;
 use musculo::augment::runner::{self, ClipInput, RunOptions};
+use musculo::augment::verdict::Verdict;
 use musculo::augment::{demo, describe};
 use musculo::motion::Format;
 use std::path::PathBuf;
@@ -97,6 +99,27 @@ pub struct Args {
     /// every shard has finished.
     #[arg(long)]
     report: bool,
+    /// Exit non-zero also when a clip's verdict is this or worse: `failed` (a clip judged
+    /// failed), `suspect` (suspect or failed). Without it the exit status says whether every
+    /// clip could be computed.
+    #[arg(long, value_enum, value_name = "VERDICT")]
+    fail_on: Option<FailOn>,
+}
+
+/// `--fail-on`: the verdict from which the exit status is non-zero.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum FailOn {
+    Failed,
+    Suspect,
+}
+
+impl FailOn {
+    fn verdict(self) -> Verdict {
+        match self {
+            FailOn::Failed => Verdict::Failed,
+            FailOn::Suspect => Verdict::Suspect,
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -110,6 +133,9 @@ pub struct MergeArgs {
     /// Threads of the evaluation (default: all cores).
     #[arg(long, value_parser = crate::tool::jobs)]
     jobs: Option<usize>,
+    /// Exit non-zero also when a clip's verdict is this or worse (as `augment --fail-on`).
+    #[arg(long, value_enum, value_name = "VERDICT")]
+    fail_on: Option<FailOn>,
 }
 
 fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
@@ -257,10 +283,11 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             args.out.join("manifest.json").display()
         );
     }
+    let clips = report.records.len();
     eprintln!(
-        "{} clip(s) ok, {} failed ({} computed, {} resumed); {frames} frames in {seconds:.1} s \
-         ({:.0} frames/s); output in {}",
-        report.records.len() - failed.len(),
+        "{} of {clips} clip(s) computed, {} failed ({} now, {} resumed); {frames} frames in \
+         {seconds:.1} s ({:.0} frames/s); output in {}",
+        clips - failed.len(),
         failed.len(),
         report.computed,
         report.resumed,
@@ -277,25 +304,43 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             .total_cmp(&a.1.residual_force_max_bw)
     });
     for (clip, q) in worst.iter().take(3) {
+        let muscles = if q.muscle_samples > 0 {
+            format!(
+                ", {} of {} muscle samples at full activation, {} of {} excitations clamped",
+                q.muscle_samples_at_full_activation,
+                q.muscle_samples,
+                q.clamped_excitations,
+                q.muscle_samples
+            )
+        } else {
+            String::new()
+        };
         eprintln!(
-            "  {clip}: IK RMSE {:.1} mm (median; worst error {:.0} mm), unexplained force ≤ \
-             {:.2} BW, reserves {:.2} % of joint moments, {} clamped excitation(s)",
+            "  {clip}: IK RMSE {:.1} mm (median; worst error {:.0} mm), residual force peak \
+             {:.3} BW (RMS {:.3} BW), reserves {:.2} % of joint moments{muscles}",
             q.ik_rmse_median * 1e3,
             q.ik_error_max * 1e3,
             q.residual_force_max_bw,
+            q.residual_force_rms_bw,
             100.0 * q.reserve_share,
-            q.clamped_excitations
         );
     }
     let over = worst.iter().filter(|(_, q)| q.reserve_share > 0.05).count();
     if over > 0 {
         eprintln!(
-            "{over} clip(s) leave more than 5 % of the joint moments to the reserves: the motion \
-             asks more than the model's muscles give (the manifest names the coordinates; \
-             --muscle-strength K multiplies every muscle's force, this run × {})",
+            "{over} of {} clip(s) leave more than 5 % of the joint moments to the reserves: the \
+             motion asks more than the model's muscles give (the manifest names the \
+             coordinates; --muscle-strength K multiplies every muscle's force, this run × {})",
+            worst.len(),
             args.muscle_strength
         );
     }
+    let mut verdicts = VerdictSummary::default();
+    for r in &report.records {
+        let v = output::clip_verdict(r.status, r.reason.as_deref(), r.quality.as_ref());
+        verdicts.add(&r.clip, v.as_ref());
+    }
+    print_verdicts(&verdicts, &args.out);
     match shard {
         Some((k, n)) => eprintln!(
             "shard {k}/{n} done; when every shard has finished: musculo merge {}{}",
@@ -308,7 +353,38 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
         eprintln!("wrote {}", page.display());
     }
-    Ok(failed.is_empty())
+    Ok(failed.is_empty() && !fails_on(&verdicts, args.fail_on))
+}
+
+/// Whether `--fail-on` makes the exit status non-zero: a clip at its verdict or worse.
+fn fails_on(verdicts: &VerdictSummary, fail_on: Option<FailOn>) -> bool {
+    fail_on.is_some_and(|level| verdicts.at_least(level.verdict()) > 0)
+}
+
+/// The verdict counts, of how many clips, and the first few suspect and failed clips with
+/// the reason that decided each (all of them are in the manifest's summary).
+fn print_verdicts(v: &VerdictSummary, out: &std::path::Path) {
+    let unjudged = if v.unjudged > 0 {
+        format!(", {} recorded without a verdict", v.unjudged)
+    } else {
+        String::new()
+    };
+    eprintln!(
+        "verdicts of {} clip(s): {} ok, {} suspect, {} failed{unjudged}",
+        v.clips, v.ok, v.suspect, v.failed
+    );
+    for (name, list) in [("failed", &v.failed_clips), ("suspect", &v.suspect_clips)] {
+        for (clip, reason) in list.iter().take(SHOWN) {
+            eprintln!("  {name}: {clip}: {reason}");
+        }
+        if list.len() > SHOWN {
+            eprintln!(
+                "  {name}: … and {} more, each with its reason in {}",
+                list.len() - SHOWN,
+                out.join("manifest.json").display()
+            );
+        }
+    }
 }
 
 /// How many failed clips and warnings are printed in full (all are in the manifest).
@@ -349,12 +425,14 @@ pub fn merge(args: &MergeArgs) -> Result<bool, musculo::Error> {
         "",
     );
     eprintln!(
-        "merged: {} clip(s) ok, {} failed, {} frames; wrote {}",
+        "merged: {} of {} clip(s) computed, {} failed, {} frames; wrote {}",
         manifest.summary.clips_ok,
+        manifest.summary.clips_ok + manifest.summary.clips_failed,
         manifest.summary.clips_failed,
         manifest.summary.frames,
         args.out.join("manifest.json").display()
     );
+    print_verdicts(&manifest.summary.verdicts, &args.out);
     if args.report && manifest.summary.clips_ok > 0 {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(args.jobs.unwrap_or(0))
@@ -363,5 +441,5 @@ pub fn merge(args: &MergeArgs) -> Result<bool, musculo::Error> {
         let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
         eprintln!("wrote {}", page.display());
     }
-    Ok(manifest.summary.clips_failed == 0)
+    Ok(manifest.summary.clips_failed == 0 && !fails_on(&manifest.summary.verdicts, args.fail_on))
 }
