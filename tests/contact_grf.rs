@@ -675,6 +675,16 @@ fn bad_input_is_an_error_naming_the_argument() {
     };
     assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "height_scale");
     let bad_options = ContactOptions {
+        demand_scale: f64::NAN,
+        ..ContactOptions::default()
+    };
+    assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "demand_scale");
+    let bad_options = ContactOptions {
+        floor_motion: contact::FloorMotion::Treadmill { speed: Some(-1.0) },
+        ..ContactOptions::default()
+    };
+    assert_eq!(detect(&q, &qd, 60.0, &bad_options).0, "floor_motion");
+    let bad_options = ContactOptions {
         friction: Some(f64::NAN),
         ..ContactOptions::default()
     };
@@ -735,4 +745,58 @@ fn bad_input_is_an_error_naming_the_argument() {
         invalid(ground_reaction(&set, &small_frame, &mut two).unwrap_err()).0,
         "frame"
     );
+}
+
+/// A body standing still on a belt that carries it backward at speed v: the stance feet move
+/// together at −v. At v = 1 m/s the floor is detected as a treadmill moving at −1 m/s (and
+/// the feet in contact throughout); at 0.1 m/s, below `belt_speed_min`, as a floor at rest;
+/// `floor_velocity` given (an overground run) or a treadmill of given speed override it.
+#[test]
+fn a_belt_under_still_feet_is_detected_as_a_treadmill() {
+    let model = Model::default_fullbody();
+    let set = ContactSet::from_model(&model).unwrap();
+    let nq = model.nq();
+    let tx = model.q_index("pelvis_tx").unwrap();
+    let rate = 100.0;
+    let frames = 100;
+    let carried = |v: f64| {
+        let mut q = Vec::with_capacity(frames * nq);
+        let mut qd = vec![0.0; frames * nq];
+        for f in 0..frames {
+            let mut qf = model.default_q();
+            qf[tx] -= v * f as f64 / rate;
+            qd[f * nq + tx] = -v;
+            q.extend(qf);
+        }
+        let qdd = vec![0.0; q.len()];
+        (q, qd, qdd)
+    };
+    let options = ContactOptions {
+        floor_height: Some(0.0),
+        ..ContactOptions::default()
+    };
+    let (q, qd, qdd) = carried(1.0);
+    let states = contact::detect(&model, &set, &options, &q, &qd, &qdd, rate).unwrap();
+    assert!(states.treadmill);
+    assert!((states.floor_velocity - Vec3::new(-1.0, 0.0, 0.0)).norm() < 1e-9);
+    assert_eq!(states.group_frames(0), frames);
+    assert_eq!(states.group_frames(1), frames);
+    assert!(states.demand.iter().all(|d| (d - 1.0).abs() < 1e-9));
+    let (q, qd, qdd) = carried(0.1);
+    let states = contact::detect(&model, &set, &options, &q, &qd, &qdd, rate).unwrap();
+    assert!(!states.treadmill && states.floor_velocity == Vec3::zeros());
+    let (q, qd, qdd) = carried(1.0);
+    let still = ContactOptions {
+        floor_velocity: Some(Vec3::zeros()),
+        ..options.clone()
+    };
+    let states = contact::detect(&model, &set, &still, &q, &qd, &qdd, rate).unwrap();
+    assert!(!states.treadmill);
+    let given = ContactOptions {
+        floor_motion: contact::FloorMotion::Treadmill { speed: Some(1.5) },
+        ..options
+    };
+    let states = contact::detect(&model, &set, &given, &q, &qd, &qdd, rate).unwrap();
+    assert!(states.treadmill);
+    assert!((states.floor_velocity - Vec3::new(-1.5, 0.0, 0.0)).norm() < 1e-9);
 }
