@@ -72,6 +72,10 @@ pub struct Args {
     /// whose velocity is estimated per clip (default: a floor at rest).
     #[arg(long)]
     treadmill: bool,
+    /// Keep a held pose at a clip's start or end that the motion jumps from or to (a
+    /// calibration T-pose). By default such frames are left out with a warning naming them.
+    #[arg(long)]
+    keep_calibration_frames: bool,
     #[command(flatten)]
     strict: crate::warnings::Strict,
     /// Measured ground reactions for a single trial (an OpenSim ExternalLoads .xml and its
@@ -160,6 +164,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         scale_to_clip: !args.no_scale,
         opensim_files: args.opensim_files || args.report,
         muscle_strength: args.muscle_strength,
+        keep_calibration_frames: args.keep_calibration_frames,
         ..ChainOptions::default()
     };
     let mut options = options;
