@@ -65,6 +65,9 @@ pub struct RunDescription {
     /// existed).
     #[serde(default = "unit_strength")]
     pub muscle_strength: f64,
+    /// The HumanML3D / KIT-ML roots the clips came from (none for files and plain folders).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub datasets: Vec<super::dataset::DatasetDescription>,
 }
 
 fn unit_strength() -> f64 {
@@ -221,6 +224,10 @@ pub struct ClipRecord {
     /// Σ x and Σ x² per feature of `x` over the clip's frames (f64), for `stats.npz`.
     pub x_sum: Vec<f64>,
     pub x_sum_sq: Vec<f64>,
+    /// The dataset split (`train`, `val`, `test`) the clip's id is listed in, for a clip of a
+    /// HumanML3D / KIT-ML root with split lists ([`super::dataset`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -249,6 +256,9 @@ pub struct ClipRecordSummary {
     pub variant: Variant,
     pub quality: Option<ClipQuality>,
     pub warnings: Vec<String>,
+    /// The clip's dataset split ([`ClipRecord::split`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<String>,
 }
 
 /// Totals over the clips.
@@ -527,6 +537,7 @@ pub fn write_manifest(
             variant: r.variant,
             quality: r.quality,
             warnings: r.warnings,
+            split: r.split,
         });
     }
     residuals.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
