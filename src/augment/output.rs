@@ -151,7 +151,7 @@ impl RunSettings {
         for (name, then, now) in [
             (
                 "the chain's other options (IK, contacts, --treadmill, static optimization, \
-                 or reserves)",
+                 reserves, or --keep-calibration-frames)",
                 Some(&self.chain),
                 Some(&now.chain),
             ),
