@@ -74,6 +74,9 @@ pub struct ChainOptions {
     /// arrays (`muscle_act`, `muscle_force`, fibre states, `excitation`) are left out of the
     /// output and the quality figures of static optimization are zero.
     pub muscles: bool,
+    /// Keep a held pose at either end that the motion jumps from or to (a calibration T-pose:
+    /// [`crate::motion::calibration`]); false (the default) leaves it out with a warning.
+    pub keep_calibration_frames: bool,
 }
 
 impl Default for ChainOptions {
@@ -88,6 +91,7 @@ impl Default for ChainOptions {
             static_optimization: StaticOptimizationOptions::default(),
             muscle_strength: 1.0,
             muscles: true,
+            keep_calibration_frames: false,
         }
     }
 }
@@ -390,7 +394,12 @@ impl Chain {
                 (motion.clone(), tasks)
             }
         };
-        let targets = trim_to_data(&targets, &mut warnings)?;
+        let mut targets = trim_to_data(&targets, &mut warnings)?;
+        if !self.options.keep_calibration_frames {
+            let (kept, warning) = crate::motion::calibration::trim(&targets, &motion)?;
+            targets = kept;
+            warnings.extend(warning);
+        }
         // --- inverse kinematics ---
         let solution = ik::solve_motion(&model, &targets, &tasks, &self.options.ik, &|_| {})?;
         let frames = solution.n_frames();

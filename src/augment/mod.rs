@@ -7,11 +7,13 @@
 //! - [`layout`]: the per-joint quantities and the flattened vector `x`;
 //! - [`perturb`]: seeded variants (height, mass, carried load, speed);
 //! - [`output`]: the files (`.npz`, records, manifest, statistics), written atomically;
+//! - [`dataset`]: HumanML3D / KIT-ML roots given as input (motion folder, captions, splits);
 //! - [`runner`]: the dataset run — shards, resume, parallel clips — and `merge`;
 //! - [`verdict`]: ok / suspect / failed per clip, from its quality figures;
 //! - [`demo`]: the shipped sample clips of `musculo augment --demo`.
 
 pub mod chain;
+pub mod dataset;
 pub mod demo;
 pub mod layout;
 pub mod layout_inverse;

@@ -66,6 +66,9 @@ pub struct RunDescription {
     /// existed).
     #[serde(default = "unit_strength")]
     pub muscle_strength: f64,
+    /// The HumanML3D / KIT-ML roots the clips came from (none for files and plain folders).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub datasets: Vec<super::dataset::DatasetDescription>,
 }
 
 fn unit_strength() -> f64 {
@@ -149,7 +152,7 @@ impl RunSettings {
         for (name, then, now) in [
             (
                 "the chain's other options (IK, contacts, --treadmill, static optimization, \
-                 or reserves)",
+                 reserves, or --keep-calibration-frames)",
                 Some(&self.chain),
                 Some(&now.chain),
             ),
@@ -222,6 +225,10 @@ pub struct ClipRecord {
     /// Σ x and Σ x² per feature of `x` over the clip's frames (f64), for `stats.npz`.
     pub x_sum: Vec<f64>,
     pub x_sum_sq: Vec<f64>,
+    /// The dataset split (`train`, `val`, `test`) the clip's id is listed in, for a clip of a
+    /// HumanML3D / KIT-ML root with split lists ([`super::dataset`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -250,6 +257,9 @@ pub struct ClipRecordSummary {
     pub variant: Variant,
     pub quality: Option<ClipQuality>,
     pub warnings: Vec<String>,
+    /// The clip's dataset split ([`ClipRecord::split`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<String>,
 }
 
 /// Totals over the clips.
@@ -601,6 +611,7 @@ pub fn write_manifest(
             variant: r.variant,
             quality: r.quality,
             warnings: r.warnings,
+            split: r.split,
         });
     }
     residuals.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(&b.0)));

@@ -8,6 +8,7 @@
 //! run the shards anywhere and `musculo merge` puts them together.
 
 use super::chain::{Chain, ChainOptions, ClipOutput, MeasuredLoads, OPENSIM_SUFFIXES};
+use super::dataset::{self, DatasetRoot};
 use super::output::{
     self, ClipRecord, ClipStatus, LayoutDescription, Manifest, RunDescription, SHARDS,
 };
@@ -58,6 +59,10 @@ pub struct RunOptions {
     pub external_loads: Option<PathBuf>,
     /// Use each C3D input's own force plates as measured ground reactions.
     pub force_plates: bool,
+    /// The HumanML3D / KIT-ML roots the clips came from ([`list_dataset`]): their captions
+    /// are copied beside the outputs, their splits go into the records, their layout into
+    /// the run's description.
+    pub datasets: Vec<DatasetRoot>,
 }
 
 impl RunOptions {
@@ -75,6 +80,7 @@ impl RunOptions {
             read: ReadOptions::default(),
             external_loads: None,
             force_plates: false,
+            datasets: Vec::new(),
         }
     }
 }
@@ -114,26 +120,48 @@ impl RunReport {
 }
 
 /// The clips under `inputs`: files as given, folders searched recursively for the motion
-/// formats (`.npy`, `.bvh`, `.c3d`, `.trc`), names relative to the folder. Sorted by name; two
-/// inputs with one output name are an error.
+/// formats (`.npy`, `.bvh`, `.c3d`, `.trc`; a dataset's `Mean.npy`/`Std.npy` are not clips),
+/// names relative to the folder. Sorted by name; two inputs with one output name are an
+/// error. A HumanML3D / KIT-ML root gives the clips of one of its motion folders
+/// ([`dataset`]); [`list_dataset`] also returns the roots.
 pub fn list_inputs(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<Vec<ClipInput>> {
+    Ok(list_dataset(inputs, format)?.0)
+}
+
+/// [`list_inputs`], and the HumanML3D / KIT-ML roots among the folders (for
+/// [`RunOptions::datasets`]).
+pub fn list_dataset(
+    inputs: &[PathBuf],
+    format: Option<Format>,
+) -> crate::Result<(Vec<ClipInput>, Vec<DatasetRoot>)> {
     let mut clips = Vec::new();
+    let mut roots = Vec::new();
     for input in inputs {
         let meta = std::fs::metadata(input).map_err(|source| Error::Io {
             path: input.clone(),
             source,
         })?;
         if meta.is_dir() {
-            let files = crate::io::folder::files_below(input, false)?;
+            let root = DatasetRoot::find(input)?;
+            let folder = root
+                .as_ref()
+                .map_or(input.as_path(), |r| r.motions.as_path());
+            let files = crate::io::folder::files_below(folder, false)?;
+            roots.extend(root.clone());
             for path in files {
                 let ext = path
                     .extension()
                     .map(|e| e.to_string_lossy().to_ascii_lowercase())
                     .unwrap_or_default();
-                if !matches!(ext.as_str(), "npy" | "bvh" | "c3d" | "trc") {
+                if !matches!(ext.as_str(), "npy" | "bvh" | "c3d" | "trc")
+                    || dataset::is_statistics(&path)
+                {
                     continue;
                 }
-                let rel = path.strip_prefix(input).unwrap_or(&path).with_extension("");
+                let rel = path
+                    .strip_prefix(folder)
+                    .unwrap_or(&path)
+                    .with_extension("");
                 let name = rel
                     .components()
                     .map(|c| c.as_os_str().to_string_lossy())
@@ -184,7 +212,15 @@ pub fn list_inputs(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<
             "no motion file (.npy, .bvh, .c3d, .trc) found",
         ));
     }
-    Ok(clips)
+    Ok((clips, roots))
+}
+
+/// The dataset root `clip` was read from and its id there.
+fn dataset_of<'a>(options: &'a RunOptions, clip: &ClipInput) -> Option<(&'a DatasetRoot, String)> {
+    let ClipSource::File { path, .. } = &clip.source else {
+        return None;
+    };
+    (options.datasets.iter()).find_map(|d| d.id_of(path).map(|id| (d, id)))
 }
 
 /// The output name of variant `v` of clip `name`.
@@ -330,6 +366,10 @@ pub fn run(
         .iter()
         .flat_map(|(c, v)| output::clip_files(&variant_name(&c.name, *v), &OPENSIM_SUFFIXES))
         .collect();
+    own.extend(items.iter().map(|(c, v)| {
+        let text = dataset::text_path(Path::new(""), &variant_name(&c.name, *v));
+        text.to_string_lossy().replace('\\', "/")
+    }));
     own.insert(output::SETTINGS.to_string());
     match options.shard {
         None => own.extend(["manifest.json".to_string(), "stats.npz".to_string()]),
@@ -391,6 +431,9 @@ pub fn run(
     let write_error: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
     let write = |job: WriteJob| -> crate::Result<()> {
         if let Some(out) = &job.output {
+            if let Some(text) = &job.text {
+                dataset::copy_text(text, &dataset::text_path(&options.out, &job.record.clip))?;
+            }
             output::write_clip(&options.out, &job.record.clip, &out.arrays)?;
             output::write_opensim_files(
                 &options.out,
@@ -440,6 +483,9 @@ pub fn run(
                     return Ok((without_sums(record), true));
                 }
                 let variant = Variant::draw(options.seed, &clip.name, *v, &options.perturbation);
+                let source = dataset_of(options, clip);
+                let split = source.as_ref().and_then(|(d, id)| d.split_of(id));
+                let text = source.as_ref().and_then(|(d, id)| d.text_of(id));
                 let (record, output) = match process(chain, clip, &variant, options) {
                     Ok(mut out) => {
                         let (x_sum, x_sum_sq) = output::feature_sums(&out.arrays);
@@ -453,6 +499,7 @@ pub fn run(
                             warnings: std::mem::take(&mut out.warnings),
                             x_sum,
                             x_sum_sq,
+                            split,
                         };
                         (record, Some(out))
                     }
@@ -467,14 +514,21 @@ pub fn run(
                             warnings: Vec::new(),
                             x_sum: Vec::new(),
                             x_sum_sq: Vec::new(),
+                            split,
                         },
                         None,
                     ),
                 };
                 let summary = without_sums(record.clone());
-                queue.send(WriteJob { record, output }).map_err(|_| {
-                    Error::invalid("augment", "the writer threads stopped before the run ended")
-                })?;
+                queue
+                    .send(WriteJob {
+                        record,
+                        output,
+                        text,
+                    })
+                    .map_err(|_| {
+                        Error::invalid("augment", "the writer threads stopped before the run ended")
+                    })?;
                 Ok((summary, false))
             })
             .collect();
@@ -532,6 +586,8 @@ pub fn run(
 struct WriteJob {
     record: ClipRecord,
     output: Option<ClipOutput>,
+    /// The clip's caption file, copied beside its outputs.
+    text: Option<PathBuf>,
 }
 
 fn without_sums(mut record: ClipRecord) -> ClipRecord {
@@ -552,6 +608,7 @@ pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
         lowpass_hz: chain.options.lowpass_hz,
         scale_to_clip: chain.options.scale_to_clip,
         muscle_strength: chain.options.muscle_strength,
+        datasets: options.datasets.iter().map(DatasetRoot::describe).collect(),
     }
 }
 

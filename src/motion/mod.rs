@@ -15,6 +15,7 @@
 
 pub mod bvh;
 pub mod c3d;
+pub mod calibration;
 pub mod humanml3d;
 pub mod kit;
 pub mod npy;

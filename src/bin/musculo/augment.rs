@@ -79,6 +79,10 @@ pub struct Args {
     /// The clips were recorded on a floor at rest (no treadmill detection).
     #[arg(long)]
     overground: bool,
+    /// Keep a held pose at a clip's start or end that the motion jumps from or to (a
+    /// calibration T-pose). By default such frames are left out with a warning naming them.
+    #[arg(long)]
+    keep_calibration_frames: bool,
     #[command(flatten)]
     strict: crate::warnings::Strict,
     /// Measured ground reactions for a single trial (an OpenSim ExternalLoads .xml and its
@@ -138,6 +142,28 @@ pub struct MergeArgs {
     fail_on: Option<FailOn>,
 }
 
+/// One line on a HumanML3D / KIT-ML root: which motion folder, captions, splits.
+fn print_dataset(d: &musculo::augment::dataset::DatasetRoot) {
+    let description = d.describe();
+    let mut parts = vec![format!("clips from {}/", description.motions)];
+    if let Some(other) = &description.left_out {
+        parts.push(format!("{other}/ left out (the same motions)"));
+    }
+    parts.push(match &description.texts {
+        Some(_) => "captions from texts/ copied beside the outputs".to_string(),
+        None => "no texts/".to_string(),
+    });
+    if !description.splits.is_empty() {
+        let splits: Vec<&str> = description.splits.iter().map(|(n, _)| n.as_str()).collect();
+        parts.push(format!("splits {} in the records", splits.join("/")));
+    }
+    eprintln!(
+        "{}: a HumanML3D / KIT-ML root: {}",
+        description.root,
+        parts.join("; ")
+    );
+}
+
 fn parse_shard(text: &str) -> Result<(usize, usize), musculo::Error> {
     let bad = || {
         invalid(
@@ -191,6 +217,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         scale_to_clip: !args.no_scale,
         opensim_files: args.opensim_files || args.report,
         muscle_strength: args.muscle_strength,
+        keep_calibration_frames: args.keep_calibration_frames,
         ..ChainOptions::default()
     };
     let mut options = options;
@@ -204,11 +231,14 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     args.strict.load_str(&xml, &source)?;
     let chain = Chain::new(xml, source, options)?;
     let layout = describe(&chain)?;
-    let clips: Vec<ClipInput> = if args.demo {
-        demo::inputs(&chain.model)?
+    let (clips, datasets): (Vec<ClipInput>, _) = if args.demo {
+        (demo::inputs(&chain.model)?, Vec::new())
     } else {
-        runner::list_inputs(&args.input, args.format)?
+        runner::list_dataset(&args.input, args.format)?
     };
+    for d in &datasets {
+        print_dataset(d);
+    }
     let map = match (&args.map, args.format) {
         (Some(m), Some(f)) => skeleton_map(Some(m), f)?,
         (Some(m), None) => skeleton_map(Some(m), Format::Trc)?,
@@ -226,6 +256,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         read,
         external_loads: args.external_loads.clone(),
         force_plates: args.force_plates,
+        datasets,
     };
     let mine = runner::shard_clips(&clips, shard).len() * args.variants.max(1);
     let bar = ProgressBar::new(mine as u64).with_style(
