@@ -130,6 +130,10 @@ fn gait2392_walk_with_a_displaced_or_swapped_marker_fits_as_the_clean_walk() {
     for w in ik_robust::warnings(&model, &tasks, &reference, "clean") {
         println!("  {w}");
     }
+    // the acromia fit worst (64 and 58 mm) but carry most of the trunk's axial rotation: the
+    // others cannot outvote them, and the clean walk is fitted as by plain least squares
+    assert!(clean_named.is_empty(), "{clean_named:?}");
+    assert_eq!(reference, reference_plain);
     let cases: Vec<(&str, Vec<&str>, Motion)> = vec![
         (
             "R.Thigh.Front +100 mm x",

@@ -883,7 +883,8 @@ fn reweighted(
     let mut factors: Vec<Option<f64>> = vec![None; nm];
     for pass in 0..=robust.max_passes {
         let errors = ik_robust::clip_errors(&solution, nm);
-        let verdict = ik_robust::disagreement(&errors, &counted, robust);
+        let mut verdict = ik_robust::disagreement(&errors, &counted, robust);
+        ik_robust::outvoted_only(model, targets, tasks, &solution, &mut verdict)?;
         let same_set = (verdict.iter().zip(&factors)).all(|(a, b)| a.is_some() == b.is_some());
         if same_set || pass == robust.max_passes {
             break;

@@ -44,13 +44,25 @@
 //! that only looked wrong because a bad neighbour pulled the fit towards itself is then
 //! cleared) until the set of disagreeing markers stops changing.
 //!
+//! Only markers the others can outvote are down-weighted ([`outvoted_only`]): where the
+//! disagreeing markers together carry more than half of what the fit knows of a coordinate
+//! (its diagonal entry Σ wᵢ ‖∂pᵢ/∂q_j‖² of the normal matrix, median over frames), the others
+//! cannot tell that coordinate without them, and every disagreeing marker that moves it keeps
+//! its weight. On Gait2392's walk matched by name, the acromia fit 64 and 58 mm off while the
+//! others fit to 6 mm, but they carry most of the trunk's axial rotation (the torso's other
+//! markers, sternum and head top, lie near its axis): without them the trunk turned freely
+//! and the ground reactions estimated from the motion moved.
+//!
 //! With fewer than [`MIN_MARKERS`] markers there is no majority to disagree with and nothing
 //! is down-weighted. A marker that is wrong in fewer than half of its frames (a short swap)
 //! keeps a clip median within the others' and is not caught by this clip-level test.
 
 use super::ik::{IkSolution, IkTasks};
+use crate::dynamics::{Data, forward_kinematics, point_jacobian};
 use crate::error::Error;
 use crate::model::Model;
+use crate::motion::Motion;
+use nalgebra::DMatrix;
 
 /// Iglewicz & Hoaglin's limit on the modified z-score (r − c)/s of an outlier.
 pub const MODIFIED_Z_LIMIT: f64 = 3.5;
@@ -188,6 +200,69 @@ pub fn disagreement(
         }
     }
     out
+}
+
+/// Clears the verdict (from [`disagreement`]) of the markers the others cannot outvote. Per
+/// frame f and coordinate j, with d_ij = w_i ‖∂p_i/∂q_j‖² over the markers present (the
+/// normal matrix's diagonal, one marker at a time),
+///
+///   share_j(f) = Σ_{i disagreeing} d_ij / Σ_i d_ij,
+///
+/// and where the median over frames of share_j exceeds ½, every disagreeing marker that moves
+/// coordinate j keeps its weight.
+pub fn outvoted_only(
+    model: &Model,
+    targets: &Motion,
+    tasks: &IkTasks,
+    solution: &IkSolution,
+    verdict: &mut [Option<f64>],
+) -> crate::Result<()> {
+    if verdict.iter().all(Option::is_none) {
+        return Ok(());
+    }
+    let n = model.nq();
+    let frames = solution.n_frames();
+    let mut data = Data::new(model);
+    let mut jac = DMatrix::zeros(3, n);
+    // per coordinate: the share per frame; per disagreeing marker: whether it moves each
+    let mut shares: Vec<Vec<f64>> = vec![Vec::with_capacity(frames); n];
+    let mut moves = vec![false; verdict.len() * n];
+    let (mut all, mut out) = (vec![0.0; n], vec![0.0; n]);
+    for f in 0..frames {
+        forward_kinematics(model, &mut data, solution.frame(f))?;
+        all.fill(0.0);
+        out.fill(0.0);
+        for (i, t) in tasks.markers.iter().enumerate() {
+            if t.weight <= 0.0 || targets.frame(f)[t.target].x.is_nan() {
+                continue;
+            }
+            let m = &model.markers[t.marker];
+            point_jacobian(model, &data, m.body, &m.location_in_body, &mut jac)?;
+            for j in 0..n {
+                let d = t.weight * jac.column(j).norm_squared();
+                all[j] += d;
+                if verdict[i].is_some() {
+                    out[j] += d;
+                    moves[i * n + j] |= d > 0.0;
+                }
+            }
+        }
+        for j in 0..n {
+            if all[j] > 0.0 {
+                shares[j].push(out[j] / all[j]);
+            }
+        }
+    }
+    for (j, share) in shares.iter_mut().enumerate() {
+        if median(share) > 0.5 {
+            for (i, v) in verdict.iter_mut().enumerate() {
+                if moves[i * n + j] {
+                    *v = None;
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// One warning per down-weighted marker of `solution`, e.g. "walk.trc: marker R.ASIS
