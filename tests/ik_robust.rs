@@ -204,6 +204,9 @@ fn gait2392_walk_with_a_displaced_or_swapped_marker_fits_as_the_clean_walk() {
             if fit == "plain" {
                 continue;
             }
+            for w in ik_robust::warnings(&model, &tasks, &s, "walk.trc") {
+                println!("  {w}");
+            }
             if (good - clean_good).abs() > 3e-3 || (good - without_good).abs() > 1e-3 {
                 failures.push(format!(
                     "{label}: good markers' median {good}, clean {clean_good}, without {without_good}"
