@@ -131,8 +131,16 @@ fn add_outputs(
     Ok(())
 }
 
-fn summarize(model: &Model, solution: &IkSolution, tasks: &IkTasks, output: &Path, seconds: f64) {
-    for w in ik_robust::warnings(model, tasks, solution, &output.display().to_string()) {
+/// Prints the fit's figures; `input` names the motion file in the warnings.
+fn summarize(
+    model: &Model,
+    solution: &IkSolution,
+    tasks: &IkTasks,
+    input: &Path,
+    output: &Path,
+    seconds: f64,
+) {
+    for w in ik_robust::warnings(model, tasks, solution, &input.display().to_string()) {
         eprintln!("warning: {w}");
     }
     let frames = solution.n_frames();
@@ -273,7 +281,7 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
     let seconds = start.elapsed().as_secs_f64();
     add_outputs(&mut outputs, &model, &solution, &tasks, &output)?;
     crate::tool::commit(outputs)?;
-    summarize(&model, &solution, &tasks, &output, seconds);
+    summarize(&model, &solution, &tasks, &marker_path, &output, seconds);
     Ok(())
 }
 
@@ -411,7 +419,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         match result {
             Ok(solution) => {
                 add_outputs(&mut outputs, model, &solution, tasks, out)?;
-                solved.push((model, solution, tasks, out, seconds));
+                solved.push((path, model, solution, tasks, out, seconds));
             }
             Err(e) => {
                 let message = format!("{}: {e}", path.display());
@@ -422,8 +430,8 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
     }
     // The solved clips' files, all together (a failed clip writes none).
     crate::tool::commit(outputs)?;
-    for (model, solution, tasks, out, seconds) in &solved {
-        summarize(model, solution, tasks, out, *seconds);
+    for (path, model, solution, tasks, out, seconds) in &solved {
+        summarize(model, solution, tasks, path, out, *seconds);
     }
     if failed > 0 {
         return Err(invalid(
