@@ -863,8 +863,9 @@ pub fn solve_motion_from(
     reweighted(model, targets, tasks, settings, solution)
 }
 
-/// With [`IkSettings::robust`]: the clip solved again, each frame from its previous solution,
-/// with the markers that disagree with the others down-weighted ([`ik_robust`]), until the
+/// With [`IkSettings::robust`]: the clip solved again with the markers that disagree with the
+/// others down-weighted ([`ik_robust`]), the first frame from its previous solution and each
+/// later one from the new solutions of the frames before it (as the first pass), until the
 /// set of such markers stops changing (at most `max_passes` times); the fit figures then leave
 /// them out. Without a disagreeing marker, `solution` as it is.
 fn reweighted(
@@ -894,7 +895,14 @@ fn reweighted(
         for (t, factor) in weighted.markers.iter_mut().zip(&factors) {
             t.weight *= factor.unwrap_or(1.0);
         }
-        solution = solve(model, targets, &weighted, settings, Some(&solution), &|_| {})?;
+        // Frame by frame from the new solutions (constant-velocity prediction), not from each
+        // frame's previous solution: the segment a bad marker turned must turn back in every
+        // frame, while the new solution of the frame before is already there.
+        let again = IkSettings {
+            initial_q: Some(solution.frame(0).to_vec()),
+            ..settings.clone()
+        };
+        solution = solve(model, targets, &weighted, &again, None, &|_| {})?;
     }
     if factors.iter().all(Option::is_none) {
         return Ok(solution);
