@@ -33,16 +33,17 @@
 //! off pulls on the fit as one of weight 1 that is 1 mm off. The weight does not fall further
 //! with the error (as a Geman–McClure or Cauchy weight would, ~(σ/r)⁴ or (σ/r)²): a
 //! disagreeing marker's error measures the disagreement, not a noise level, and two such
-//! markers on one segment (the acromia of Gait2392's walk matched by name, 71 and 95 mm off)
-//! would turn the segment by the ratio of their weights — the trunk's rotation then moved by
-//! 3.5° between fits that differed only in a thigh marker. ε stays above zero so that a
-//! coordinate only these markers determine still follows them instead of resting where it
-//! starts. The other markers keep their weights, so a clip without a disagreeing marker is
-//! fitted exactly as without this step, at the cost of one median per marker. Otherwise the
-//! clip is solved again, every
-//! frame started from its previous solution, and the test repeated on the new fit (a marker
-//! that only looked wrong because a bad neighbour pulled the fit towards itself is then
-//! cleared) until the set of disagreeing markers stops changing.
+//! markers on one segment would turn the segment by the ratio of their weights (with
+//! Geman–McClure weights, the Gait2392 trunk's rotation moved by 3.5° between fits of its
+//! walk that differed only in a thigh marker, through the acromia's weights). ε stays above
+//! zero so that a coordinate only these markers determine still follows them instead of
+//! resting where it starts. The other markers keep their weights, so a clip without a
+//! disagreeing marker is fitted exactly as without this step, at the cost of one median per
+//! marker. Otherwise the clip is solved again with the new weights (the first frame from its
+//! previous solution, each later one from the new solutions before it, as in the first pass),
+//! and the test repeated on the new fit (a marker that only looked wrong because a bad
+//! neighbour pulled the fit towards itself is then cleared) until the set of disagreeing
+//! markers stops changing.
 //!
 //! Only markers the others can outvote are down-weighted ([`outvoted_only`]): where the
 //! disagreeing markers together carry more than half of what the fit knows of a coordinate
