@@ -34,6 +34,7 @@ use crate::solve::contact::{
 use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::filter::HIGHEST_CUTOFF_FRACTION;
 use crate::solve::ik::{self, IkSettings};
+use crate::solve::ik_robust;
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
 use crate::solve::scale_from_clip;
 use crate::solve::static_optimization::{
@@ -84,7 +85,12 @@ impl Default for ChainOptions {
         ChainOptions {
             lowpass_hz: Some(6.0),
             scale_to_clip: true,
-            ik: IkSettings::default(),
+            // a marker that disagrees with the others (a wrong label in a marker file matched
+            // by name) is down-weighted and named in the clip's warnings
+            ik: IkSettings {
+                robust: Some(ik_robust::RobustMarkers::default()),
+                ..IkSettings::default()
+            },
             contact: ContactOptions::default(),
             reserve_optimal_force: 1.0,
             opensim_files: false,
@@ -402,6 +408,7 @@ impl Chain {
         }
         // --- inverse kinematics ---
         let solution = ik::solve_motion(&model, &targets, &tasks, &self.options.ik, &|_| {})?;
+        warnings.extend(ik_robust::warnings(&model, &tasks, &solution, &motion.source));
         let frames = solution.n_frames();
         if frames < 4 {
             return Err(Error::invalid(
@@ -693,8 +700,9 @@ impl Chain {
         }
         if quality.ik_error_max > IK_ERROR_WARNED {
             let nm = tasks.markers.len();
+            let down_weighted = |k: usize| solution.disagreeing.iter().any(|d| d.task == k % nm);
             let worst = (solution.marker_error.iter().enumerate())
-                .filter(|(_, e)| e.is_finite())
+                .filter(|&(k, e)| e.is_finite() && !down_weighted(k))
                 .max_by(|a, b| a.1.total_cmp(b.1))
                 .map(|(k, _)| k);
             if let Some(k) = worst {

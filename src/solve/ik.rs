@@ -33,6 +33,10 @@
 //! points need body poses only.
 //!
 //! After the first frame no allocation happens: `IkWorkspace` holds every buffer.
+//!
+//! With [`IkSettings::robust`], a marker that disagrees with the others over the whole clip
+//! (mislabelled, swapped, displaced) is down-weighted and the clip solved again
+//! ([`super::ik_robust`]); [`IkSolution::disagreeing`] names it.
 
 use crate::dynamics::Data;
 use crate::dynamics::forward_kinematics::{body_poses_only, motion_subspaces};
@@ -40,6 +44,7 @@ use crate::error::Error;
 use crate::model::reduction::NONE;
 use crate::model::{CoordinateRole, Model};
 use crate::motion::Motion;
+use crate::solve::ik_robust::{self, DisagreeingMarker, RobustMarkers};
 use crate::solve::ltl::EliminationTree;
 use crate::solve::qp::linalg::dot;
 use crate::spatial::{Force, Mat3, SpatialInertia, Vec3};
@@ -115,6 +120,11 @@ pub struct IkSettings {
     /// the two choices have different minimisers when coordinate tasks exist). Default
     /// false.
     pub normalize_marker_weights: bool,
+    /// Down-weight the markers that disagree with the others over the clip
+    /// ([`super::ik_robust`]). Default None: every task keeps its weight, as an OpenSim setup's
+    /// weights must. The augmentation chain and `musculo ik` without a setup (markers matched
+    /// by name with weight 1, or a skeleton map's joint centres) turn it on.
+    pub robust: Option<RobustMarkers>,
 }
 
 impl Default for IkSettings {
@@ -127,6 +137,7 @@ impl Default for IkSettings {
             relative_decrease: RELATIVE_DECREASE,
             initial_q: None,
             normalize_marker_weights: false,
+            robust: None,
         }
     }
 }
@@ -155,6 +166,9 @@ impl IkSettings {
         if self.max_iterations == 0 {
             return Err(Error::invalid("max_iterations", "must be at least 1"));
         }
+        if let Some(robust) = &self.robust {
+            robust.validate()?;
+        }
         Ok(())
     }
 }
@@ -172,9 +186,10 @@ pub struct IkSolution {
     pub objective: Vec<f64>,
     /// Frame-major marker errors ‖p_i − x_i‖ (m), one per marker task; NaN where missing.
     pub marker_error: Vec<f64>,
-    /// Per frame: root mean square of the present markers' errors (m).
+    /// Per frame: root mean square of the present markers' errors (m), the markers in
+    /// [`IkSolution::disagreeing`] left out (their errors are in `marker_error`).
     pub rmse: Vec<f64>,
-    /// Per frame: the largest marker error (m).
+    /// Per frame: the largest marker error (m), the markers in `disagreeing` left out.
     pub max_error: Vec<f64>,
     /// Per frame: the indices in q of the coordinates that ended at a bound, among those
     /// that some task moves (a marker task of positive weight on a body the coordinate
@@ -186,6 +201,12 @@ pub struct IkSolution {
     pub iterations: Vec<u32>,
     /// Per frame: evaluations of f (one per trial step, accepted or not, plus the start).
     pub evaluations: Vec<u32>,
+    /// Per marker task: the weight of the final fit (the task's, or lower where
+    /// [`IkSettings::robust`] down-weighted it).
+    pub marker_weight: Vec<f64>,
+    /// The marker tasks that disagreed with the others and were down-weighted (empty without
+    /// [`IkSettings::robust`]); [`ik_robust::warnings`] words them.
+    pub disagreeing: Vec<DisagreeingMarker>,
 }
 
 impl IkSolution {
@@ -806,7 +827,8 @@ pub fn solve_motion(
     settings: &IkSettings,
     progress: &dyn Fn(usize),
 ) -> crate::Result<IkSolution> {
-    solve(model, targets, tasks, settings, None, progress)
+    let solution = solve(model, targets, tasks, settings, None, progress)?;
+    reweighted(model, targets, tasks, settings, solution)
 }
 
 /// [`solve_motion`] with every frame started from its own guess: frame f from
@@ -837,7 +859,91 @@ pub fn solve_motion_from(
     if !starts.q.iter().all(|v| v.is_finite()) {
         return Err(Error::invalid("starts", "holds a non-finite coordinate"));
     }
-    solve(model, targets, tasks, settings, Some(starts), progress)
+    let solution = solve(model, targets, tasks, settings, Some(starts), progress)?;
+    reweighted(model, targets, tasks, settings, solution)
+}
+
+/// With [`IkSettings::robust`]: the clip solved again with the markers that disagree with the
+/// others down-weighted ([`ik_robust`]), the first frame from its previous solution and each
+/// later one from the new solutions of the frames before it (as the first pass), until the
+/// set of such markers stops changing (at most `max_passes` times); the fit figures then leave
+/// them out. Without a disagreeing marker, `solution` as it is.
+fn reweighted(
+    model: &Model,
+    targets: &Motion,
+    tasks: &IkTasks,
+    settings: &IkSettings,
+    mut solution: IkSolution,
+) -> crate::Result<IkSolution> {
+    let Some(robust) = &settings.robust else {
+        return Ok(solution);
+    };
+    let nm = tasks.markers.len();
+    let counted: Vec<bool> = tasks.markers.iter().map(|t| t.weight > 0.0).collect();
+    // the weight factors of the last solve (all 1 for the first)
+    let mut factors: Vec<Option<f64>> = vec![None; nm];
+    for pass in 0..=robust.max_passes {
+        let errors = ik_robust::clip_errors(&solution, nm);
+        let mut verdict = ik_robust::disagreement(&errors, &counted, robust);
+        ik_robust::outvoted_only(model, targets, tasks, &solution, &mut verdict)?;
+        let same_set = (verdict.iter().zip(&factors)).all(|(a, b)| a.is_some() == b.is_some());
+        if same_set || pass == robust.max_passes {
+            break;
+        }
+        factors = verdict;
+        let mut weighted = tasks.clone();
+        for (t, factor) in weighted.markers.iter_mut().zip(&factors) {
+            t.weight *= factor.unwrap_or(1.0);
+        }
+        // Frame by frame from the new solutions (constant-velocity prediction), not from each
+        // frame's previous solution: the segment a bad marker turned must turn back in every
+        // frame, while the new solution of the frame before is already there.
+        let again = IkSettings {
+            initial_q: Some(solution.frame(0).to_vec()),
+            ..settings.clone()
+        };
+        solution = solve(model, targets, &weighted, &again, None, &|_| {})?;
+    }
+    if factors.iter().all(Option::is_none) {
+        return Ok(solution);
+    }
+    let errors = ik_robust::clip_errors(&solution, nm);
+    let mut others: Vec<f64> = (0..nm)
+        .filter(|&i| counted[i] && factors[i].is_none() && errors[i].1 > 0)
+        .map(|i| errors[i].0)
+        .collect();
+    let others_median = ik_robust::median(&mut others);
+    solution.marker_weight = (tasks.markers.iter().zip(&factors))
+        .map(|(t, f)| t.weight * f.unwrap_or(1.0))
+        .collect();
+    solution.disagreeing = (0..nm)
+        .filter(|&i| factors[i].is_some())
+        .map(|i| DisagreeingMarker {
+            task: i,
+            median_error: errors[i].0,
+            frames_present: errors[i].1,
+            others_median_error: others_median,
+            weight: solution.marker_weight[i],
+        })
+        .collect();
+    // the fit figures of the markers kept
+    for f in 0..solution.n_frames() {
+        let (mut sum, mut count, mut worst) = (0.0, 0usize, 0.0f64);
+        for (i, &e) in solution.marker_error[f * nm..(f + 1) * nm].iter().enumerate() {
+            if factors[i].is_none() && e.is_finite() {
+                sum += e * e;
+                count += 1;
+                worst = worst.max(e);
+            }
+        }
+        solution.rmse[f] = if count > 0 {
+            (sum / count as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        solution.max_error[f] = if count > 0 { worst } else { f64::NAN };
+    }
+    Ok(solution)
 }
 
 fn solve(
@@ -918,6 +1024,8 @@ fn solve(
         at_limit: Vec::with_capacity(frames),
         iterations: Vec::with_capacity(frames),
         evaluations: Vec::with_capacity(frames),
+        marker_weight: tasks.markers.iter().map(|t| t.weight).collect(),
+        disagreeing: Vec::new(),
     };
     for f in 0..frames {
         // Start from the previous solution moved on at its last velocity (constant-velocity

@@ -7,6 +7,7 @@ pub mod contact;
 pub mod external_loads;
 pub mod filter;
 pub mod ik;
+pub mod ik_robust;
 pub mod ik_tool;
 pub mod inverse_dynamics;
 pub mod kinematics;

@@ -11,7 +11,7 @@ use musculo::model::Model;
 use musculo::motion::skeleton::SkeletonMap;
 use musculo::motion::{self, Format, Motion, ReadOptions};
 use musculo::solve::ik::{self, Bounds, IkSettings, IkSolution, IkTasks};
-use musculo::solve::{ik_tool, scale_from_clip};
+use musculo::solve::{ik_robust, ik_tool, scale_from_clip};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -59,6 +59,12 @@ pub struct Args {
     /// rule and the default with --setup), or none.
     #[arg(long, value_parser = ["range", "clamped", "none"])]
     bounds: Option<String>,
+    /// Keep every marker's weight 1 even where a marker disagrees with the others over the
+    /// clip. Without it (and without --setup), such a marker (a wrong label, a swap, a marker
+    /// displaced on the skin) is down-weighted and named in a warning; with --setup the
+    /// setup's weights are used as given, always.
+    #[arg(long)]
+    no_robust: bool,
     /// Time range START END (s). Default: the setup's time_range, else the whole motion.
     #[arg(
         long,
@@ -125,7 +131,18 @@ fn add_outputs(
     Ok(())
 }
 
-fn summarize(model: &Model, solution: &IkSolution, tasks: &IkTasks, output: &Path, seconds: f64) {
+/// Prints the fit's figures; `input` names the motion file in the warnings.
+fn summarize(
+    model: &Model,
+    solution: &IkSolution,
+    tasks: &IkTasks,
+    input: &Path,
+    output: &Path,
+    seconds: f64,
+) {
+    for w in ik_robust::warnings(model, tasks, solution, &input.display().to_string()) {
+        eprintln!("warning: {w}");
+    }
     let frames = solution.n_frames();
     let mut rmse: Vec<f64> = solution
         .rmse
@@ -249,6 +266,8 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
         smoothness: args.smoothness,
         relative_decrease: args.relative_decrease,
         normalize_marker_weights: true,
+        // OpenSim's problem: the setup's weights as given, whatever the residuals
+        robust: None,
         ..IkSettings::default()
     };
     let progress = FrameProgress::new("inverse kinematics");
@@ -262,7 +281,7 @@ fn run_setup(args: &Args, setup_path: &Path) -> Result<(), musculo::Error> {
     let seconds = start.elapsed().as_secs_f64();
     add_outputs(&mut outputs, &model, &solution, &tasks, &output)?;
     crate::tool::commit(outputs)?;
-    summarize(&model, &solution, &tasks, &output, seconds);
+    summarize(&model, &solution, &tasks, &marker_path, &output, seconds);
     Ok(())
 }
 
@@ -371,6 +390,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         bounds: parse_bounds(args.bounds.as_deref(), Bounds::Range),
         smoothness: args.smoothness,
         relative_decrease: args.relative_decrease,
+        robust: (!args.no_robust).then(ik_robust::RobustMarkers::default),
         ..IkSettings::default()
     };
     let total: usize = jobs.iter().map(|j| j.2.n_frames()).sum();
@@ -399,7 +419,7 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
         match result {
             Ok(solution) => {
                 add_outputs(&mut outputs, model, &solution, tasks, out)?;
-                solved.push((model, solution, tasks, out, seconds));
+                solved.push((path, model, solution, tasks, out, seconds));
             }
             Err(e) => {
                 let message = format!("{}: {e}", path.display());
@@ -410,8 +430,8 @@ fn run_dataset(args: &Args) -> Result<(), musculo::Error> {
     }
     // The solved clips' files, all together (a failed clip writes none).
     crate::tool::commit(outputs)?;
-    for (model, solution, tasks, out, seconds) in &solved {
-        summarize(model, solution, tasks, out, *seconds);
+    for (path, model, solution, tasks, out, seconds) in &solved {
+        summarize(model, solution, tasks, path, out, *seconds);
     }
     if failed > 0 {
         return Err(invalid(
