@@ -477,9 +477,15 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
         }
         assert!(foot.vertical <= limit, "{name} foot {g}: {} > {limit}", foot.vertical);
         assert!((0.9..=1.1).contains(&foot.peak_ratio), "{name} foot {g}: {}", foot.peak_ratio);
-        // one frame at 60–100 Hz (10 ms at higher rates)
+        // within one frame at 60–100 Hz (10 ms at higher rates): a detected contact starts
+        // on a frame, so its force crosses 5 % BW up to a frame after the plate's crossing,
+        // plus the crossing's interpolation within that frame (a quarter frame allowed)
         let frame = (1.0 / rate).max(0.010);
-        assert!(mean_abs(&foot.strikes) <= frame, "{name} foot {g}: {:?}", foot.strikes);
+        assert!(
+            mean_abs(&foot.strikes) <= 1.25 * frame,
+            "{name} foot {g}: {:?}",
+            foot.strikes
+        );
         assert_eq!(foot.spurious, 0, "{name} foot {g}");
         assert!(foot.missed <= 1, "{name} foot {g}: {}", foot.missed);
     }
