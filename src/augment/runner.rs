@@ -391,7 +391,7 @@ pub fn run(
     let write_error: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
     let write = |job: WriteJob| -> crate::Result<()> {
         if let Some(out) = &job.output {
-            output::write_clip(&options.out, &job.record.clip, &out.arrays)?;
+            output::write_clip_output(&options.out, &job.record.clip, out)?;
             output::write_opensim_files(
                 &options.out,
                 &job.record.clip,
@@ -552,6 +552,7 @@ pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
         lowpass_hz: chain.options.lowpass_hz,
         scale_to_clip: chain.options.scale_to_clip,
         muscle_strength: chain.options.muscle_strength,
+        base_model: Some(chain.base.clone()),
     }
 }
 

@@ -240,6 +240,10 @@ pub struct ClipMetrics {
     pub trajectory_failed: Option<bool>,
     pub location_failure: Option<f64>,
     pub trajectory_error: Option<f64>,
+    /// What makes the clip's figures less certain (e.g. a file that does not say which model
+    /// it belongs to).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl ClipMetrics {
