@@ -338,7 +338,8 @@ impl Shared<'_> {
 const CSV_COLUMNS: &str = "clip,frames,rate_hz,body_mass,support_fraction,skate,skate_speed,\
 float,float_max,penetrate,penetrate_max,contact_force,joint_actuation,muscle_limit,el_residual,\
 trajectory,location_failure,trajectory_error,actuation_excess,actuation_over,actuation_peak,\
-actuation_error,activation_excess,reserve_share,layout_fit_error";
+actuation_error,activation_excess,reserve_share,layout_fit_error,el_residual_from_q,range_share,\
+range_worst,range_excess";
 
 impl SetReport {
     /// One row per evaluated clip, then a row `(set)` with the summary in FlexMotion's columns
@@ -375,6 +376,12 @@ impl SetReport {
                 o(c.activation_excess),
                 o(c.reserve_share),
                 o(c.layout_fit_error),
+                o(c.el_residual_from_q),
+                format!("{:e}", c.range_share),
+                c.range_worst
+                    .as_ref()
+                    .map_or(String::new(), |w| csv_name(&w.describe())),
+                o(c.range_worst.as_ref().map(|w| w.excess)),
             ];
             s.push_str(&cells.join(","));
             s.push('\n');
@@ -397,6 +404,23 @@ impl SetReport {
             o(m.muscle_limit),
             o(m.el_residual),
             o(m.trajectory),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            o(m.el_residual_from_q),
+            format!("{:e}", m.range_share),
+            m.range_worst
+                .as_ref()
+                .map_or(String::new(), |(clip, w)| {
+                    csv_name(&format!("{clip}: {}", w.describe()))
+                }),
+            o(m.range_worst.as_ref().map(|(_, w)| w.excess)),
         ];
         s.push_str(&cells.join(","));
         s.push_str(&",".repeat(CSV_COLUMNS.split(',').count() - cells.len()));
