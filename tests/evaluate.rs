@@ -839,11 +839,16 @@ fn body_changing_variants_are_judged_on_their_own_model() {
         &[&bare.join("march_v1.npz"), &default_model, &json],
     );
     assert!(ok, "{err}");
-    assert!(err.contains("does not say which model it belongs to"), "{err}");
+    assert!(
+        err.contains("does not say which model it belongs to"),
+        "{err}"
+    );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let on_base = report["clips"][0]["el_residual"].as_f64().unwrap();
-    println!("march_v1 on its own model: residual < 1e-6; without its identity on the base model {on_base:.3}");
+    println!(
+        "march_v1 on its own model: residual < 1e-6; without its identity on the base model {on_base:.3}"
+    );
     assert!(on_base > 1e-3, "{on_base}");
     let _ = std::fs::remove_dir_all(dir);
 }
@@ -880,7 +885,11 @@ fn generated_faults_beyond_range_and_inconsistent_rates_are_flagged() {
     let set = musculo::augment::chain::contact_set(model).unwrap();
     let joints = n - set.floating_base.len();
     let share = bad_frames.len() as f64 / (t_count * joints) as f64;
-    assert!((m.range_share - share).abs() < 1e-12, "{} vs {share}", m.range_share);
+    assert!(
+        (m.range_share - share).abs() < 1e-12,
+        "{} vs {share}",
+        m.range_share
+    );
     let worst = m.range_worst.as_ref().unwrap();
     assert_eq!(worst.coordinate, "knee_angle_r");
     assert!((worst.value.to_degrees() + 480.0).abs() < 1e-9, "{worst:?}");
@@ -888,7 +897,11 @@ fn generated_faults_beyond_range_and_inconsistent_rates_are_flagged() {
     assert!((worst.excess - (lo - worst.value)).abs() < 1e-12);
     let summary = summarize(&[base.clone(), m.clone()]);
     assert_eq!(summary.beyond_range_clips, 1);
-    let line: Vec<String> = summary.columns().iter().map(|(k, v)| format!("{k} {v}")).collect();
+    let line: Vec<String> = summary
+        .columns()
+        .iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect();
     let line = line.join(", ");
     println!("{line}");
     assert!(line.contains("beyond range 1 of 2 clips"), "{line}");
@@ -904,9 +917,15 @@ fn generated_faults_beyond_range_and_inconsistent_rates_are_flagged() {
     still.qdd = vec![0.0; t_count * n];
     for f in 0..t_count {
         let r = f * n..(f + 1) * n;
-        let tau = dynamics::rnea(model, &mut data, &still.q[r.clone()], &still.qd[r.clone()], &still.qdd[r.clone()])
-            .unwrap()
-            .clone();
+        let tau = dynamics::rnea(
+            model,
+            &mut data,
+            &still.q[r.clone()],
+            &still.qd[r.clone()],
+            &still.qdd[r.clone()],
+        )
+        .unwrap()
+        .clone();
         still.tau[r].copy_from_slice(tau.as_slice());
     }
     let s = eval(&c, &still, None, &o);
@@ -945,9 +964,14 @@ fn generated_faults_beyond_range_and_inconsistent_rates_are_flagged() {
         0.5 * (relative[k - 1] + relative[k])
     };
     let (decoded, from_q) = (s.el_residual.unwrap(), s.el_residual_from_q.unwrap());
-    println!("rates at rest: EL residual {decoded:.1e} (decoded), {from_q:.3} (from q; {expected:.3} here)");
+    println!(
+        "rates at rest: EL residual {decoded:.1e} (decoded), {from_q:.3} (from q; {expected:.3} here)"
+    );
     assert!(decoded < 1e-9, "{decoded:e}");
     // (the file's times are float32: its steps differ from h by ~10⁻⁵ relative)
-    assert!((from_q - expected).abs() <= 1e-4 * expected, "{from_q} vs {expected}");
+    assert!(
+        (from_q - expected).abs() <= 1e-4 * expected,
+        "{from_q} vs {expected}"
+    );
     assert!(from_q > 10.0 * base.el_residual_from_q.unwrap(), "{from_q}");
 }

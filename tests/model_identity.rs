@@ -66,7 +66,10 @@ fn a_trial_augmented_without_scaling_is_judged_on_its_own_model() {
     assert!(!err.contains("warning"), "{err}");
     let clip = &metrics(&json)["clips"][0];
     let mass = clip["body_mass"].as_f64().unwrap();
-    assert!((mass - trial_mass).abs() < 1e-9 * trial_mass, "{mass} vs {trial_mass} kg");
+    assert!(
+        (mass - trial_mass).abs() < 1e-9 * trial_mass,
+        "{mass} vs {trial_mass} kg"
+    );
     let residual = clip["el_residual"].as_f64().unwrap();
     assert!(residual < 1e-6, "{residual:e}");
     let (ok, stdout, err) = musculo_cli("loss {}", &[&npz]);
@@ -91,14 +94,20 @@ fn a_trial_augmented_without_scaling_is_judged_on_its_own_model() {
     }
     let (ok, _, err) = musculo_cli("loss {} --model {}", &[&npz, &builtin]);
     assert!(!ok);
-    assert!(err.contains("is not the model this clip belongs to"), "{err}");
+    assert!(
+        err.contains("is not the model this clip belongs to"),
+        "{err}"
+    );
 
     // the model moved away: refused, naming it; given again (same text): used
     let moved = dir.join("moved.osim");
     std::fs::rename(&model_file, &moved).unwrap();
     let (ok, _, err) = musculo_cli("evaluate --input {} --out {}", &[&out, &json]);
     assert!(!ok);
-    assert!(err.contains("subject01") && err.contains("--model"), "{err}");
+    assert!(
+        err.contains("subject01") && err.contains("--model"),
+        "{err}"
+    );
     let (ok, _, err) = musculo_cli(
         "evaluate --input {} --model {} --out {}",
         &[&out, &moved, &json],
@@ -106,8 +115,11 @@ fn a_trial_augmented_without_scaling_is_judged_on_its_own_model() {
     assert!(ok, "{err}");
     assert!(metrics(&json)["clips"][0]["el_residual"].as_f64().unwrap() < 1e-6);
     // a file of that name with other text is not the model
-    std::fs::write(&model_file, text.replace("</OpenSimDocument>", "<!-- -->\n</OpenSimDocument>"))
-        .unwrap();
+    std::fs::write(
+        &model_file,
+        text.replace("</OpenSimDocument>", "<!-- -->\n</OpenSimDocument>"),
+    )
+    .unwrap();
     let (ok, _, err) = musculo_cli("evaluate --input {} --out {}", &[&out, &json]);
     assert!(!ok);
     assert!(err.contains("has changed"), "{err}");
@@ -151,12 +163,18 @@ fn clips_scaled_to_their_bones_and_their_variants_are_rebuilt_from_the_base_mode
         let name = clip["clip"].as_str().unwrap();
         assert_eq!(name, record["clip"].as_str().unwrap());
         let v = &record["variant"];
-        let expected = base_mass * v["mass_scale"].as_f64().unwrap() + v["load_kg"].as_f64().unwrap();
+        let expected =
+            base_mass * v["mass_scale"].as_f64().unwrap() + v["load_kg"].as_f64().unwrap();
         let mass = clip["body_mass"].as_f64().unwrap();
-        assert!((mass - expected).abs() < 1e-9 * expected, "{name}: {mass} vs {expected} kg");
+        assert!(
+            (mass - expected).abs() < 1e-9 * expected,
+            "{name}: {mass} vs {expected} kg"
+        );
         let residual = clip["el_residual"].as_f64().unwrap();
         assert!(residual < 1e-6, "{name}: {residual:e}");
-        let id = read_identity(&plain.join(format!("{name}.npz"))).unwrap().unwrap();
+        let id = read_identity(&plain.join(format!("{name}.npz")))
+            .unwrap()
+            .unwrap();
         assert!(id.scale.is_some(), "{name}");
         assert!(id.osim_hash.is_none());
     }
@@ -165,15 +183,29 @@ fn clips_scaled_to_their_bones_and_their_variants_are_rebuilt_from_the_base_mode
     // the same masses, centres of mass, inertias and joint frames
     let bodies = Bodies::new(None).unwrap();
     for name in ["clip", "clip_v1", "clip_v2"] {
-        let rebuilt = bodies.of_tensor_file(&plain.join(format!("{name}.npz"))).unwrap();
+        let rebuilt = bodies
+            .of_tensor_file(&plain.join(format!("{name}.npz")))
+            .unwrap();
         assert!(rebuilt.warning.is_none());
         let written = Model::from_osim_file(&files.join(format!("{name}.osim"))).unwrap();
         let (a, b) = (&rebuilt.model, &written);
         assert_eq!(a.bodies.len(), b.bodies.len());
         for (x, y) in a.bodies.iter().zip(&b.bodies) {
-            assert!((x.mass - y.mass).abs() <= 1e-9 * (1.0 + y.mass), "{name} {}", x.name);
-            assert!((x.com_in_body - y.com_in_body).norm() < 1e-9, "{name} {}", x.name);
-            assert!((x.inertia_about_com - y.inertia_about_com).norm() < 1e-9, "{name} {}", x.name);
+            assert!(
+                (x.mass - y.mass).abs() <= 1e-9 * (1.0 + y.mass),
+                "{name} {}",
+                x.name
+            );
+            assert!(
+                (x.com_in_body - y.com_in_body).norm() < 1e-9,
+                "{name} {}",
+                x.name
+            );
+            assert!(
+                (x.inertia_about_com - y.inertia_about_com).norm() < 1e-9,
+                "{name} {}",
+                x.name
+            );
         }
         for (x, y) in a.joints.iter().zip(&b.joints) {
             for (p, q) in [
@@ -201,7 +233,10 @@ fn clips_scaled_to_their_bones_and_their_variants_are_rebuilt_from_the_base_mode
         &[&files.join("clip.npz"), &files.join("clip_v1.osim"), &json],
     );
     assert!(!ok);
-    assert!(err.contains("is not the model this clip belongs to"), "{err}");
+    assert!(
+        err.contains("is not the model this clip belongs to"),
+        "{err}"
+    );
 
     // the same tensors without their identity are read on the built-in (unscaled) model,
     // with a warning: their residual is the bones' scaling
@@ -212,10 +247,18 @@ fn clips_scaled_to_their_bones_and_their_variants_are_rebuilt_from_the_base_mode
     musculo::motion::npy::write_npz(&bare.join("clip.npz"), &views, false).unwrap();
     let (ok, _, err) = musculo_cli("evaluate --input {} --out {}", &[&bare, &json]);
     assert!(ok, "{err}");
-    assert!(err.contains("does not say which model it belongs to"), "{err}");
+    assert!(
+        err.contains("does not say which model it belongs to"),
+        "{err}"
+    );
     let report = metrics(&json);
     let unscaled = report["clips"][0]["el_residual"].as_f64().unwrap();
-    assert!(!report["clips"][0]["warnings"].as_array().unwrap().is_empty());
+    assert!(
+        !report["clips"][0]["warnings"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
     println!("clip on its scaled body: residual < 1e-6; on the unscaled model {unscaled:.3}");
     assert!(unscaled > 1e-3, "{unscaled}");
     let _ = std::fs::remove_dir_all(dir);

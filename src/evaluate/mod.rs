@@ -385,7 +385,7 @@ impl SetSummary {
             (
                 "EL residual from q",
                 o(self.el_residual_from_q, &|v| {
-                    format!("{v:.1e} (of {} clips)", self.el_residual_clips)
+                    format!("{v:.1e} (of {} clip(s))", self.el_residual_clips)
                 }),
             ),
             (
@@ -453,7 +453,10 @@ pub fn summarize(clips: &[ClipMetrics]) -> SetSummary {
             .then(|| controlled.iter().filter(|f| **f).count() as f64 / controlled.len() as f64),
         worst_residual: worst,
         el_residual_from_q: mean_of(&|c| c.el_residual_from_q),
-        el_residual_clips: clips.iter().filter(|c| c.el_residual_from_q.is_some()).count(),
+        el_residual_clips: clips
+            .iter()
+            .filter(|c| c.el_residual_from_q.is_some())
+            .count(),
         beyond_range_clips: clips.iter().filter(|c| c.range_worst.is_some()).count(),
         range_share: weighted(&|c| c.range_share),
         range_worst,

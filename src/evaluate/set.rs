@@ -14,8 +14,8 @@ use crate::model::Model;
 use crate::motion::skeleton::SkeletonMap;
 use crate::motion::{Format, ReadOptions};
 use rayon::prelude::*;
-use std::path::{Path, PathBuf};
 use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -415,11 +415,9 @@ impl SetReport {
             String::new(),
             o(m.el_residual_from_q),
             format!("{:e}", m.range_share),
-            m.range_worst
-                .as_ref()
-                .map_or(String::new(), |(clip, w)| {
-                    csv_name(&format!("{clip}: {}", w.describe()))
-                }),
+            m.range_worst.as_ref().map_or(String::new(), |(clip, w)| {
+                csv_name(&format!("{clip}: {}", w.describe()))
+            }),
             o(m.range_worst.as_ref().map(|(_, w)| w.excess)),
         ];
         s.push_str(&cells.join(","));
