@@ -187,7 +187,7 @@ fn clips_scaled_to_their_bones_and_their_variants_are_rebuilt_from_the_base_mode
             .of_tensor_file(&plain.join(format!("{name}.npz")))
             .unwrap();
         assert!(rebuilt.warning.is_none());
-        let written = Model::from_osim_file(&files.join(format!("{name}.osim"))).unwrap();
+        let written = Model::from_osim_file(files.join(format!("{name}.osim"))).unwrap();
         let (a, b) = (&rebuilt.model, &written);
         assert_eq!(a.bodies.len(), b.bodies.len());
         for (x, y) in a.bodies.iter().zip(&b.bodies) {
