@@ -815,7 +815,7 @@ fn body_changing_variants_are_judged_on_their_own_model() {
         let r = clip["el_residual"].as_f64().unwrap();
         assert!(r < 1e-6, "{}: {r:e}", clip["clip"]);
     }
-    // the same variant judged on the base model: its residual is the body change
+    // the base model given: the variant's body is rebuilt from it (its identity says how)
     let default_model = dir.join("default.osim");
     std::fs::write(&default_model, musculo::DEFAULT_MODEL_OSIM).unwrap();
     let (ok, _, err) = musculo_cli(
@@ -825,8 +825,153 @@ fn body_changing_variants_are_judged_on_their_own_model() {
     assert!(ok, "{err}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rebuilt = report["clips"][0]["el_residual"].as_f64().unwrap();
+    assert!(rebuilt < 1e-6, "{rebuilt:e}");
+    // the same variant's arrays without their identity, judged on the base model: the
+    // residual is the body change, and a warning says the file did not name its model
+    let bare = dir.join("bare");
+    let arrays = musculo::motion::npy::read_npz_f32(&out.join("march_v1.npz")).unwrap();
+    let views: Vec<_> = arrays.iter().map(|(k, a)| (k.as_str(), a.view())).collect();
+    std::fs::create_dir_all(&bare).unwrap();
+    musculo::motion::npy::write_npz(&bare.join("march_v1.npz"), &views, false).unwrap();
+    let (ok, _, err) = musculo_cli(
+        "evaluate --input {} --model {} --out {}",
+        &[&bare.join("march_v1.npz"), &default_model, &json],
+    );
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("does not say which model it belongs to"),
+        "{err}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let on_base = report["clips"][0]["el_residual"].as_f64().unwrap();
-    println!("march_v1 on its own model: residual < 1e-6; on the base model {on_base:.3}");
+    println!(
+        "march_v1 on its own model: residual < 1e-6; without its identity on the base model {on_base:.3}"
+    );
     assert!(on_base > 1e-3, "{on_base}");
     let _ = std::fs::remove_dir_all(dir);
+}
+
+/// A generated motion's faults the other metrics can miss: a knee bent to −480° is flagged
+/// (its share of samples, the coordinate and value), and rates q̇, q̈ that agree with the
+/// torques but not with q itself leave the decoded residual at zero while the residual from q
+/// alone — checked against finite differences and inverse dynamics computed here — shows them.
+#[test]
+fn generated_faults_beyond_range_and_inconsistent_rates_are_flagged() {
+    let c = clips().into_iter().next().unwrap();
+    let model = &c.model;
+    let n = model.nq();
+    let t_count = c.frames.frames;
+    let o = EvaluateOptions::default();
+    let base = eval(&c, &c.frames, None, &o);
+    println!(
+        "{}: range share {}, EL residual {:.1e} (decoded), {:.1e} (from q)",
+        c.name,
+        base.range_share,
+        base.el_residual.unwrap(),
+        base.el_residual_from_q.unwrap()
+    );
+    assert_eq!(base.range_share, 0.0, "{:?}", base.range_worst);
+    assert!(base.range_worst.is_none());
+    // the knee at −480° in 7 frames
+    let knee = coordinate(model, "knee_angle_r");
+    let mut bent = c.frames.clone();
+    let bad_frames = [3, 4, 5, 10, 11, 12, 13];
+    for &f in &bad_frames {
+        bent.q[f * n + knee] = (-480.0f64).to_radians();
+    }
+    let m = eval(&c, &bent, None, &o);
+    let set = musculo::augment::chain::contact_set(model).unwrap();
+    let joints = n - set.floating_base.len();
+    let share = bad_frames.len() as f64 / (t_count * joints) as f64;
+    assert!(
+        (m.range_share - share).abs() < 1e-12,
+        "{} vs {share}",
+        m.range_share
+    );
+    let worst = m.range_worst.as_ref().unwrap();
+    assert_eq!(worst.coordinate, "knee_angle_r");
+    assert!((worst.value.to_degrees() + 480.0).abs() < 1e-9, "{worst:?}");
+    let [lo, _] = model.coordinates[model.reduction.independent[knee]].range;
+    assert!((worst.excess - (lo - worst.value)).abs() < 1e-12);
+    let summary = summarize(&[base.clone(), m.clone()]);
+    assert_eq!(summary.beyond_range_clips, 1);
+    let line: Vec<String> = summary
+        .columns()
+        .iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect();
+    let line = line.join(", ");
+    println!("{line}");
+    assert!(line.contains("beyond range 1 of 2 clips"), "{line}");
+    assert!(line.contains("knee_angle_r -480.0°"), "{line}");
+
+    // decoded rates at rest (q̇ = q̈ = 0) with the torques that hold each pose: consistent
+    // with τ, not with q
+    let mut data = Data::new(model);
+    let mut still = c.frames.clone();
+    still.lambda.clear();
+    still.contacts = 0;
+    still.qd = vec![0.0; t_count * n];
+    still.qdd = vec![0.0; t_count * n];
+    for f in 0..t_count {
+        let r = f * n..(f + 1) * n;
+        let tau = dynamics::rnea(
+            model,
+            &mut data,
+            &still.q[r.clone()],
+            &still.qd[r.clone()],
+            &still.qdd[r.clone()],
+        )
+        .unwrap()
+        .clone();
+        still.tau[r].copy_from_slice(tau.as_slice());
+    }
+    let s = eval(&c, &still, None, &o);
+    // q̇, q̈ by differences here (uniform steps: central inside, one-sided q̇ and the
+    // neighbour's q̈ at the ends), then r = ID(q, q̇, q̈) − τ relative to ‖ID‖
+    let h = (c.frames.time[t_count - 1] - c.frames.time[0]) / (t_count - 1) as f64;
+    let q = |f: usize, j: usize| still.q[f * n + j];
+    let mut relative = Vec::new();
+    for f in 0..t_count {
+        let (mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n]);
+        for j in 0..n {
+            let inner = f.clamp(1, t_count - 2);
+            qdd[j] = (q(inner + 1, j) - 2.0 * q(inner, j) + q(inner - 1, j)) / (h * h);
+            qd[j] = if f == 0 {
+                (q(1, j) - q(0, j)) / h
+            } else if f == t_count - 1 {
+                (q(f, j) - q(f - 1, j)) / h
+            } else {
+                (q(f + 1, j) - q(f - 1, j)) / (2.0 * h)
+            };
+        }
+        let id = dynamics::rnea(model, &mut data, &still.q[f * n..(f + 1) * n], &qd, &qdd)
+            .unwrap()
+            .clone();
+        let r: f64 = (0..n)
+            .map(|j| (id[j] - still.tau[f * n + j]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        relative.push(r / id.norm());
+    }
+    relative.sort_by(f64::total_cmp);
+    let k = t_count / 2;
+    let expected = if t_count % 2 == 1 {
+        relative[k]
+    } else {
+        0.5 * (relative[k - 1] + relative[k])
+    };
+    let (decoded, from_q) = (s.el_residual.unwrap(), s.el_residual_from_q.unwrap());
+    println!(
+        "rates at rest: EL residual {decoded:.1e} (decoded), {from_q:.3} (from q; {expected:.3} here)"
+    );
+    assert!(decoded < 1e-9, "{decoded:e}");
+    // (the file's times are float32: its steps differ from h by ~10⁻⁵ relative)
+    assert!(
+        (from_q - expected).abs() <= 1e-4 * expected,
+        "{from_q} vs {expected}"
+    );
+    assert!(from_q > 10.0 * base.el_residual_from_q.unwrap(), "{from_q}");
 }

@@ -134,8 +134,21 @@ pub type Result<T> = std::result::Result<T, LearnError>;
 impl ClipSet {
     /// Reads the tensor files `inputs` (files, or folders searched recursively for `.npz`
     /// files other than `stats.npz`) for `model`. A folder with a `manifest.json` of
-    /// `musculo augment` also tells which clips are variants with a changed body.
+    /// `musculo augment` also tells which clips are variants with a changed body; so does each
+    /// file's model identity ([`musculo::augment::identity`]): a clip scaled to its bones or
+    /// with a variant's body is not `model`'s body and is left out of the physics terms.
     pub fn read(inputs: &[PathBuf], model: &Model) -> Result<ClipSet> {
+        Self::read_for(inputs, model, None)
+    }
+
+    /// [`ClipSet::read`], with `model_hash` (the FNV-1a hash of the model file's text,
+    /// [`musculo::augment::output::fnv1a_hex`]) checked against each file's model identity: a
+    /// clip of another base model is refused, naming both.
+    pub fn read_for(
+        inputs: &[PathBuf],
+        model: &Model,
+        model_hash: Option<&str>,
+    ) -> Result<ClipSet> {
         let mut files = Vec::new();
         let mut variants = Vec::new();
         for input in inputs {
@@ -165,8 +178,9 @@ impl ClipSet {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
             let (clip, layout, rate) = read_clip(file, &name, model)?;
+            let own_body = own_body(file, model, model_hash)?.unwrap_or(true);
             let clip = Clip {
-                body_is_model: !variants.iter().any(|v| v == &name),
+                body_is_model: own_body && !variants.iter().any(|v| v == &name),
                 caption: crate::text::caption(&name, file, inputs)?,
                 ..clip
             };
@@ -285,6 +299,37 @@ fn read_clip(path: &Path, name: &str, model: &Model) -> Result<(Clip, FeatureLay
         caption: String::new(),
     };
     Ok((clip, layout, rate))
+}
+
+/// Whether the body the tensor file `path` records ([`musculo::augment::identity`]) is `model`
+/// itself: its own `<clip>.osim`, or its base model unscaled, without a variant's mass or
+/// load and at muscle strength 1. None when the file records no body. With `model_hash`, a
+/// file whose base model (or own `.osim`) has another hash is an error naming both.
+fn own_body(path: &Path, model: &Model, model_hash: Option<&str>) -> Result<Option<bool>> {
+    let Some(id) = musculo::augment::identity::read_identity(path)? else {
+        return Ok(None);
+    };
+    if let Some(hash) = model_hash {
+        if id.osim_hash.as_deref() == Some(hash) {
+            return Ok(Some(true));
+        }
+        if id.base.file_hash != hash {
+            return Err(LearnError::File {
+                path: path.to_path_buf(),
+                message: format!(
+                    "belongs to model {}, not to --model \"{}\" (hash {hash})",
+                    id.describe(),
+                    model.name
+                ),
+            });
+        }
+    }
+    Ok(Some(
+        id.scale.is_none()
+            && id.mass_scale == 1.0
+            && id.load_kg == 0.0
+            && id.base.muscle_strength == 1.0,
+    ))
 }
 
 fn collect_npz(dir: &Path, files: &mut Vec<PathBuf>) -> Result<()> {

@@ -243,6 +243,8 @@ pub struct ClipOutput {
     /// clip, and with a variant's mass scaling and carried load in its bodies' mass
     /// properties; None for an unscaled model that the variant leaves as it is.
     pub model_xml: Option<String>,
+    /// Which body the clip belongs to (written into its `.npz`; see [`super::identity`]).
+    pub identity: super::identity::ModelIdentity,
     pub warnings: Vec<String>,
 }
 
@@ -255,6 +257,8 @@ pub struct Chain {
     pub source: String,
     pub model: Model,
     pub options: ChainOptions,
+    /// The model file the clips' bodies are made from (their identities' base).
+    pub base: super::identity::BaseModel,
     scaled: scale_from_clip::ScaledModels,
     /// The activation dynamics of the base model's forces, by force index (None for a force
     /// that is not a muscle, or whose properties are an error): the same in every clip's
@@ -280,6 +284,7 @@ impl Chain {
                 format!("must be positive, got {}", options.reserve_optimal_force),
             ));
         }
+        let file_text = (options.muscle_strength != 1.0).then(|| xml.clone());
         let xml = if options.muscle_strength == 1.0 {
             xml
         } else {
@@ -298,6 +303,13 @@ impl Chain {
         };
         let model = Model::from_osim_str(&xml, &source)?;
         contact_set(&model)?;
+        let base = super::identity::BaseModel::new(
+            &model.name,
+            &source,
+            file_text.as_deref().unwrap_or(&xml),
+            options.muscle_strength,
+            &xml,
+        );
         let activation = (model.forces.iter())
             .map(|f| ActivationDynamics::from_muscle(f, f.file_or(&model.source)).ok())
             .collect();
@@ -306,6 +318,7 @@ impl Chain {
             source,
             model,
             options,
+            base,
             scaled: scale_from_clip::ScaledModels::new(),
             activation,
         })
@@ -325,13 +338,15 @@ impl Chain {
         Ok(self.clip_model_and_xml(motion, map, variant)?.0)
     }
 
-    /// [`Chain::clip_model`] and, when it was scaled, the scaled model's XML.
+    /// [`Chain::clip_model`], when it was scaled with `opensim_files` the scaled model's XML,
+    /// and the clip's model identity.
     fn clip_model_and_xml(
         &self,
         motion: &Motion,
         map: Option<&SkeletonMap>,
         variant: &Variant,
-    ) -> crate::Result<(Model, Option<String>)> {
+    ) -> crate::Result<(Model, Option<String>, super::identity::ModelIdentity)> {
+        let mut scale = None;
         let (mut model, xml) = match map {
             Some(map) if self.options.scale_to_clip && !map.segments.is_empty() => {
                 let s = scale_from_clip::scale_to_clip_shared(
@@ -347,13 +362,19 @@ impl Chain {
                 } else {
                     None
                 };
+                scale = Some((s.scales, super::output::fnv1a_hex(&s.scaled_xml)));
                 (s.model, xml)
             }
             _ => (self.model.clone(), None),
         };
         add_reserves(&mut model, self.options.reserve_optimal_force);
         variant.apply_to_model(&mut model)?;
-        Ok((model, xml))
+        let identity = super::identity::ModelIdentity::new(
+            &self.base,
+            scale.as_ref().map(|(set, hash)| (set, hash.clone())),
+            variant,
+        );
+        Ok((model, xml, identity))
     }
 
     /// Runs the chain on one clip (`motion` as read, `map` from its skeleton to the model's
@@ -389,7 +410,7 @@ impl Chain {
         }
         let mut warnings = Vec::new();
         let motion = variant.apply_to_motion(motion)?;
-        let (model, scaled_xml) = self.clip_model_and_xml(&motion, map, variant)?;
+        let (model, scaled_xml, mut identity) = self.clip_model_and_xml(&motion, map, variant)?;
         let (targets, tasks) = match map {
             Some(map) => map.apply(&model, &motion)?,
             None => {
@@ -773,11 +794,13 @@ impl Chain {
         }
         check_finite(&arrays)?;
         quality.verdict = Some(verdict::judge(&quality));
+        identity.osim_hash = model_xml.as_deref().map(super::output::fnv1a_hex);
         Ok(ClipOutput {
             arrays,
             quality,
             tables,
             model_xml,
+            identity,
             warnings,
         })
     }

@@ -15,6 +15,7 @@
 pub mod chain;
 pub mod dataset;
 pub mod demo;
+pub mod identity;
 pub mod layout;
 pub mod layout_inverse;
 pub mod layout_inverse_vjp;

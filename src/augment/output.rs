@@ -18,7 +18,7 @@
 //! Every file is written atomically (temporary file, sync, rename). A process killed
 //! mid-write leaves a hidden temporary file (`.<name>.tmp-…`), which the next run removes.
 
-use super::chain::{Array, ClipQuality};
+use super::chain::{Array, ClipOutput, ClipQuality};
 use super::layout::BlockRange;
 use super::perturb::{PerturbationRanges, Variant};
 use super::verdict::{ClipVerdict, Verdict};
@@ -69,6 +69,11 @@ pub struct RunDescription {
     /// The HumanML3D / KIT-ML roots the clips came from (none for files and plain folders).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub datasets: Vec<super::dataset::DatasetDescription>,
+    /// The model file the clips' bodies are made from: its source, absolute path (none for
+    /// the built-in model) and hashes (None in manifests written before it existed). Each
+    /// clip's `.npz` records its own body beside it ([`super::identity`]).
+    #[serde(default)]
+    pub base_model: Option<super::identity::BaseModel>,
 }
 
 fn unit_strength() -> f64 {
@@ -419,8 +424,25 @@ fn create_parent(path: &Path) -> crate::Result<()> {
     Ok(())
 }
 
-/// Writes a clip's arrays as `<clip>.npz` (uncompressed, so equal arrays give equal bytes).
+/// Writes a clip's arrays as `<clip>.npz` (uncompressed, so equal arrays give equal bytes),
+/// without a model identity ([`write_clip_output`] writes one).
 pub fn write_clip(out: &Path, clip: &str, arrays: &[Array]) -> crate::Result<()> {
+    write_clip_with_identity(out, clip, arrays, None)
+}
+
+/// Writes a clip's arrays and its model identity ([`super::identity`], the text member
+/// `model_identity`) as `<clip>.npz`.
+pub fn write_clip_output(out: &Path, clip: &str, output: &ClipOutput) -> crate::Result<()> {
+    write_clip_with_identity(out, clip, &output.arrays, Some(&output.identity.to_json()))
+}
+
+/// [`write_clip`] with the clip's model identity as JSON text.
+pub fn write_clip_with_identity(
+    out: &Path,
+    clip: &str,
+    arrays: &[Array],
+    identity: Option<&str>,
+) -> crate::Result<()> {
     let path = npz_path(out, clip);
     create_parent(&path)?;
     let owned: Vec<(&str, ArrayD<f32>)> = arrays
@@ -433,7 +455,11 @@ pub fn write_clip(out: &Path, clip: &str, arrays: &[Array]) -> crate::Result<()>
         .collect::<crate::Result<_>>()?;
     let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
         owned.iter().map(|(n, a)| (*n, a.view())).collect();
-    npy::write_npz(&path, &views, false)
+    let texts: Vec<(&str, &str)> = identity
+        .map(|t| (super::identity::MEMBER, t))
+        .into_iter()
+        .collect();
+    npy::write_npz_with_texts(&path, &views, &texts, false)
 }
 
 /// Writes a clip's OpenSim files beside its `.npz`: `<clip><suffix>` for each table, and

@@ -434,7 +434,7 @@ pub fn run(
             if let Some(text) = &job.text {
                 dataset::copy_text(text, &dataset::text_path(&options.out, &job.record.clip))?;
             }
-            output::write_clip(&options.out, &job.record.clip, &out.arrays)?;
+            output::write_clip_output(&options.out, &job.record.clip, out)?;
             output::write_opensim_files(
                 &options.out,
                 &job.record.clip,
@@ -609,6 +609,7 @@ pub fn run_description(chain: &Chain, options: &RunOptions) -> RunDescription {
         scale_to_clip: chain.options.scale_to_clip,
         muscle_strength: chain.options.muscle_strength,
         datasets: options.datasets.iter().map(DatasetRoot::describe).collect(),
+        base_model: Some(chain.base.clone()),
     }
 }
 

@@ -1,7 +1,7 @@
 //! The metrics of one clip (definitions in the module documentation of [`super`]).
 
 use super::capacity::{CapacityCurves, capacity_at, isometric_forces};
-use super::{ClipMetrics, EvaluateOptions};
+use super::{ClipMetrics, EvaluateOptions, RangeExcess};
 use crate::dynamics::{self, Data};
 use crate::loss::tensor_file::{TensorFrames, residual_of};
 use crate::model::Model;
@@ -258,6 +258,20 @@ pub fn evaluate_clip(
     } else {
         Some(median(&residual_of(model, frames)?.frame_relative))
     };
+    // the same residual with q̇, q̈ differentiated from q alone
+    let el_residual_from_q = match el_residual {
+        Some(_) => {
+            let (qd, qdd) = differentiate(&frames.q, &frames.time, n);
+            let from_q = TensorFrames {
+                qd,
+                qdd,
+                ..frames.clone()
+            };
+            Some(median(&residual_of(model, &from_q)?.frame_relative))
+        }
+        None => None,
+    };
+    let (range_share, range_worst) = beyond_range(model, &frames.q, &joints, options);
     let mut metrics = ClipMetrics {
         clip: name.to_string(),
         frames: t_count,
@@ -275,6 +289,9 @@ pub fn evaluate_clip(
         penetrate: depth.iter().sum::<f64>() / t_count as f64,
         penetrate_max: depth.iter().fold(0.0, |a, b| a.max(*b)),
         el_residual,
+        el_residual_from_q,
+        range_share,
+        range_worst,
         layout_fit_error: frames.layout_error,
         ..ClipMetrics::default()
     };
@@ -456,6 +473,83 @@ fn skating(
 }
 
 /// The median of `values` (0 for none).
+/// q̇ and q̈ of the T × n coordinates `q` sampled at `time`, by finite differences: inside,
+/// the three-point formulas for unequal steps h₋ = t_i − t_{i−1}, h₊ = t_{i+1} − t_i,
+///
+///   q̇_i = (h₋² q_{i+1} + (h₊² − h₋²) q_i − h₊² q_{i−1}) / (h₋ h₊ (h₋ + h₊)),
+///   q̈_i = 2 (h₋ q_{i+1} − (h₋ + h₊) q_i + h₊ q_{i−1}) / (h₋ h₊ (h₋ + h₊))
+///
+/// (second-order accurate; the familiar central differences for equal steps); at the ends
+/// q̇ from the one-sided difference and q̈ copied from the neighbour (q̈ = 0 for two frames).
+pub fn differentiate(q: &[f64], time: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
+    let t_count = time.len();
+    let (mut qd, mut qdd) = (vec![0.0; t_count * n], vec![0.0; t_count * n]);
+    if t_count < 2 {
+        return (qd, qdd);
+    }
+    for i in 1..t_count - 1 {
+        let (hm, hp) = (time[i] - time[i - 1], time[i + 1] - time[i]);
+        let d = hm * hp * (hm + hp);
+        for j in 0..n {
+            let (a, b, c) = (q[(i - 1) * n + j], q[i * n + j], q[(i + 1) * n + j]);
+            qd[i * n + j] = (hm * hm * c + (hp * hp - hm * hm) * b - hp * hp * a) / d;
+            qdd[i * n + j] = 2.0 * (hm * c - (hm + hp) * b + hp * a) / d;
+        }
+    }
+    let last = t_count - 1;
+    for j in 0..n {
+        qd[j] = (q[n + j] - q[j]) / (time[1] - time[0]);
+        qd[last * n + j] =
+            (q[last * n + j] - q[(last - 1) * n + j]) / (time[last] - time[last - 1]);
+        if t_count > 2 {
+            qdd[j] = qdd[n + j];
+            qdd[last * n + j] = qdd[(last - 1) * n + j];
+        }
+    }
+    (qd, qdd)
+}
+
+/// The share of (frame, joint coordinate) samples of `q` beyond their coordinate's range by
+/// more than the tolerance (`range_tolerance` of the range's width), and the farthest one.
+fn beyond_range(
+    model: &Model,
+    q: &[f64],
+    joints: &[usize],
+    options: &EvaluateOptions,
+) -> (f64, Option<RangeExcess>) {
+    let n = model.nq();
+    let t_count = q.len() / n.max(1);
+    let (mut beyond, mut samples) = (0usize, 0usize);
+    let mut worst: Option<RangeExcess> = None;
+    for &j in joints {
+        let c = &model.coordinates[model.reduction.independent[j]];
+        let [lo, hi] = c.range;
+        if !(lo.is_finite() && hi.is_finite() && hi >= lo) {
+            continue;
+        }
+        let tolerance = options.range_tolerance * (hi - lo);
+        for f in 0..t_count {
+            let v = q[f * n + j];
+            samples += 1;
+            let excess = (lo - v).max(v - hi);
+            if excess > tolerance {
+                beyond += 1;
+                if worst.as_ref().is_none_or(|w| excess > w.excess) {
+                    worst = Some(RangeExcess {
+                        coordinate: c.name.clone(),
+                        frame: f,
+                        value: v,
+                        range: c.range,
+                        excess,
+                        rotational: c.motion_type == crate::model::MotionType::Rotational,
+                    });
+                }
+            }
+        }
+    }
+    (beyond as f64 / samples.max(1) as f64, worst)
+}
+
 fn median(values: &[f64]) -> f64 {
     if values.is_empty() {
         return 0.0;

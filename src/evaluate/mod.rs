@@ -74,6 +74,19 @@
 //!   it, `trajectory_error` the mean e. The set's column is the share of clips that failed
 //!   (FlexMotion's "ratio of unsuccessful trajectories").
 //!
+//! - **Beyond range**: the share of (frame, joint coordinate) samples whose q lies outside its
+//!   coordinate's range [min, max] in the model by more than `range_tolerance` (1 %) of the
+//!   range's width (`range_share`), and the farthest one (`range_worst`: coordinate, frame,
+//!   value, range). A generated motion with a knee at −480° is flagged here whatever its other
+//!   figures; IK keeps an augmented clip within the ranges, and the tolerance leaves it the
+//!   float32 rounding and the low-pass filter's small overshoot. The set counts the clips with
+//!   any sample beyond (of all clips) and names the farthest.
+//! - **Euler–Lagrange residual from q**: the residual above with q̇, q̈ differentiated from q
+//!   at the file's times ([`differentiate`]: three-point differences) instead of the file's
+//!   `qd`, `qdd` (`el_residual_from_q`). A motion whose decoded rates are consistent with
+//!   its torques but not with its own trajectory has a small `el_residual` and a large one
+//!   here; for an augmented clip the two differ by the differentiation's error.
+//!
 //! The set summary ([`summarize`]) weighs per-frame metrics by frames (a long clip counts by
 //! its length), takes optional metrics over the clips that have them, and the trajectory
 //! failure as the share of controlled clips that failed.
@@ -83,7 +96,7 @@ mod clip;
 mod set;
 
 pub use capacity::{CapacityCurves, capacity_at, isometric_forces};
-pub use clip::{Capacity, Control, evaluate_clip};
+pub use clip::{Capacity, Control, differentiate, evaluate_clip};
 pub use set::{ClipFile, SetOptions, SetReport, collect, evaluate_set, model_of};
 
 use crate::io::text::short_number;
@@ -127,6 +140,9 @@ pub struct EvaluateOptions {
     /// muscle forces) instead of the joint strength curves: exact, but a muscle-path
     /// evaluation per frame. Default false.
     pub muscles_per_frame: bool,
+    /// A joint coordinate counts as beyond its range when it passes an end by more than this
+    /// share of the range's width. Default 0.01.
+    pub range_tolerance: f64,
 }
 
 impl Default for EvaluateOptions {
@@ -140,6 +156,7 @@ impl Default for EvaluateOptions {
             support_threshold: 0.2,
             control_threshold: 0.5,
             muscles_per_frame: false,
+            range_tolerance: 0.01,
         }
     }
 }
@@ -178,6 +195,12 @@ impl EvaluateOptions {
                 self.control_threshold,
                 self.control_threshold > 0.0,
                 "> 0 m".into(),
+            ),
+            (
+                "range_tolerance",
+                self.range_tolerance,
+                self.range_tolerance >= 0.0,
+                "≥ 0".into(),
             ),
         ];
         for (name, value, ok, range) in checks {
@@ -235,11 +258,25 @@ pub struct ClipMetrics {
     pub activation_excess: Option<f64>,
     pub reserve_share: Option<f64>,
     pub el_residual: Option<f64>,
+    /// The same residual with q̇ and q̈ differentiated from q ([`differentiate`]) instead of
+    /// the file's: a generated motion whose q̇, q̈ disagree with its q shows here.
+    #[serde(default)]
+    pub el_residual_from_q: Option<f64>,
+    /// Share of the (frame, joint coordinate) samples beyond their coordinate's range.
+    #[serde(default)]
+    pub range_share: f64,
+    /// The sample farthest beyond its range.
+    #[serde(default)]
+    pub range_worst: Option<RangeExcess>,
     /// For a layout-only file: the largest joint-rotation error of the coordinate fit (rad).
     pub layout_fit_error: Option<f64>,
     pub trajectory_failed: Option<bool>,
     pub location_failure: Option<f64>,
     pub trajectory_error: Option<f64>,
+    /// What makes the clip's figures less certain (e.g. a file that does not say which model
+    /// it belongs to).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl ClipMetrics {
@@ -253,6 +290,39 @@ impl ClipMetrics {
     /// activation excess otherwise.
     pub fn muscle_limit(&self) -> Option<f64> {
         self.reserve_share.or(self.activation_excess)
+    }
+}
+
+/// A coordinate value beyond the model's range for it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RangeExcess {
+    pub coordinate: String,
+    pub frame: usize,
+    /// The value (rad or m).
+    pub value: f64,
+    /// The coordinate's range [min, max] (rad or m).
+    pub range: [f64; 2],
+    /// How far beyond the range (rad or m).
+    pub excess: f64,
+    pub rotational: bool,
+}
+
+impl RangeExcess {
+    /// `knee_angle_r −480.0° (range 0.0…120.0°, frame 12)`.
+    pub fn describe(&self) -> String {
+        let (k, unit) = if self.rotational {
+            (180.0 / std::f64::consts::PI, "°")
+        } else {
+            (1.0, " m")
+        };
+        format!(
+            "{} {:.1}{unit} (range {:.1}…{:.1}{unit}, frame {})",
+            self.coordinate,
+            k * self.value,
+            k * self.range[0],
+            k * self.range[1],
+            self.frame
+        )
     }
 }
 
@@ -271,6 +341,20 @@ pub struct SetSummary {
     pub el_residual: Option<f64>,
     /// Share of the controlled clips whose trajectory failed.
     pub trajectory: Option<f64>,
+    /// [`ClipMetrics::el_residual_from_q`] over the clips that have it (weighed by frames),
+    /// and how many do.
+    #[serde(default)]
+    pub el_residual_from_q: Option<f64>,
+    #[serde(default)]
+    pub el_residual_clips: usize,
+    /// Clips with a coordinate beyond its range, the share of all samples beyond, and the
+    /// farthest sample (clip, excess).
+    #[serde(default)]
+    pub beyond_range_clips: usize,
+    #[serde(default)]
+    pub range_share: f64,
+    #[serde(default)]
+    pub range_worst: Option<(String, RangeExcess)>,
     /// Clips ordered by their Euler–Lagrange residual, worst first (at most 5).
     pub worst_residual: Vec<(String, f64)>,
 }
@@ -298,6 +382,27 @@ impl SetSummary {
             ("Muscle limit", o(self.muscle_limit, &|v| format!("{v:.3}"))),
             ("EL residual", o(self.el_residual, &|v| format!("{v:.1e}"))),
             ("Trajectory", o(self.trajectory, &|v| format!("{v:.3}"))),
+            (
+                "EL residual from q",
+                o(self.el_residual_from_q, &|v| {
+                    format!("{v:.1e} (of {} clip(s))", self.el_residual_clips)
+                }),
+            ),
+            (
+                "beyond range",
+                format!(
+                    "{} of {} clips ({:.2} % of samples{})",
+                    self.beyond_range_clips,
+                    self.clips,
+                    100.0 * self.range_share,
+                    self.range_worst
+                        .as_ref()
+                        .map_or(String::new(), |(clip, w)| format!(
+                            "; worst {} in {clip}",
+                            w.describe()
+                        ))
+                ),
+            ),
         ]
     }
 }
@@ -330,6 +435,9 @@ pub fn summarize(clips: &[ClipMetrics]) -> SetSummary {
         .collect();
     worst.sort_by(|a, b| b.1.total_cmp(&a.1));
     worst.truncate(5);
+    let range_worst = (clips.iter())
+        .filter_map(|c| c.range_worst.as_ref().map(|w| (c.clip.clone(), w.clone())))
+        .max_by(|a, b| a.1.excess.total_cmp(&b.1.excess));
     SetSummary {
         clips: clips.len(),
         frames,
@@ -344,5 +452,13 @@ pub fn summarize(clips: &[ClipMetrics]) -> SetSummary {
         trajectory: (!controlled.is_empty())
             .then(|| controlled.iter().filter(|f| **f).count() as f64 / controlled.len() as f64),
         worst_residual: worst,
+        el_residual_from_q: mean_of(&|c| c.el_residual_from_q),
+        el_residual_clips: clips
+            .iter()
+            .filter(|c| c.el_residual_from_q.is_some())
+            .count(),
+        beyond_range_clips: clips.iter().filter(|c| c.range_worst.is_some()).count(),
+        range_share: weighted(&|c| c.range_share),
+        range_worst,
     }
 }

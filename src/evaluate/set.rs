@@ -6,6 +6,7 @@ use super::{
     summarize,
 };
 use crate::augment::chain::{Chain, ChainOptions};
+use crate::augment::identity::{Bodies, ClipBody};
 use crate::augment::perturb::Variant;
 use crate::error::Error;
 use crate::loss::tensor_file::TensorFrames;
@@ -13,8 +14,10 @@ use crate::model::Model;
 use crate::motion::skeleton::SkeletonMap;
 use crate::motion::{Format, ReadOptions};
 use rayon::prelude::*;
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 /// One clip of the set: its name (the path below the folder given, without its extension;
 /// the file stem for a file given directly), its file, and for a motion file (not a tensor
@@ -115,9 +118,10 @@ pub fn collect(inputs: &[PathBuf], format: Option<Format>) -> crate::Result<Vec<
 /// Settings of [`evaluate_set`].
 #[derive(Clone, Debug, Default)]
 pub struct SetOptions {
-    /// The model of every clip; None: `<clip>.osim` beside the clip's file when there is one
-    /// (what `augment --opensim-files` writes for a clip scaled to its bone lengths), else
-    /// the built-in default model.
+    /// `--model`: for a tensor file, its base model or its own `<clip>.osim` (any other model
+    /// is refused, naming both); None: the body its model identity names
+    /// ([`crate::augment::identity`]). For motion files, the model they are fitted on (None:
+    /// the built-in default model).
     pub model: Option<PathBuf>,
     /// A folder holding `<clip>.npz` references (the same names).
     pub reference: Option<PathBuf>,
@@ -157,12 +161,8 @@ pub fn evaluate_set(
     options.metrics.validate()?;
     let shared = Shared {
         options,
-        model: match &options.model {
-            Some(p) => Some(Model::from_osim_file(p)?),
-            None => None,
-        },
-        default: std::sync::OnceLock::new(),
-        curves: std::sync::OnceLock::new(),
+        bodies: Bodies::new(options.model.as_deref())?,
+        curves: Mutex::new(VecDeque::new()),
         chain: std::sync::OnceLock::new(),
     };
     let done = AtomicUsize::new(0);
@@ -187,16 +187,14 @@ pub fn evaluate_set(
     Ok(report)
 }
 
-/// The model of `clip`: `model` when given, else `<clip>.osim` beside the clip's file when
-/// there is one, else the built-in default model.
-pub fn model_of(clip: &ClipFile, model: Option<&Path>) -> crate::Result<Model> {
-    let beside = clip.path.with_extension("osim");
-    match model {
-        Some(p) => Model::from_osim_file(p),
-        None if beside.is_file() => Model::from_osim_file(&beside),
-        None => Ok(Model::default_fullbody()),
-    }
+/// The body of the tensor file `clip` ([`Bodies::of_tensor_file`]: the one its model identity
+/// names, `--model` checked against it).
+pub fn model_of(clip: &ClipFile, bodies: &Bodies) -> crate::Result<ClipBody> {
+    bodies.of_tensor_file(&clip.path)
 }
+
+/// Joint strength curves kept per body.
+const CURVES_HELD: usize = 8;
 
 /// The joint strength curves of `model` (skipping its floating base).
 fn curves_of(model: &Model) -> crate::Result<CapacityCurves> {
@@ -208,11 +206,10 @@ fn curves_of(model: &Model) -> crate::Result<CapacityCurves> {
 /// chain for motion files.
 struct Shared<'a> {
     options: &'a SetOptions,
-    /// `--model`, read once.
-    model: Option<Model>,
-    default: std::sync::OnceLock<Model>,
-    /// The curves of the model every tensor clip shares (errors as text: they are shared).
-    curves: std::sync::OnceLock<Result<CapacityCurves, String>>,
+    /// The tensor files' bodies (`--model` read once).
+    bodies: Bodies,
+    /// The curves of the last bodies, by body key (errors as text: they are shared).
+    curves: Mutex<VecDeque<(String, Arc<Result<CapacityCurves, String>>)>>,
     chain: std::sync::OnceLock<Result<Chain, String>>,
 }
 
@@ -221,7 +218,9 @@ impl Shared<'_> {
         let shared_error = |e: &String| Error::invalid("model", e.clone());
         // the frames, the model they belong to, and how capacities are found
         let own_model;
-        let own_curves;
+        let body;
+        let curves;
+        let mut warnings = Vec::new();
         let (frames, model, capacity) = match clip.format {
             Some(format) => {
                 let chain = self
@@ -256,29 +255,15 @@ impl Shared<'_> {
                 (frames, &own_model, Capacity::PerFrame)
             }
             None => {
-                let beside = clip.path.with_extension("osim");
-                let (model, shared) = match &self.model {
-                    Some(m) => (m, true),
-                    None if beside.is_file() => {
-                        own_model = Model::from_osim_file(&beside)?;
-                        (&own_model, false)
-                    }
-                    None => (self.default.get_or_init(Model::default_fullbody), true),
-                };
-                // one set of curves for the model the clips share; a clip's own model
-                // gets its own
+                body = self.bodies.of_tensor_file(&clip.path)?;
+                warnings.extend(body.warning.clone());
+                let model: &Model = &body.model;
+                // one set of curves per body (clips of one skeleton and variant share it)
                 let capacity = if self.options.metrics.muscles_per_frame {
                     Capacity::PerFrame
-                } else if shared {
-                    let curves = self
-                        .curves
-                        .get_or_init(|| curves_of(model).map_err(|e| e.to_string()))
-                        .as_ref()
-                        .map_err(shared_error)?;
-                    Capacity::Curves(curves)
                 } else {
-                    own_curves = curves_of(model)?;
-                    Capacity::Curves(&own_curves)
+                    curves = self.curves_of(&body);
+                    Capacity::Curves(curves.as_ref().as_ref().map_err(shared_error)?)
                 };
                 (TensorFrames::read(&clip.path, model)?, model, capacity)
             }
@@ -302,7 +287,7 @@ impl Shared<'_> {
             Some(dir) => Some(Control::read(&find(dir, "control")?, model)?),
             None => None,
         };
-        evaluate_clip(
+        let mut metrics = evaluate_clip(
             model,
             &clip.name,
             &frames,
@@ -310,7 +295,24 @@ impl Shared<'_> {
             control.as_ref(),
             capacity,
             &self.options.metrics,
-        )
+        )?;
+        metrics.warnings.extend(warnings);
+        Ok(metrics)
+    }
+
+    /// The joint strength curves of `body`: held, or computed and kept.
+    fn curves_of(&self, body: &ClipBody) -> Arc<Result<CapacityCurves, String>> {
+        let lock = || self.curves.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, c)) = lock().iter().find(|(k, _)| k == &body.key) {
+            return Arc::clone(c);
+        }
+        let made = Arc::new(curves_of(&body.model).map_err(|e| e.to_string()));
+        let mut held = lock();
+        if held.len() == CURVES_HELD {
+            held.pop_front();
+        }
+        held.push_back((body.key.clone(), Arc::clone(&made)));
+        made
     }
 
     /// The augmentation chain without muscles, on `--model` or the default model.
@@ -336,7 +338,8 @@ impl Shared<'_> {
 const CSV_COLUMNS: &str = "clip,frames,rate_hz,body_mass,support_fraction,skate,skate_speed,\
 float,float_max,penetrate,penetrate_max,contact_force,joint_actuation,muscle_limit,el_residual,\
 trajectory,location_failure,trajectory_error,actuation_excess,actuation_over,actuation_peak,\
-actuation_error,activation_excess,reserve_share,layout_fit_error";
+actuation_error,activation_excess,reserve_share,layout_fit_error,el_residual_from_q,range_share,\
+range_worst,range_excess";
 
 impl SetReport {
     /// One row per evaluated clip, then a row `(set)` with the summary in FlexMotion's columns
@@ -373,6 +376,12 @@ impl SetReport {
                 o(c.activation_excess),
                 o(c.reserve_share),
                 o(c.layout_fit_error),
+                o(c.el_residual_from_q),
+                format!("{:e}", c.range_share),
+                c.range_worst
+                    .as_ref()
+                    .map_or(String::new(), |w| csv_name(&w.describe())),
+                o(c.range_worst.as_ref().map(|w| w.excess)),
             ];
             s.push_str(&cells.join(","));
             s.push('\n');
@@ -395,6 +404,21 @@ impl SetReport {
             o(m.muscle_limit),
             o(m.el_residual),
             o(m.trajectory),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            o(m.el_residual_from_q),
+            format!("{:e}", m.range_share),
+            m.range_worst.as_ref().map_or(String::new(), |(clip, w)| {
+                csv_name(&format!("{clip}: {}", w.describe()))
+            }),
+            o(m.range_worst.as_ref().map(|(_, w)| w.excess)),
         ];
         s.push_str(&cells.join(","));
         s.push_str(&",".repeat(CSV_COLUMNS.split(',').count() - cells.len()));

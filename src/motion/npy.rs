@@ -243,11 +243,45 @@ fn read_npz_with<T>(
             .map_err(|e| motion_error(&source, &format!("archive member {i}"), e.to_string()))?;
         let name = member.name().to_string();
         read_member(&mut member, &source, &name, &mut bytes)?;
+        if is_text(&bytes) {
+            continue;
+        }
         let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
         let array = parse(&bytes, &format!("{source} [{name}]"))?;
         out.push((key, array));
     }
     Ok(out)
+}
+
+/// Whether the `.npy` bytes hold a text member (a 1-D `uint8` array, see [`write_npz_with_texts`]).
+fn is_text(bytes: &[u8]) -> bool {
+    ndarray::ArrayView1::<u8>::view_npy(bytes).is_ok()
+}
+
+/// The text member `name` of an `.npz` archive ([`write_npz_with_texts`]), None when the
+/// archive has no member of that name; an error when it is not UTF-8 bytes.
+pub fn read_npz_text(path: &Path, name: &str) -> crate::Result<Option<String>> {
+    let (source, mut zip) = open_npz(path)?;
+    let member_name = format!("{name}.npy");
+    let mut member = match zip.by_name(&member_name) {
+        Ok(m) => m,
+        Err(zip::result::ZipError::FileNotFound) => return Ok(None),
+        Err(e) => {
+            return Err(motion_error(
+                &source,
+                &format!("archive member \"{member_name}\""),
+                e.to_string(),
+            ));
+        }
+    };
+    let mut bytes = Vec::new();
+    read_member(&mut member, &source, &member_name, &mut bytes)?;
+    let location = format!("archive member \"{member_name}\"");
+    let text = ndarray::ArrayView1::<u8>::view_npy(&bytes)
+        .map_err(|e| view_error(e, &source, "uint8 ('|u1') text"))?;
+    String::from_utf8(text.to_vec())
+        .map(Some)
+        .map_err(|e| motion_error(&source, &location, format!("not UTF-8 text: {e}")))
 }
 
 /// Reads every array of an `.npz` archive holding little-endian `A` data.
@@ -318,8 +352,23 @@ pub fn write_npz<A: NpyFloat>(
     arrays: &[(&str, ArrayViewD<'_, A>)],
     compressed: bool,
 ) -> crate::Result<()> {
-    for (i, (name, _)) in arrays.iter().enumerate() {
-        if name.is_empty() || arrays[..i].iter().any(|(n, _)| n == name) {
+    write_npz_with_texts(path, arrays, &[], compressed)
+}
+
+/// [`write_npz`] with text members: each (name, text) is stored as a 1-D `uint8` array of
+/// the text's UTF-8 bytes (`bytes(np.load(path)[name]).decode()` gives it back). The readers
+/// of float arrays here leave text members out; [`read_npz_text`] reads one.
+pub fn write_npz_with_texts<A: NpyFloat>(
+    path: &Path,
+    arrays: &[(&str, ArrayViewD<'_, A>)],
+    texts: &[(&str, &str)],
+    compressed: bool,
+) -> crate::Result<()> {
+    let names: Vec<&str> = (arrays.iter().map(|(n, _)| *n))
+        .chain(texts.iter().map(|(n, _)| *n))
+        .collect();
+    for (i, name) in names.iter().enumerate() {
+        if name.is_empty() || names[..i].contains(name) {
             return Err(Error::invalid(
                 "arrays",
                 format!("array names must be unique and non-empty (\"{name}\")"),
@@ -335,6 +384,10 @@ pub fn write_npz<A: NpyFloat>(
     };
     for (name, array) in arrays {
         npz.add_array(*name, &array.as_standard_layout())
+            .map_err(|e| write_error(path, e))?;
+    }
+    for (name, text) in texts {
+        npz.add_array(*name, &ndarray::ArrayView1::from(text.as_bytes()))
             .map_err(|e| write_error(path, e))?;
     }
     let mut writer = npz.finish().map_err(|e| write_error(path, e))?;

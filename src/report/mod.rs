@@ -759,6 +759,7 @@ pub fn write_report(
 ) -> crate::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     if pages {
+        let bodies = crate::augment::identity::Bodies::new(options.model.as_deref())?;
         let done = AtomicUsize::new(0);
         let evaluated: Vec<(&ClipFile, &ClipMetrics)> = report
             .clips
@@ -773,7 +774,7 @@ pub fn write_report(
         let files: Vec<crate::Result<PathBuf>> = evaluated
             .par_iter()
             .map(|(clip, metrics)| {
-                let model = model_of(clip, options.model.as_deref())?;
+                let model = model_of(clip, &bodies)?.model;
                 let reference = options
                     .reference
                     .as_ref()

@@ -99,6 +99,9 @@ pub struct ClipScaling {
     pub source: String,
     /// Per map segment: its name and factor.
     pub factors: Vec<(String, f64)>,
+    /// The per-body factors the model was scaled by: with the base model they rebuild its
+    /// body ([`scale_by`]).
+    pub scales: ScaleSet,
     /// Per placed marker: its name and its location in its body before and after placement.
     pub placed: Vec<(String, Vec3, Vec3)>,
 }
@@ -272,7 +275,19 @@ pub fn scale_to_clip(
     let factors = segment_factors(model, map, clip)?;
     let scales = clip_scale_set(model, map, &factors)?;
     let scaled = scale_osim(xml, source, model, &scales, &clip_scale_options())?;
-    place_on_clip(Shared::from(scaled), source, map, clip, factors)
+    place_on_clip(Shared::from(scaled), source, map, clip, factors, scales)
+}
+
+/// `model` (whose file text is `xml`, named `source`) scaled by the per-body factors `scales`
+/// as [`scale_to_clip`] scales it (masses kept), before its markers are placed on a clip:
+/// the body of a clip scaled by augment, rebuilt from its [`ClipScaling::scales`].
+pub fn scale_by(
+    xml: &str,
+    source: &str,
+    model: &Model,
+    scales: &ScaleSet,
+) -> crate::Result<ScaledModel> {
+    scale_osim(xml, source, model, scales, &clip_scale_options())
 }
 
 /// [`scale_to_clip`] with the segment factors rounded to [`SHARED_FACTOR_GRID`], and the
@@ -301,7 +316,7 @@ pub fn scale_to_clip_shared(
     let scaled = shared.get_or_insert(&key, || {
         scale_osim(xml, source, model, &key.scales, &clip_scale_options()).map(Shared::from)
     })?;
-    place_on_clip((*scaled).clone(), source, map, clip, factors)
+    place_on_clip((*scaled).clone(), source, map, clip, factors, key.scales)
 }
 
 /// Grid of the segment factors in [`scale_to_clip_shared`]: 1e-4, a bone's length to within
@@ -455,6 +470,7 @@ fn place_on_clip(
     map: &SkeletonMap,
     clip: &Motion,
     factors: Vec<(String, f64)>,
+    scales: ScaleSet,
 ) -> crate::Result<ClipScaling> {
     let Shared {
         xml: scaled_xml,
@@ -468,6 +484,7 @@ fn place_on_clip(
         model: fitted,
         source: source.to_string(),
         factors,
+        scales,
         placed,
     })
 }

@@ -257,6 +257,24 @@ fn load_model(path: Option<&Path>) -> Result<(Model, String), LearnError> {
     Ok((model, musculo::augment::output::fnv1a_hex(&xml)))
 }
 
+/// The clips of `data` for `model` (file hash `hash`: a clip of another model is refused),
+/// saying on stderr how many belong to another body (scaled to their bones, or a variant's
+/// mass or load) and are left out of the physics terms, which take one model.
+fn read_set(data: &[PathBuf], model: &Model, hash: &str) -> Result<ClipSet, LearnError> {
+    let set = ClipSet::read_for(data, model, Some(hash))?;
+    let other = set.clips.iter().filter(|c| !c.body_is_model).count();
+    if other > 0 {
+        eprintln!(
+            "warning: {other} of {} clip(s) belong to another body than the model \"{}\" \
+             (scaled to their bones, or a variant's mass or load): they are reconstructed but \
+             left out of the physics terms and their figures",
+            set.clips.len(),
+            model.name
+        );
+    }
+    Ok(set)
+}
+
 /// The progress bar of training `name`, at the step where the run starts; says on stderr where
 /// a `--resume` run starts: at the snapshot's step, or from the beginning.
 fn start_bar(
@@ -287,7 +305,7 @@ fn start_bar(
 
 fn train_ae(args: TrainArgs) -> Result<(), LearnError> {
     let (model, hash) = load_model(args.model.as_deref())?;
-    let set = ClipSet::read(&args.data, &model)?;
+    let set = read_set(&args.data, &model, &hash)?;
     let config = AutoencoderConfig::new(set.layout.width())
         .with_d_model(args.d_model)
         .with_layers(args.layers)
@@ -390,7 +408,7 @@ fn reconstruct(args: ReconstructArgs) -> Result<(), LearnError> {
             loaded.model_hash
         );
     }
-    let set = ClipSet::read(&args.data, &model)?;
+    let set = read_set(&args.data, &model, &hash)?;
     let window = args.window.unwrap_or(loaded.train.window);
     let recon = train::reconstruct(&loaded.trained, &set, window, &device)?;
     let quality = train::quality(&set, &recon, &model)?;
@@ -404,10 +422,10 @@ fn reconstruct(args: ReconstructArgs) -> Result<(), LearnError> {
 }
 
 fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
-    let (model, _) = load_model(args.model.as_deref())?;
+    let (model, hash) = load_model(args.model.as_deref())?;
     let device = musculo_learn::device::parse(&args.device)?;
     let loaded = checkpoint::load(&args.autoencoder, &device)?;
-    let set = ClipSet::read(&args.data, &model)?;
+    let set = read_set(&args.data, &model, &hash)?;
     let (texts, kind) = match &args.text_embeddings {
         Some(path) => {
             let arrays = musculo::motion::npy::read_npz_f32(path)?;

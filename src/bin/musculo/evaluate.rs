@@ -83,6 +83,10 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         .map(|(name, value)| format!("{name} {value}"))
         .collect();
     println!("{}", line.join(", "));
+    let warnings: Vec<String> = (report.clips.iter())
+        .flat_map(|c| c.warnings.iter().map(move |w| format!("{}: {w}", c.clip)))
+        .collect();
+    crate::warnings::print(&warnings);
     for (clip, reason) in &report.failed {
         eprintln!("failed: {clip}: {reason}");
     }

@@ -15,9 +15,12 @@ pub struct Args {
     /// per-joint layout (joint_pos, joint_rot, joint_vel, joint_acc, joint_torque, time), whose
     /// coordinates are then fitted from it.
     file: PathBuf,
-    /// OpenSim 4.x model file the tensors belong to (default: the built-in default model).
-    /// A clip that `musculo augment` scaled to its bone lengths belongs to the scaled model,
-    /// which `augment --opensim-files` writes beside it as <clip>.osim.
+    /// OpenSim 4.x model file the tensors belong to. Default: the body the file's model
+    /// identity names (augment records it in every clip: its base model, rebuilt with the
+    /// clip's scaling and variant, or <clip>.osim beside it); a model given here must be that
+    /// base model or the clip's own <clip>.osim, else it is refused. A file without an
+    /// identity is read on this model, else <file>.osim beside it, else the built-in model,
+    /// with a warning.
     #[arg(long)]
     model: Option<PathBuf>,
     /// Also write the per-frame residual (frame, L_t, |r_t|, |r_t|/|tau_ID,t|) as CSV.
@@ -31,13 +34,17 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<(), musculo::Error> {
-    let model = match &args.model {
-        Some(p) => args.strict.load(p)?,
-        None => Model::default_fullbody(),
-    };
-    let frames = TensorFrames::read(&args.file, &model)?;
-    let s = residual_of(&model, &frames)?;
-    let muscle = muscle_residual_of(&model, &frames)?;
+    if let Some(p) = &args.model {
+        // refuses a nonphysical model under --strict and prints its warnings
+        args.strict.load(p)?;
+    }
+    let body = musculo::augment::identity::Bodies::new(args.model.as_deref())?
+        .of_tensor_file(&args.file)?;
+    crate::warnings::print(body.warning.as_slice());
+    let model: &Model = &body.model;
+    let frames = TensorFrames::read(&args.file, model)?;
+    let s = residual_of(model, &frames)?;
+    let muscle = muscle_residual_of(model, &frames)?;
     if let Some(path) = &args.per_frame {
         let mut csv = String::from("frame,loss,residual_norm,relative_residual\n");
         for t in 0..s.frames {
@@ -81,10 +88,10 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     } else {
         print_table(
             &args.file.display().to_string(),
-            &model,
+            model,
             frames.contacts,
             &s,
-            frames.layout_error.is_some(),
+            frames.layout_error.is_some() || body.warning.is_none(),
         );
         if let Some(e) = frames.layout_error {
             let forces = if frames.contact_force.is_empty() {
@@ -116,7 +123,9 @@ fn max(v: &[f64]) -> f64 {
     v.iter().copied().fold(0.0, f64::max)
 }
 
-fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary, layout_only: bool) {
+/// `known_body`: the model is the file's own (its identity said so) or the file is a layout,
+/// so a large residual is not blamed on the model.
+fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary, known_body: bool) {
     let worst = (0..s.frames)
         .max_by(|&a, &b| s.frame_relative[a].total_cmp(&s.frame_relative[b]))
         .unwrap_or(0);
@@ -130,11 +139,11 @@ fn print_table(file: &str, model: &Model, contacts: usize, s: &ResidualSummary, 
         median(&s.frame_relative),
         max(&s.frame_relative)
     );
-    if max(&s.frame_relative) > 1e-3 && !layout_only {
+    if max(&s.frame_relative) > 1e-3 && !known_body {
         println!(
-            "note: a large residual in a clip written by `musculo augment` usually means the \
-             tensors belong to another model (a clip scaled to its bone lengths: run augment \
-             with --opensim-files and pass --model <clip>.osim)"
+            "note: a large residual in a file that does not say which model it belongs to \
+             usually means the tensors belong to another model (a clip scaled to its bone \
+             lengths: pass --model <clip>.osim, which augment --opensim-files writes)"
         );
     }
     let names = model.q_names();

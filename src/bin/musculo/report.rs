@@ -11,8 +11,12 @@ use std::path::{Path, PathBuf};
 /// motion files are read.
 #[derive(clap::Args)]
 pub struct SetArgs {
-    /// OpenSim 4.x model of every clip (default: `<clip>.osim` beside the clip when there is
-    /// one, else the built-in default model).
+    /// OpenSim 4.x model. Tensor files: by default each clip's own body, from the model
+    /// identity augment records in it (its base model rebuilt with the clip's scaling and
+    /// variant, or <clip>.osim beside it); a model given here must be a clip's base model or
+    /// its own <clip>.osim, else the clip is refused. Files without an identity: this model,
+    /// else <clip>.osim beside the clip, else the built-in model, with a warning. Motion files
+    /// are fitted on this model (default: the built-in model).
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Folder of reference clips of the same names (e.g. the augmented real data a generated
@@ -176,6 +180,10 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         }
         bar.finish();
     }
+    let warnings: Vec<String> = (report.clips.iter())
+        .flat_map(|c| c.warnings.iter().map(move |w| format!("{}: {w}", c.clip)))
+        .collect();
+    crate::warnings::print(&warnings);
     for (clip, reason) in &report.failed {
         eprintln!("failed: {clip}: {reason}");
     }
