@@ -28,8 +28,10 @@
 use musculo::loss::tensor_file::TensorFrames;
 use musculo::model::Model;
 use musculo::motion::npy::read_npz_as_f64;
+use musculo::augment::identity::{Bodies, ModelIdentity};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Where each modality sits in a frame's feature vector.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -92,12 +94,23 @@ pub struct Clip {
     pub frames: usize,
     /// T × D, row-major.
     pub y: Vec<f32>,
-    /// Whether the clip's body is the model's own: false for augmentation variants with a
-    /// changed height, mass or carried load, whose dynamics the physics losses (on the unscaled
-    /// model) would judge wrongly. Such clips are reconstructed but left out of the physics terms.
-    pub body_is_model: bool,
+    /// The clip's body, an index into [`ClipSet::bodies`] (0: the model the set was read for):
+    /// the model rebuilt from the file's model identity (scaled to the clip's bones, a
+    /// variant's mass and load), on which the physics terms judge the clip. None for a file
+    /// without an identity that a manifest lists as a variant with a changed body: it cannot
+    /// be rebuilt, so the clip is reconstructed but left out of the physics terms.
+    pub body: Option<usize>,
     /// The clip's caption ([`crate::text::caption`]).
     pub caption: String,
+}
+
+/// One distinct body of a training set.
+#[derive(Clone, Debug)]
+pub struct SetBody {
+    /// What tells bodies apart ([`musculo::augment::identity::ClipBody::key`]; "model" for the
+    /// model the set was read for).
+    pub key: String,
+    pub model: Arc<Model>,
 }
 
 /// The clips of a training set, one layout for all.
@@ -105,6 +118,9 @@ pub struct Clip {
 pub struct ClipSet {
     pub layout: FeatureLayout,
     pub clips: Vec<Clip>,
+    /// The distinct bodies of the clips ([`Clip::body`]); the first is the model the set was
+    /// read for.
+    pub bodies: Vec<SetBody>,
     /// The frame rate shared by every clip (Hz).
     pub rate_hz: f64,
 }
@@ -133,10 +149,12 @@ pub type Result<T> = std::result::Result<T, LearnError>;
 
 impl ClipSet {
     /// Reads the tensor files `inputs` (files, or folders searched recursively for `.npz`
-    /// files other than `stats.npz`) for `model`. A folder with a `manifest.json` of
-    /// `musculo augment` also tells which clips are variants with a changed body; so does each
-    /// file's model identity ([`musculo::augment::identity`]): a clip scaled to its bones or
-    /// with a variant's body is not `model`'s body and is left out of the physics terms.
+    /// files other than `stats.npz`) for `model`, each clip on its own body: the model rebuilt
+    /// from the file's model identity ([`musculo::augment::identity`]: scaled to the clip's
+    /// bones, a variant's mass and load; `model` itself when the identity is its unchanged
+    /// body), found as `musculo evaluate` finds it ([`Bodies::of_tensor_file`], here without
+    /// `--model`). A file without an identity is taken on `model`, unless the `manifest.json`
+    /// of `musculo augment` in its folder lists it as a variant with a changed body.
     pub fn read(inputs: &[PathBuf], model: &Model) -> Result<ClipSet> {
         Self::read_for(inputs, model, None)
     }
@@ -148,6 +166,17 @@ impl ClipSet {
         inputs: &[PathBuf],
         model: &Model,
         model_hash: Option<&str>,
+    ) -> Result<ClipSet> {
+        Self::read_with(inputs, model, model_hash, &Bodies::new(None)?)
+    }
+
+    /// [`ClipSet::read_for`], the clips' bodies found by `bodies` (give it the `--model` file,
+    /// [`Bodies::new`], so that a body is rebuilt from that file's text).
+    pub fn read_with(
+        inputs: &[PathBuf],
+        model: &Model,
+        model_hash: Option<&str>,
+        bodies: &Bodies,
     ) -> Result<ClipSet> {
         let mut files = Vec::new();
         let mut variants = Vec::new();
@@ -172,15 +201,33 @@ impl ClipSet {
             ));
         }
         let mut set: Option<ClipSet> = None;
+        let mut found = vec![SetBody {
+            key: "model".to_string(),
+            model: Arc::new(model.clone()),
+        }];
         for file in &files {
             let name = file
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
             let (clip, layout, rate) = read_clip(file, &name, model)?;
-            let own_body = own_body(file, model, model_hash)?.unwrap_or(true);
+            let body = match musculo::augment::identity::read_identity(file)? {
+                None => (!variants.iter().any(|v| v == &name)).then_some(0),
+                Some(id) if own_body(file, &id, model, model_hash)? => Some(0),
+                Some(_) => {
+                    let body = bodies.of_tensor_file(file)?;
+                    let at = found.iter().position(|b| b.key == body.key);
+                    Some(at.unwrap_or_else(|| {
+                        found.push(SetBody {
+                            key: body.key,
+                            model: body.model,
+                        });
+                        found.len() - 1
+                    }))
+                }
+            };
             let clip = Clip {
-                body_is_model: own_body && !variants.iter().any(|v| v == &name),
+                body,
                 caption: crate::text::caption(&name, file, inputs)?,
                 ..clip
             };
@@ -189,6 +236,7 @@ impl ClipSet {
                     set = Some(ClipSet {
                         layout,
                         clips: vec![clip],
+                        bodies: Vec::new(),
                         rate_hz: rate,
                     })
                 }
@@ -215,7 +263,14 @@ impl ClipSet {
                 }
             }
         }
-        set.ok_or_else(|| LearnError::invalid("training data", "no clips"))
+        let mut set = set.ok_or_else(|| LearnError::invalid("training data", "no clips"))?;
+        set.bodies = found;
+        Ok(set)
+    }
+
+    /// The models of [`Self::bodies`], in order (for [`crate::physics::Physics::with_bodies`]).
+    pub fn body_models(&self) -> Vec<Arc<Model>> {
+        self.bodies.iter().map(|b| Arc::clone(&b.model)).collect()
     }
 
     /// Every frame of every clip.
@@ -295,23 +350,25 @@ fn read_clip(path: &Path, name: &str, model: &Model) -> Result<(Clip, FeatureLay
         name: name.to_string(),
         frames: t,
         y,
-        body_is_model: true,
+        body: Some(0),
         caption: String::new(),
     };
     Ok((clip, layout, rate))
 }
 
-/// Whether the body the tensor file `path` records ([`musculo::augment::identity`]) is `model`
-/// itself: its own `<clip>.osim`, or its base model unscaled, without a variant's mass or
-/// load and at muscle strength 1. None when the file records no body. With `model_hash`, a
-/// file whose base model (or own `.osim`) has another hash is an error naming both.
-fn own_body(path: &Path, model: &Model, model_hash: Option<&str>) -> Result<Option<bool>> {
-    let Some(id) = musculo::augment::identity::read_identity(path)? else {
-        return Ok(None);
-    };
+/// Whether the body `id` (the model identity of the tensor file `path`) is `model` itself: its
+/// own `<clip>.osim`, or its base model unscaled, without a variant's mass or load and at
+/// muscle strength 1. With `model_hash`, a file whose base model (or own `.osim`) has another
+/// hash is an error naming both.
+fn own_body(
+    path: &Path,
+    id: &ModelIdentity,
+    model: &Model,
+    model_hash: Option<&str>,
+) -> Result<bool> {
     if let Some(hash) = model_hash {
         if id.osim_hash.as_deref() == Some(hash) {
-            return Ok(Some(true));
+            return Ok(true);
         }
         if id.base.file_hash != hash {
             return Err(LearnError::File {
@@ -324,12 +381,10 @@ fn own_body(path: &Path, model: &Model, model_hash: Option<&str>) -> Result<Opti
             });
         }
     }
-    Ok(Some(
-        id.scale.is_none()
-            && id.mass_scale == 1.0
-            && id.load_kg == 0.0
-            && id.base.muscle_strength == 1.0,
-    ))
+    Ok(id.scale.is_none()
+        && id.mass_scale == 1.0
+        && id.load_kg == 0.0
+        && id.base.muscle_strength == 1.0)
 }
 
 fn collect_npz(dir: &Path, files: &mut Vec<PathBuf>) -> Result<()> {

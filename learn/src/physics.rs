@@ -4,11 +4,15 @@
 //! dynamics.
 //!
 //! For a batch of decoded, standardized frames z (B × T × D; y = σ ⊙ z + μ in SI units,
-//! [`crate::data`]) and the subset S of sequences whose body is the model's own:
+//! [`crate::data`]) and the subset S of sequences with a known body (each clip's own model:
+//! the base model scaled to the clip's bones, with a variant's mass and load,
+//! [`crate::data::ClipSet::bodies`]), each sequence's r and e computed on its own body b(s):
 //!
 //! ```text
 //! L_phys = w_E · (1 / (|S|·T·n)) Σ_{s∈S} Σ_t Σ_j (r_stj / σ_τ)²         r = M q̈ + C q̇ + G − τ − J_cᵀλ
 //!        + w_M · (1 / (|S|·T'·n)) Σ_{s∈S} Σ_{t∈T'} Σ_j (e_stj / σ_q̈)²   e = q̈ − M⁻¹ R F_max a
+//!
+//!          (M, C, G, J_c, R, F_max those of body b(s))
 //! ```
 //!
 //! with σ_τ, σ_q̈ the mean over the coordinates of the training set's standard deviations of
@@ -20,7 +24,9 @@
 //! and T' every k-th frame (`muscle_stride`:
 //! the muscle term costs ~1.5 ms per frame on the default model). Both sums are the
 //! per-coordinate-weighted losses of [`musculo::loss::EulerLagrange`] and
-//! [`musculo::loss::MuscleLoss`] with w_j = 1/(σ² · count). The gradient with respect to z is
+//! [`musculo::loss::MuscleLoss`] with w_j = 1/(σ² · count), evaluated once per body on that
+//! body's sequences with the count of the whole batch, so that the sum over the bodies is the
+//! mean above. The gradient with respect to z is
 //! the chain rule through the standardization, ∂L/∂z = σ ⊙ ∂L/∂y, with ∂L/∂y from those
 //! modules' vector–Jacobian products (∂L/∂q, ∂L/∂q̇, ∂L/∂q̈, ∂L/∂τ, ∂L/∂λ, ∂L/∂a).
 //!
@@ -69,15 +75,21 @@ impl Default for PhysicsWeights {
     }
 }
 
-/// Everything the physics terms need: the model, its contact points and muscles, the feature
-/// layout and the standardization.
+/// One body's share of the physics terms: its model, the Euler–Lagrange term with the model's
+/// contact set and, when the muscle term is on, the muscle mapping.
+struct Body {
+    model: Arc<Model>,
+    euler: EulerLagrange,
+    muscle: Option<MuscleLoss>,
+}
+
+/// Everything the physics terms need: one model per distinct body of the training set (each
+/// with its contact points and muscles), the feature layout and the standardization.
 pub struct Physics {
-    pub model: Model,
     pub layout: FeatureLayout,
     pub normalizer: Normalizer,
     pub weights: PhysicsWeights,
-    euler: EulerLagrange,
-    muscle: Option<MuscleLoss>,
+    bodies: Vec<Body>,
 }
 
 /// The value of the physics terms for one batch and, when asked, ∂L/∂z (B × T × D).
@@ -91,82 +103,103 @@ pub struct PhysicsValue {
 }
 
 impl Physics {
-    /// The terms for `model` (its contact set gives the points of λ; its muscles the columns of
-    /// a) on data of `layout`, standardized by `normalizer`.
+    /// The terms for the one body `model` (body 0; its contact set gives the points of λ; its
+    /// muscles the columns of a) on data of `layout`, standardized by `normalizer`.
     pub fn new(
         model: Model,
         layout: FeatureLayout,
         normalizer: Normalizer,
         weights: PhysicsWeights,
     ) -> Result<Physics> {
+        Self::with_bodies(&[Arc::new(model)], layout, normalizer, weights)
+    }
+
+    /// The terms for the bodies `models` (body i is `models[i]`, e.g.
+    /// [`crate::data::ClipSet::bodies`]), each checked against `layout` as in [`Physics::new`].
+    pub fn with_bodies(
+        models: &[Arc<Model>],
+        layout: FeatureLayout,
+        normalizer: Normalizer,
+        weights: PhysicsWeights,
+    ) -> Result<Physics> {
         use crate::data::LearnError;
-        if layout.coordinates != model.nq() {
-            return Err(LearnError::invalid(
-                "physics",
-                format!(
-                    "the data have {} coordinates, the model {}",
-                    layout.coordinates,
-                    model.nq()
-                ),
-            ));
+        if models.is_empty() {
+            return Err(LearnError::invalid("physics", "no body to evaluate on"));
         }
-        let contacts = if layout.contacts > 0 {
-            let set = contact_set(&model)?;
-            if set.points.len() != layout.contacts {
-                return Err(LearnError::invalid(
-                    "physics",
-                    format!(
-                        "the data have {} contact points, the model's contact set {}",
-                        layout.contacts,
-                        set.points.len()
-                    ),
-                ));
-            }
-            EulerLagrange::new().with_contact_set(&set)
-        } else {
-            EulerLagrange::new()
-        };
-        let muscle = if weights.muscle > 0.0 {
-            let loss = MuscleLoss::new(&model)?;
-            if loss.muscles() != layout.muscles {
-                return Err(LearnError::invalid(
-                    "physics",
-                    format!(
-                        "the data have {} muscles, the model {}",
-                        layout.muscles,
-                        loss.muscles()
-                    ),
-                ));
-            }
-            Some(loss)
-        } else {
-            None
-        };
         if weights.muscle > 0.0 && weights.muscle_stride == 0 {
             return Err(LearnError::invalid("physics", "muscle_stride must be ≥ 1"));
         }
+        let mut bodies = Vec::with_capacity(models.len());
+        for model in models {
+            let invalid = |message: String| {
+                LearnError::invalid(format!("physics on model \"{}\"", model.name), message)
+            };
+            if layout.coordinates != model.nq() {
+                return Err(invalid(format!(
+                    "the data have {} coordinates, the model {}",
+                    layout.coordinates,
+                    model.nq()
+                )));
+            }
+            let euler = if layout.contacts > 0 {
+                let set = contact_set(model)?;
+                if set.points.len() != layout.contacts {
+                    return Err(invalid(format!(
+                        "the data have {} contact points, the model's contact set {}",
+                        layout.contacts,
+                        set.points.len()
+                    )));
+                }
+                EulerLagrange::new().with_contact_set(&set)
+            } else {
+                EulerLagrange::new()
+            };
+            let muscle = if weights.muscle > 0.0 {
+                let loss = MuscleLoss::new(model)?;
+                if loss.muscles() != layout.muscles {
+                    return Err(invalid(format!(
+                        "the data have {} muscles, the model {}",
+                        layout.muscles,
+                        loss.muscles()
+                    )));
+                }
+                Some(loss)
+            } else {
+                None
+            };
+            bodies.push(Body {
+                model: Arc::clone(model),
+                euler,
+                muscle,
+            });
+        }
         Ok(Physics {
-            model,
             layout,
             normalizer,
             weights,
-            euler: contacts,
-            muscle,
+            bodies,
         })
     }
 
-    /// L_phys of standardized frames `z` (`sequences` × `frames` × D) over the sequences with
-    /// `include[s]`, and ∂L_phys/∂z when `gradient`.
+    /// The number of bodies.
+    pub fn bodies(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// L_phys of standardized frames `z` (`sequences` × `frames` × D), sequence s evaluated on
+    /// body `bodies[s]` and left out when it is None, and ∂L_phys/∂z when `gradient`. The
+    /// sequences are grouped by body and each group evaluated on its own model; the weights
+    /// count every included frame of the batch, so the sum over the groups is the mean over the
+    /// whole batch (module docs).
     pub fn evaluate(
         &self,
         z: &[f32],
         sequences: usize,
         frames: usize,
-        include: &[bool],
+        bodies: &[Option<usize>],
         gradient: bool,
     ) -> Result<PhysicsValue> {
         let d = self.layout.width();
-        let (n, p) = (self.layout.coordinates, 3 * self.layout.contacts);
         let mut value = PhysicsValue {
             grad: if gradient {
                 vec![0.0; z.len()]
@@ -175,21 +208,65 @@ impl Physics {
             },
             ..PhysicsValue::default()
         };
-        if z.len() != sequences * frames * d || include.len() != sequences {
+        if z.len() != sequences * frames * d || bodies.len() != sequences {
             return Err(crate::data::LearnError::invalid(
                 "physics",
                 format!(
-                    "{} values and {} inclusion flags for {sequences} sequences × {frames} frames × {d} features",
+                    "{} values and {} body indices for {sequences} sequences × {frames} frames × {d} features",
                     z.len(),
-                    include.len()
+                    bodies.len()
                 ),
             ));
         }
-        let chosen: Vec<usize> = (0..sequences).filter(|s| include[*s]).collect();
-        if chosen.is_empty() {
+        if let Some(i) = bodies.iter().flatten().find(|i| **i >= self.bodies.len()) {
+            return Err(crate::data::LearnError::invalid(
+                "physics",
+                format!("body {i} of a batch, the terms have {}", self.bodies.len()),
+            ));
+        }
+        let included = bodies.iter().flatten().count();
+        if included == 0 {
             return Ok(value);
         }
-        // y = σ ⊙ z + μ for the chosen sequences' frames, split into the loss's arrays
+        let n = self.layout.coordinates;
+        let stride = self.weights.muscle_stride.max(1);
+        // the counts of the whole batch: |S|·T·n and |S|·T'·n
+        let euler_count = (included * frames * n) as f64;
+        let muscle_count = (included * frames.div_ceil(stride) * n) as f64;
+        for (i, body) in self.bodies.iter().enumerate() {
+            let rows: Vec<usize> = (0..sequences)
+                .filter(|s| bodies[*s] == Some(i))
+                .flat_map(|s| (0..frames).map(move |t| s * frames + t))
+                .collect();
+            if !rows.is_empty() {
+                self.evaluate_body(
+                    body,
+                    z,
+                    frames,
+                    &rows,
+                    (euler_count, muscle_count),
+                    &mut value,
+                )?;
+            }
+        }
+        Ok(value)
+    }
+
+    /// Adds the terms of the batch's `rows` (whole sequences of `frames`), all of `body`, to
+    /// `value`, each term's weights 1/(σ² · count) with `counts` those of the whole batch.
+    fn evaluate_body(
+        &self,
+        body: &Body,
+        z: &[f32],
+        frames: usize,
+        rows: &[usize],
+        (euler_count, muscle_count): (f64, f64),
+        value: &mut PhysicsValue,
+    ) -> Result<()> {
+        let d = self.layout.width();
+        let (n, p) = (self.layout.coordinates, 3 * self.layout.contacts);
+        let gradient = !value.grad.is_empty();
+        // y = σ ⊙ z + μ for the rows' frames, split into the loss's arrays
         let block = |name: &str| self.layout.block(name);
         let (bq, bqd, bqdd, btau, blam, ba) = (
             block("q"),
@@ -199,10 +276,6 @@ impl Physics {
             block("contact_point_force"),
             block("muscle_act"),
         );
-        let rows: Vec<usize> = chosen
-            .iter()
-            .flat_map(|s| (0..frames).map(move |t| s * frames + t))
-            .collect();
         let si = |row: usize, range: &std::ops::Range<usize>| {
             let base = row * d;
             range.clone().map(move |i| {
@@ -212,8 +285,8 @@ impl Physics {
         let gather = |range: &std::ops::Range<usize>, rows: &[usize]| -> Vec<f64> {
             rows.iter().flat_map(|r| si(*r, range)).collect()
         };
-        let q = gather(&bq, &rows);
-        let qdd = gather(&bqdd, &rows);
+        let q = gather(&bq, rows);
+        let qdd = gather(&bqdd, rows);
         // one scale per term: the mean of the block's σ_j (module docs)
         let sigma = |range: &std::ops::Range<usize>| -> Vec<f64> {
             let mean = range
@@ -238,16 +311,18 @@ impl Physics {
             }
         };
         if self.weights.euler > 0.0 {
-            let qd = gather(&bqd, &rows);
-            let tau = gather(&btau, &rows);
+            let qd = gather(&bqd, rows);
+            let tau = gather(&btau, rows);
             let lambda = if p > 0 {
-                gather(&blam, &rows)
+                gather(&blam, rows)
             } else {
                 Vec::new()
             };
-            let count = (rows.len() * n) as f64;
-            let mut euler = self.euler.clone();
-            euler.weights = sigma(&btau).iter().map(|s| 1.0 / (s * s * count)).collect();
+            let mut euler = body.euler.clone();
+            euler.weights = sigma(&btau)
+                .iter()
+                .map(|s| 1.0 / (s * s * euler_count))
+                .collect();
             let batch = EulerLagrangeBatch {
                 frames: rows.len(),
                 q: &q,
@@ -257,8 +332,8 @@ impl Physics {
                 lambda: &lambda,
             };
             let mut out = EulerLagrangeOutput::default();
-            euler.evaluate(&self.model, &batch, gradient, &mut out)?;
-            value.euler = out.loss;
+            euler.evaluate(&body.model, &batch, gradient, &mut out)?;
+            value.euler += out.loss;
             value.loss += self.weights.euler * out.loss;
             if gradient {
                 let w = self.weights.euler;
@@ -270,12 +345,12 @@ impl Physics {
                     (&out.grad_lambda, &blam),
                 ] {
                     if !range.is_empty() {
-                        scatter(&mut value.grad, g, range, &rows, w);
+                        scatter(&mut value.grad, g, range, rows, w);
                     }
                 }
             }
         }
-        if let Some(muscle) = &self.muscle {
+        if let Some(muscle) = &body.muscle {
             let stride = self.weights.muscle_stride;
             let picked: Vec<usize> = (0..rows.len())
                 .filter(|k| (k % frames).is_multiple_of(stride))
@@ -289,9 +364,11 @@ impl Physics {
             };
             let (q_m, qdd_m) = (pick(&q, n), pick(&qdd, n));
             let a = gather(&ba, &sub_rows);
-            let count = (sub_rows.len() * n) as f64;
             let mut loss = muscle.clone();
-            loss.weights = sigma(&bqdd).iter().map(|s| 1.0 / (s * s * count)).collect();
+            loss.weights = sigma(&bqdd)
+                .iter()
+                .map(|s| 1.0 / (s * s * muscle_count))
+                .collect();
             loss.beta = 0.0;
             loss.bound_weight = 0.0;
             let batch = MuscleBatch {
@@ -301,8 +378,8 @@ impl Physics {
                 a: &a,
             };
             let mut out = MuscleLossOutput::default();
-            loss.evaluate(&self.model, &batch, gradient, &mut out)?;
-            value.muscle = out.loss;
+            loss.evaluate(&body.model, &batch, gradient, &mut out)?;
+            value.muscle += out.loss;
             value.loss += self.weights.muscle * out.loss;
             if gradient {
                 let w = self.weights.muscle;
@@ -311,16 +388,17 @@ impl Physics {
                 scatter(&mut value.grad, &out.grad_a, &ba, &sub_rows, w);
             }
         }
-        Ok(value)
+        Ok(())
     }
 }
 
-/// One call of the physics op: the terms, which sequences of the batch they apply to, and
-/// where the forward pass leaves its outcome (the terms' parts for a log, or the error).
+/// One call of the physics op: the terms, the body of each sequence of the batch (None: left
+/// out of the terms), and where the forward pass leaves its outcome (the terms' parts for a
+/// log, or the error).
 #[derive(Clone)]
 pub struct PhysicsCall {
     pub physics: Arc<Physics>,
-    pub include: Arc<Vec<bool>>,
+    pub bodies: Arc<Vec<Option<usize>>>,
     pub outcome: Arc<Mutex<Option<Result<PhysicsParts>>>>,
 }
 
@@ -332,11 +410,11 @@ pub struct PhysicsParts {
 }
 
 impl PhysicsCall {
-    /// A call of `physics` on the sequences with `include[s]`.
-    pub fn new(physics: Arc<Physics>, include: Vec<bool>) -> PhysicsCall {
+    /// A call of `physics`, sequence s on body `bodies[s]` (None: left out).
+    pub fn new(physics: Arc<Physics>, bodies: Vec<Option<usize>>) -> PhysicsCall {
         PhysicsCall {
             physics,
-            include: Arc::new(include),
+            bodies: Arc::new(bodies),
             outcome: Arc::new(Mutex::new(None)),
         }
     }
@@ -373,7 +451,7 @@ fn host_value<B: Backend>(z: FloatTensor<B>, call: &PhysicsCall, gradient: bool)
         });
     let value = values.and_then(|v| {
         call.physics
-            .evaluate(&v, dims[0], dims[1], &call.include, gradient)
+            .evaluate(&v, dims[0], dims[1], &call.bodies, gradient)
     });
     let (value, outcome) = match value {
         Ok(v) => {

@@ -135,7 +135,8 @@ impl TrainState {
 }
 
 /// Trains an autoencoder of `config` on `set` (`model`: the musculoskeletal model the clips
-/// were augmented with, for the physics terms) on `device` (an autodiff device), calling
+/// were augmented with, the physics terms' body 0; the other bodies of the set,
+/// [`ClipSet::bodies`], the clips' own) on `device` (an autodiff device), calling
 /// `progress` after each step with the run's state (its log ends with that step's losses; to
 /// show progress and save snapshots a run can continue from, [`continue_training`]).
 pub fn train_autoencoder(
@@ -178,8 +179,8 @@ pub fn continue_training(
     let d = set.layout.width();
     let normalizer = Normalizer::of(set);
     let physics = if train.physics.euler > 0.0 || train.physics.muscle > 0.0 {
-        Some(Arc::new(Physics::new(
-            model.clone(),
+        Some(Arc::new(Physics::with_bodies(
+            &bodies(set, model),
             set.layout.clone(),
             normalizer.clone(),
             train.physics,
@@ -201,7 +202,7 @@ pub fn continue_training(
     let earlier = state.log.last().map_or(0.0, |s| s.seconds);
     for step in state.step..train.steps {
         let mut batch = Vec::with_capacity(b * t * d);
-        let mut include = Vec::with_capacity(b);
+        let mut bodies = Vec::with_capacity(b);
         for _ in 0..b {
             let mut pick = (rng.unit() * total_frames as f64) as usize;
             let mut c = 0;
@@ -212,7 +213,7 @@ pub fn continue_training(
             let clip = &set.clips[c];
             let s = (rng.unit() * (clip.frames - t + 1) as f64) as usize;
             batch.extend_from_slice(&clip.y[s * d..(s + t) * d]);
-            include.push(clip.body_is_model);
+            bodies.push(clip.body);
         }
         // standardized per batch: the set is held once, in SI units
         normalizer.normalize(&mut batch);
@@ -222,7 +223,7 @@ pub fn continue_training(
         let mut loss = reconstruction.clone();
         let (mut euler, mut muscle) = (0.0, 0.0);
         if let Some(physics) = &physics {
-            let call = PhysicsCall::new(physics.clone(), include.clone());
+            let call = PhysicsCall::new(physics.clone(), bodies.clone());
             loss = loss + physics_loss(z_hat.clone(), call.clone()).reshape([1]);
             let parts = call.outcome()?;
             euler = parts.euler;
@@ -405,8 +406,18 @@ pub struct ReconstructionQuality {
     pub tau_rms: f64,
 }
 
-/// Joint-position error and residuals of `recon` against `set` (clips in the same order), the
-/// residual on `model` with its contact set.
+/// The models of `set`'s bodies, body 0 (the model the set was read for) being `model`.
+fn bodies(set: &ClipSet, model: &Model) -> Vec<Arc<Model>> {
+    let mut models = set.body_models();
+    if let Some(first) = models.first_mut() {
+        *first = Arc::new(model.clone());
+    }
+    models
+}
+
+/// Joint-position error and residuals of `recon` against `set` (clips in the same order), each
+/// clip's residual on its own body with its contact set (body 0 `model`, the others
+/// [`ClipSet::bodies`]); clips without a body ([`crate::data::Clip::body`]) are left out.
 pub fn quality(
     set: &ClipSet,
     recon: &[Reconstruction],
@@ -429,14 +440,18 @@ pub fn quality(
             }
         }
     }
-    let euler = if layout.contacts > 0 {
-        EulerLagrange::new().with_contact_set(&musculo::augment::chain::contact_set(model)?)
-    } else {
-        EulerLagrange::new()
-    };
-    let residual_rms = |frames: &[(&[f32], usize)]| -> Result<(f64, f64)> {
+    let models = bodies(set, model);
+    let mut eulers = Vec::with_capacity(models.len());
+    for body in &models {
+        eulers.push(if layout.contacts > 0 {
+            EulerLagrange::new().with_contact_set(&musculo::augment::chain::contact_set(body)?)
+        } else {
+            EulerLagrange::new()
+        });
+    }
+    let residual_rms = |frames: &[(&[f32], usize, usize)]| -> Result<(f64, f64)> {
         let (mut sum, mut tau_sum, mut n_values) = (0.0, 0.0, 0usize);
-        for (y, t) in frames {
+        for (y, t, body) in frames {
             let get = |name: &str| -> Vec<f64> {
                 let r = layout.block(name);
                 (0..*t)
@@ -459,7 +474,7 @@ pub fn quality(
                 lambda: &lambda,
             };
             let mut out = EulerLagrangeOutput::default();
-            euler.evaluate(model, &batch, false, &mut out)?;
+            eulers[*body].evaluate(&models[*body], &batch, false, &mut out)?;
             sum += out.residual.iter().map(|r| r * r).sum::<f64>();
             tau_sum += tau.iter().map(|v| v * v).sum::<f64>();
             n_values += out.residual.len();
@@ -467,18 +482,16 @@ pub fn quality(
         let n = n_values.max(1) as f64;
         Ok(((sum / n).sqrt(), (tau_sum / n).sqrt()))
     };
-    let own: Vec<(&[f32], usize)> = set
+    let own: Vec<(&[f32], usize, usize)> = set
         .clips
         .iter()
-        .filter(|c| c.body_is_model)
-        .map(|c| (c.y.as_slice(), c.frames))
+        .filter_map(|c| Some((c.y.as_slice(), c.frames, c.body?)))
         .collect();
-    let decoded: Vec<(&[f32], usize)> = set
+    let decoded: Vec<(&[f32], usize, usize)> = set
         .clips
         .iter()
         .zip(recon)
-        .filter(|(c, _)| c.body_is_model)
-        .map(|(_, r)| (r.y.as_slice(), r.frames))
+        .filter_map(|(c, r)| Some((r.y.as_slice(), r.frames, c.body?)))
         .collect();
     let (residual_rms_data, tau_rms) = residual_rms(&own)?;
     let (residual_rms, _) = residual_rms(&decoded)?;

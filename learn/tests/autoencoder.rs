@@ -71,7 +71,7 @@ fn physics_op_gradient_equals_finite_differences() {
         state = musculo::random::mix(state);
         *v += 0.3 * ((state >> 11) as f32 / (1u64 << 53) as f32 - 0.5);
     }
-    let include = vec![true, false];
+    let include = vec![Some(0), None];
     let device = Device::flex().autodiff();
     let input =
         Tensor::<3>::from_data(TensorData::new(z.clone(), [b, t, d]), &device).require_grad();
@@ -94,7 +94,7 @@ fn physics_op_gradient_equals_finite_differences() {
     assert!(grad[t * d..].iter().all(|g| *g == 0.0));
     // a batch that does not fit the layout: NaN from the op and the error from the call
     let narrow = Tensor::<3>::from_data(TensorData::new(vec![0.0f32; 2 * 5], [1, 2, 5]), &device);
-    let bad = PhysicsCall::new(physics.clone(), vec![true]);
+    let bad = PhysicsCall::new(physics.clone(), vec![Some(0)]);
     let v: f32 = physics_loss(narrow, bad.clone()).sum().into_scalar();
     assert!(v.is_nan());
     let err = bad.outcome().err().unwrap().to_string();

@@ -73,7 +73,7 @@ fn the_physics_op_gives_the_cpu_value_and_gradient_on_the_gpu() {
     let run = |device: &Device| -> (f32, Vec<f32>) {
         let x =
             Tensor::<3>::from_data(TensorData::new(z.clone(), [b, t, d]), device).require_grad();
-        let call = PhysicsCall::new(physics.clone(), vec![true; b]);
+        let call = PhysicsCall::new(physics.clone(), vec![Some(0); b]);
         let loss = physics_loss(x.clone(), call.clone());
         call.outcome().expect("the op's parts");
         let value = loss.clone().into_scalar::<f32>();

@@ -257,19 +257,25 @@ fn load_model(path: Option<&Path>) -> Result<(Model, String), LearnError> {
     Ok((model, musculo::augment::output::fnv1a_hex(&xml)))
 }
 
-/// The clips of `data` for `model` (file hash `hash`: a clip of another model is refused),
-/// saying on stderr how many belong to another body (scaled to their bones, or a variant's
-/// mass or load) and are left out of the physics terms, which take one model.
-fn read_set(data: &[PathBuf], model: &Model, hash: &str) -> Result<ClipSet, LearnError> {
-    let set = ClipSet::read_for(data, model, Some(hash))?;
-    let other = set.clips.iter().filter(|c| !c.body_is_model).count();
+/// The clips of `data` for `model` (read from `path`, the built-in model without it; file
+/// hash `hash`: a clip of another model is refused), each on its own body rebuilt from that
+/// file; says on stderr how many clips could not be given a body (no model identity, and a
+/// manifest listing them as variants with a changed body) and are left out of the physics terms.
+fn read_set(
+    data: &[PathBuf],
+    model: &Model,
+    hash: &str,
+    path: Option<&Path>,
+) -> Result<ClipSet, LearnError> {
+    let bodies = musculo::augment::identity::Bodies::new(path)?;
+    let set = ClipSet::read_with(data, model, Some(hash), &bodies)?;
+    let other = set.clips.iter().filter(|c| c.body.is_none()).count();
     if other > 0 {
         eprintln!(
-            "warning: {other} of {} clip(s) belong to another body than the model \"{}\" \
-             (scaled to their bones, or a variant's mass or load): they are reconstructed but \
-             left out of the physics terms and their figures",
-            set.clips.len(),
-            model.name
+            "warning: {other} of {} clip(s) record no model identity and are variants with a \
+             changed body (manifest.json): they are reconstructed but left out of the physics \
+             terms and their figures (augment them again to record their body)",
+            set.clips.len()
         );
     }
     Ok(set)
@@ -305,7 +311,7 @@ fn start_bar(
 
 fn train_ae(args: TrainArgs) -> Result<(), LearnError> {
     let (model, hash) = load_model(args.model.as_deref())?;
-    let set = read_set(&args.data, &model, &hash)?;
+    let set = read_set(&args.data, &model, &hash, args.model.as_deref())?;
     let config = AutoencoderConfig::new(set.layout.width())
         .with_d_model(args.d_model)
         .with_layers(args.layers)
@@ -408,7 +414,7 @@ fn reconstruct(args: ReconstructArgs) -> Result<(), LearnError> {
             loaded.model_hash
         );
     }
-    let set = read_set(&args.data, &model, &hash)?;
+    let set = read_set(&args.data, &model, &hash, args.model.as_deref())?;
     let window = args.window.unwrap_or(loaded.train.window);
     let recon = train::reconstruct(&loaded.trained, &set, window, &device)?;
     let quality = train::quality(&set, &recon, &model)?;
@@ -425,7 +431,7 @@ fn train_diffusion(args: TrainDiffusionArgs) -> Result<(), LearnError> {
     let (model, hash) = load_model(args.model.as_deref())?;
     let device = musculo_learn::device::parse(&args.device)?;
     let loaded = checkpoint::load(&args.autoencoder, &device)?;
-    let set = read_set(&args.data, &model, &hash)?;
+    let set = read_set(&args.data, &model, &hash, args.model.as_deref())?;
     let (texts, kind) = match &args.text_embeddings {
         Some(path) => {
             let arrays = musculo::motion::npy::read_npz_f32(path)?;
