@@ -25,10 +25,10 @@
 //! contact sphere that never touches) gets the floor σ = max(σ, 1 % of its block's mean σ) so
 //! that it is neither amplified nor divided by zero.
 
+use musculo::augment::identity::{Bodies, ModelIdentity};
 use musculo::loss::tensor_file::TensorFrames;
 use musculo::model::Model;
 use musculo::motion::npy::read_npz_as_f64;
-use musculo::augment::identity::{Bodies, ModelIdentity};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -170,9 +170,7 @@ fn a_humanml3d_clip_scaled_to_its_bones_is_judged_on_its_scaled_body() {
         .zip([b0, b1, b0])
         .map(|(w, b)| physics.evaluate(w, 1, t, &[b], true).unwrap())
         .collect();
-    let batch = physics
-        .evaluate(&z, 3, t, &[b0, b1, b0], true)
-        .unwrap();
+    let batch = physics.evaluate(&z, 3, t, &[b0, b1, b0], true).unwrap();
     let mean = alone.iter().map(|v| v.loss).sum::<f64>() / 3.0;
     assert!(
         (batch.loss - mean).abs() <= 1e-12 * mean,
@@ -182,7 +180,10 @@ fn a_humanml3d_clip_scaled_to_its_bones_is_judged_on_its_scaled_body() {
     // ∂L/∂z of the batch: each sequence's gradient alone, divided by the 3 sequences
     for (s, a) in alone.iter().enumerate() {
         for (g, h) in batch.grad[s * t * d..(s + 1) * t * d].iter().zip(&a.grad) {
-            assert!((g - h / 3.0).abs() <= 1e-5 * h.abs().max(1e-3), "{g} vs {h}/3");
+            assert!(
+                (g - h / 3.0).abs() <= 1e-5 * h.abs().max(1e-3),
+                "{g} vs {h}/3"
+            );
         }
     }
     // one body split over two (the same model): the value of the one body, to rounding
@@ -195,9 +196,7 @@ fn a_humanml3d_clip_scaled_to_its_bones_is_judged_on_its_scaled_body() {
         assert!((g - h).abs() <= 1e-6 * h.abs().max(1e-3), "{g} vs {h}");
     }
     // a sequence left out adds nothing; a body the terms do not have is an error
-    let without = physics
-        .evaluate(&z, 3, t, &[b0, None, b0], false)
-        .unwrap();
+    let without = physics.evaluate(&z, 3, t, &[b0, None, b0], false).unwrap();
     let two = (alone[0].loss + alone[2].loss) / 2.0;
     assert!((without.loss - two).abs() <= 1e-12 * two);
     let e = physics
