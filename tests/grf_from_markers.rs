@@ -22,14 +22,14 @@ mod common;
 use common::reference_file;
 use musculo::Model;
 use musculo::augment::chain::{Chain, ChainOptions, ClipOutput, MeasuredLoads, contact_set};
-use musculo::dynamics::{self, Data};
-use musculo::motion::c3d::{C3d, lab_to_opensim};
-use musculo::spatial::Vec3;
 use musculo::augment::perturb::Variant;
+use musculo::dynamics::{self, Data};
+use musculo::io::scale_setup::ScaleSetup;
+use musculo::motion::c3d::{C3d, lab_to_opensim};
 use musculo::motion::skeleton::SkeletonMap;
 use musculo::motion::{self, Format, Motion, ReadOptions};
-use musculo::io::scale_setup::ScaleSetup;
 use musculo::solve::scale::tool::{self, ToolOptions};
+use musculo::spatial::Vec3;
 use std::path::PathBuf;
 
 const G: f64 = 9.80665;
@@ -154,7 +154,11 @@ fn crossings(v: &[f64], times: &[f64], level: f64) -> (Vec<f64>, Vec<f64>) {
         if (a < 0.0) != (b < 0.0) {
             let s = a / (a - b);
             let time = times[t - 1] + s * (times[t] - times[t - 1]);
-            if b >= 0.0 { up.push(time) } else { down.push(time) }
+            if b >= 0.0 {
+                up.push(time)
+            } else {
+                down.push(time)
+            }
         }
     }
     (up, down)
@@ -215,8 +219,12 @@ fn compare(
     let mut plate_scale = 1.0;
     if !trial.whole_trial {
         for g in 0..groups {
-            let mv: Vec<f64> = (0..frames).map(|f| gm[(f * groups + g) * 3 + 1] as f64).collect();
-            let ev: Vec<f64> = (0..frames).map(|f| ge[(f * groups + g) * 3 + 1] as f64).collect();
+            let mv: Vec<f64> = (0..frames)
+                .map(|f| gm[(f * groups + g) * 3 + 1] as f64)
+                .collect();
+            let ev: Vec<f64> = (0..frames)
+                .map(|f| ge[(f * groups + g) * 3 + 1] as f64)
+                .collect();
             let (strikes, _) = crossings(&ev, &times, level);
             if strikes.len() < 2 {
                 continue;
@@ -226,7 +234,8 @@ fn compare(
             let (Some(&a), Some(&b)) = (loaded.first(), loaded.last()) else {
                 continue;
             };
-            let whole = (a..=b).all(|f| mv[f] > level && on_plates[g][f]) && a > 0 && b + 1 < frames;
+            let whole =
+                (a..=b).all(|f| mv[f] > level && on_plates[g][f]) && a > 0 && b + 1 < frames;
             if whole {
                 let impulse: f64 = mv[a..=b].iter().sum::<f64>() * dt;
                 let subject = 2.0 * impulse / stride;
@@ -249,7 +258,9 @@ fn compare(
     (0..groups)
         .map(|g| {
             let series = |a: &[f32], c: usize| -> Vec<f64> {
-                (0..frames).map(|f| a[(f * groups + g) * 3 + c] as f64).collect()
+                (0..frames)
+                    .map(|f| a[(f * groups + g) * 3 + c] as f64)
+                    .collect()
             };
             let (mv, ev) = (series(gm, 1), series(ge, 1));
             let (m_up, m_down) = crossings(&mv, &times, level);
@@ -372,7 +383,10 @@ fn foot_on_plates(trial: &Trial, model: &Model, out: &ClipOutput, g: usize) -> V
                     (p, x - Vec3::y() * point.radius)
                 })
                 .collect();
-            let lowest = positions.iter().map(|(_, x)| x.y).fold(f64::INFINITY, f64::min);
+            let lowest = positions
+                .iter()
+                .map(|(_, x)| x.y)
+                .fold(f64::INFINITY, f64::min);
             positions
                 .iter()
                 .filter(|(p, x)| set.group_of(*p) == g && x.y <= lowest + 0.03)
@@ -426,7 +440,11 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
             "at rest".to_string()
         };
         // treadmills are told apart from floors at rest without a flag
-        assert_eq!(estimated.quality.treadmill, trial.whole_trial, "{}", trial.name);
+        assert_eq!(
+            estimated.quality.treadmill, trial.whole_trial,
+            "{}",
+            trial.name
+        );
         for (g, foot) in feet.iter().enumerate() {
             if foot.frames == 0 {
                 println!(
@@ -457,7 +475,13 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
                 foot.off_plate,
                 floor
             );
-            worst.push((trial.name, g, foot.clone(), rate, estimated.warnings.clone()));
+            worst.push((
+                trial.name,
+                g,
+                foot.clone(),
+                rate,
+                estimated.warnings.clone(),
+            ));
         }
     }
     // The limits: the literature's ≈ 5 % of body weight for walking; 8 % for running, whose
@@ -475,8 +499,16 @@ fn vertical_ground_reaction_from_markers_alone_matches_the_plates() {
         if foot.frames == 0 {
             continue;
         }
-        assert!(foot.vertical <= limit, "{name} foot {g}: {} > {limit}", foot.vertical);
-        assert!((0.9..=1.1).contains(&foot.peak_ratio), "{name} foot {g}: {}", foot.peak_ratio);
+        assert!(
+            foot.vertical <= limit,
+            "{name} foot {g}: {} > {limit}",
+            foot.vertical
+        );
+        assert!(
+            (0.9..=1.1).contains(&foot.peak_ratio),
+            "{name} foot {g}: {}",
+            foot.peak_ratio
+        );
         // within one frame at 60–100 Hz (10 ms at higher rates): a detected contact starts
         // on a frame, so its force crosses 5 % BW up to a frame after the plate's crossing,
         // plus the crossing's interpolation within that frame (a quarter frame allowed)

@@ -52,7 +52,11 @@ fn displaced(motion: &Motion, name: &str, offset: Vec3) -> Motion {
 /// A bad marker file: the columns of `a` and `b` swapped in every frame.
 fn swapped(motion: &Motion, a: &str, b: &str) -> Motion {
     let mut out = motion.clone();
-    let (i, j, n) = (motion.index(a).unwrap(), motion.index(b).unwrap(), motion.n_targets());
+    let (i, j, n) = (
+        motion.index(a).unwrap(),
+        motion.index(b).unwrap(),
+        motion.n_targets(),
+    );
     for f in 0..motion.n_frames() {
         out.positions.swap(f * n + i, f * n + j);
     }
@@ -66,7 +70,10 @@ fn task_names(model: &Model, tasks: &IkTasks) -> Vec<String> {
 }
 
 fn named(names: &[String], s: &IkSolution) -> Vec<String> {
-    s.disagreeing.iter().map(|d| names[d.task].clone()).collect()
+    s.disagreeing
+        .iter()
+        .map(|d| names[d.task].clone())
+        .collect()
 }
 
 /// Median over frames of the RMS error of the markers not in `bad`.
@@ -199,7 +206,11 @@ fn gait2392_walk_with_a_displaced_or_swapped_marker_fits_as_the_clean_walk() {
                 tra * 1e3,
                 rot_w.to_degrees(),
                 tra_w * 1e3,
-                if who.is_empty() { "–".into() } else { who.join(", ") }
+                if who.is_empty() {
+                    "–".into()
+                } else {
+                    who.join(", ")
+                }
             );
             if fit == "plain" {
                 continue;
@@ -289,5 +300,8 @@ fn exact_markers_with_one_displaced_give_the_motion_back() {
     assert_eq!(who, ["R.Shank.Front"]);
     // the displaced marker keeps 10⁻³ of its weight: 0.1 mm of pull
     assert!(gap < 1e-3, "{gap}");
-    assert!(plain_gap > 100.0 * gap, "the displaced marker bends the plain fit");
+    assert!(
+        plain_gap > 100.0 * gap,
+        "the displaced marker bends the plain fit"
+    );
 }

@@ -429,7 +429,12 @@ impl Chain {
         }
         // --- inverse kinematics ---
         let solution = ik::solve_motion(&model, &targets, &tasks, &self.options.ik, &|_| {})?;
-        warnings.extend(ik_robust::warnings(&model, &tasks, &solution, &motion.source));
+        warnings.extend(ik_robust::warnings(
+            &model,
+            &tasks,
+            &solution,
+            &motion.source,
+        ));
         let frames = solution.n_frames();
         if frames < 4 {
             return Err(Error::invalid(

@@ -929,7 +929,10 @@ fn reweighted(
     // the fit figures of the markers kept
     for f in 0..solution.n_frames() {
         let (mut sum, mut count, mut worst) = (0.0, 0usize, 0.0f64);
-        for (i, &e) in solution.marker_error[f * nm..(f + 1) * nm].iter().enumerate() {
+        for (i, &e) in solution.marker_error[f * nm..(f + 1) * nm]
+            .iter()
+            .enumerate()
+        {
             if factors[i].is_none() && e.is_finite() {
                 sum += e * e;
                 count += 1;

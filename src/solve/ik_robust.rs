@@ -269,7 +269,12 @@ pub fn outvoted_only(
 /// One warning per down-weighted marker of `solution`, e.g. "walk.trc: marker R.ASIS
 /// disagrees with the others (median error 98 mm over 150 of 150 frames; the others' median
 /// 7 mm): down-weighted in IK (weight 1 → 0.00081)".
-pub fn warnings(model: &Model, tasks: &IkTasks, solution: &IkSolution, source: &str) -> Vec<String> {
+pub fn warnings(
+    model: &Model,
+    tasks: &IkTasks,
+    solution: &IkSolution,
+    source: &str,
+) -> Vec<String> {
     solution
         .disagreeing
         .iter()
@@ -324,18 +329,34 @@ mod tests {
         }
         // the same pattern scaled below the floor: a 10 mm marker among 0.6 mm ones
         let small = errors_mm(&[0.6, 0.7, 0.5, 0.9, 0.8, 0.65, 10.0, 0.75]);
-        assert!(disagreement(&small, &all, &settings).iter().all(Option::is_none));
+        assert!(
+            disagreement(&small, &all, &settings)
+                .iter()
+                .all(Option::is_none)
+        );
         // a marker not counted (weight 0) neither disagrees nor enters c and s
         let mut counted = all.clone();
         counted[6] = false;
-        assert!(disagreement(&e, &counted, &settings).iter().all(Option::is_none));
+        assert!(
+            disagreement(&e, &counted, &settings)
+                .iter()
+                .all(Option::is_none)
+        );
         // too few markers to outvote one
         let few = errors_mm(&[6.0, 7.0, 5.0, 100.0]);
-        assert!(disagreement(&few, &[true; 4], &settings).iter().all(Option::is_none));
+        assert!(
+            disagreement(&few, &[true; 4], &settings)
+                .iter()
+                .all(Option::is_none)
+        );
         // a marker never present is left alone
         let mut absent = e.clone();
         absent[6].1 = 0;
-        assert!(disagreement(&absent, &all, &settings).iter().all(Option::is_none));
+        assert!(
+            disagreement(&absent, &all, &settings)
+                .iter()
+                .all(Option::is_none)
+        );
     }
 
     #[test]
@@ -366,7 +387,10 @@ mod tests {
                 ..RobustMarkers::default()
             },
         ];
-        for (s, name) in bad.iter().zip(["z_limit", "floor", "max_passes", "outlier_weight"]) {
+        for (s, name) in bad
+            .iter()
+            .zip(["z_limit", "floor", "max_passes", "outlier_weight"])
+        {
             let e = s.validate().unwrap_err().to_string();
             assert!(e.contains(name), "{e}");
         }

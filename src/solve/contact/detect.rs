@@ -344,7 +344,11 @@ pub fn detect(
         }
     }
     whole.sort_unstable();
-    let typical = whole.get(whole.len() / 2).copied().unwrap_or(longest).min(longest);
+    let typical = whole
+        .get(whole.len() / 2)
+        .copied()
+        .unwrap_or(longest)
+        .min(longest);
     for &(g, start, end) in &intervals {
         // the overlap at the interval's start: another group in contact before it began
         // (a transfer onto this group), or at the clip's first frame with this group
@@ -498,7 +502,11 @@ fn viterbi_separate(
             for s in 0..2 {
                 let stay = total[s];
                 let change = total[1 - s] + switch;
-                let (best, from) = if stay <= change { (stay, s) } else { (change, 1 - s) };
+                let (best, from) = if stay <= change {
+                    (stay, s)
+                } else {
+                    (change, 1 - s)
+                };
                 next[s] = best + c(t, s == 1);
                 back[t][s] = from as u8;
             }
