@@ -1208,9 +1208,10 @@ fn motion_from_array(
 /// kinematics, inverse dynamics with contact forces from kinematics, static optimization and
 /// excitations. Returns a dict of float32 arrays named as in the `.npz` files of `musculo
 /// augment` (`q`, `qd`, `qdd`, `tau`, `contact_point_force`, `muscle_act`, `x`, …), with
-/// `quality` (the manifest's per-clip figures) and `model_xml` (the scaled model as OpenSim
+/// `quality` (the manifest's per-clip figures), `model_xml` (the scaled model as OpenSim
 /// XML, None when not scaled: `Model.from_osim_string(out["model_xml"])` is the model the
-/// arrays belong to). `muscle_strength` multiplies every muscle's maximum isometric force
+/// arrays belong to) and `model_identity` (the body the arrays belong to, as the `.npz`
+/// member `model_identity` of `musculo augment` records it). `muscle_strength` multiplies every muscle's maximum isometric force
 /// (`musculo augment --muscle-strength`; 1: the model as built).
 #[pyfunction]
 #[pyo3(signature = (joints, fps = None, format = "humanml3d", scale_to_clip = true, muscle_strength = 1.0))]
@@ -1495,6 +1496,9 @@ fn clip_output_dict(
         .map_err(|e| MusculoError::new_err(format!("quality: {e}")))?;
     d.set_item("quality", json_to_py(py, &quality)?)?;
     d.set_item("model_xml", output.model_xml)?;
+    let identity: serde_json::Value = serde_json::from_str(&output.identity.to_json())
+        .map_err(|e| MusculoError::new_err(format!("model identity: {e}")))?;
+    d.set_item("model_identity", json_to_py(py, &identity)?)?;
     d.set_item("warnings", output.warnings)?;
     Ok(d)
 }

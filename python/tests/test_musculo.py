@@ -393,6 +393,9 @@ def test_augment_clip_gives_tensors_that_satisfy_the_equations_of_motion():
     assert out["quality"]["frames"] == t and out["q"].shape[0] == t
     assert out["q"].dtype == np.float32 and out["muscle_act"].shape == (t, 324)
     model = musculo.Model.from_osim_string(out["model_xml"], "scaled")
+    # the body the arrays belong to: the built-in model scaled to the clip's bones
+    identity = out["model_identity"]
+    assert identity["base"]["name"] == "musculo_fullbody" and identity["scale"]["bodies"]
     loss = musculo.EulerLagrangeLoss(model, contacts="model")
     arrays = [out[k].astype(np.float64) for k in ("q", "qd", "qdd", "tau", "contact_point_force")]
     res = loss(*arrays, gradients=False)
