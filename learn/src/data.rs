@@ -25,7 +25,8 @@
 //! contact sphere that never touches) gets the floor σ = max(σ, 1 % of its block's mean σ) so
 //! that it is neither amplified nor divided by zero.
 
-use musculo::augment::identity::{Bodies, ModelIdentity};
+use musculo::augment::identity::{BaseModel, Bodies, ModelIdentity};
+use musculo::augment::perturb::Variant;
 use musculo::loss::tensor_file::TensorFrames;
 use musculo::model::Model;
 use musculo::motion::npy::read_npz_as_f64;
@@ -525,15 +526,25 @@ impl Normalizer {
     }
 }
 
+/// The identity of a motion generated on the model whose file text is `xml` (named `source`;
+/// the built-in model when `xml` is its text): that model unscaled, at full muscle strength,
+/// with no variant — what `musculo augment --no-scale` records for a clip on it.
+pub fn generated_identity(model: &Model, xml: &str, source: &str) -> ModelIdentity {
+    let base = BaseModel::new(&model.name, source, xml, 1.0, xml);
+    ModelIdentity::new(&base, None, &Variant::identity())
+}
+
 /// Writes frames `y` (T × D, SI units, at `rate_hz`) as a tensor file in musculo's format, so
 /// that `musculo loss`, `evaluate` and `report` read it: `joint_pos` (T × J × 3), `q`, `qd`,
 /// `qdd`, `tau` (T × n), `contact_point_force` (T × P × 3), `muscle_act` (T × m) and `time`
-/// (T, s), float32.
+/// (T, s), float32, with `identity` (the body the frames belong to, see
+/// [`generated_identity`]) as the text member `model_identity`, as augment writes it.
 pub fn write_tensor_file(
     path: &Path,
     layout: &FeatureLayout,
     y: &[f32],
     rate_hz: f64,
+    identity: &ModelIdentity,
 ) -> Result<()> {
     use ndarray::{ArrayD, IxDyn};
     let d = layout.width();
@@ -578,6 +589,8 @@ pub fn write_tensor_file(
     ];
     let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
         arrays.iter().map(|(k, a)| (*k, a.view())).collect();
-    musculo::motion::npy::write_npz(path, &views, false)?;
+    let json = identity.to_json();
+    let texts = [(musculo::augment::identity::MEMBER, json.as_str())];
+    musculo::motion::npy::write_npz_with_texts(path, &views, &texts, false)?;
     Ok(())
 }

@@ -156,6 +156,40 @@ fn train_reconstruct_train_diffusion_and_generate() {
         .unwrap();
         assert_eq!(frames.frames, 32, "{name}");
     }
+    // each generated file names the body it was generated on: the base model augment recorded
+    // for the training clips (the built-in model), unscaled, no variant; evaluate finds that
+    // body from it without the "no model identity" warning
+    let trained_on = musculo::augment::identity::read_identity(&data.join("squat.npz"))
+        .unwrap()
+        .expect("augment writes an identity");
+    let bodies = musculo::augment::identity::Bodies::new(None).unwrap();
+    for name in ["sample_000", "sample_001", "controlled_000"] {
+        let path = gen_dir.join(format!("{name}.npz"));
+        let text = musculo::motion::npy::read_npz_text(&path, "model_identity")
+            .unwrap()
+            .unwrap_or_else(|| panic!("{name}: no model_identity"));
+        let identity: musculo::augment::identity::ModelIdentity =
+            serde_json::from_str(&text).unwrap();
+        assert_eq!(identity.base, trained_on.base, "{name}");
+        assert!(identity.base.is_builtin(), "{name}");
+        assert_eq!(identity.base.name, model.name, "{name}");
+        assert!(identity.scale.is_none(), "{name}");
+        assert_eq!(
+            (identity.mass_scale, identity.load_kg),
+            (1.0, 0.0),
+            "{name}"
+        );
+        let body = bodies.of_tensor_file(&path).unwrap();
+        assert!(body.warning.is_none(), "{name}: {:?}", body.warning);
+        assert_eq!(body.model.name, model.name, "{name}");
+    }
+    // a model other than the autoencoder's is refused (its identity would be wrong)
+    let other = dir.join("other.osim");
+    std::fs::write(
+        &other,
+        format!("{}\n<!-- another model -->\n", musculo::DEFAULT_MODEL_OSIM),
+    )
+    .unwrap();
     // misuse
     for (args, expect) in [
         (
@@ -181,6 +215,18 @@ fn train_reconstruct_train_diffusion_and_generate() {
                 s(&gen_dir),
             ],
             "multiple of 4",
+        ),
+        (
+            vec![
+                "generate",
+                "--diffusion",
+                s(&diff),
+                "--model",
+                s(&other),
+                "--out",
+                s(&gen_dir),
+            ],
+            "pass the model it was trained on",
         ),
         (
             vec![

@@ -418,8 +418,19 @@ fn a_saved_denoiser_samples_the_same_and_its_motions_are_tensor_files_musculo_re
     assert_eq!(y, sample(&loaded.denoiser, &ae.trained));
     // the generated frames as a tensor file: musculo's residual reads it
     let path = dir.join("generated.npz");
-    musculo_learn::data::write_tensor_file(&path, &f.set.layout, &y[..32 * d], f.set.rate_hz)
-        .unwrap();
+    let identity = musculo_learn::data::generated_identity(
+        &model,
+        musculo::DEFAULT_MODEL_OSIM,
+        "models/musculo_fullbody.osim",
+    );
+    musculo_learn::data::write_tensor_file(
+        &path,
+        &f.set.layout,
+        &y[..32 * d],
+        f.set.rate_hz,
+        &identity,
+    )
+    .unwrap();
     let frames = musculo::loss::tensor_file::TensorFrames::read(&path, &model).unwrap();
     assert_eq!(frames.frames, 32);
     assert_eq!(frames.muscles, f.set.layout.muscles);

@@ -4,6 +4,7 @@
 use burn::module::Module;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use musculo::augment::identity::ModelIdentity;
 use musculo::model::Model;
 use musculo_learn::autoencoder::AutoencoderConfig;
 use musculo_learn::checkpoint;
@@ -137,7 +138,8 @@ struct GenerateArgs {
     /// The controlled frames, FIRST:END (end exclusive; default: all).
     #[arg(long)]
     control_frames: Option<String>,
-    /// The .osim model (default: the built-in full-body model), to read the control file.
+    /// The .osim model the autoencoder was trained on (default: the built-in full-body model):
+    /// the body the motions are generated on (recorded in each file) and the control file's.
     #[arg(long)]
     model: Option<PathBuf>,
     /// Output folder: NAME_000.npz, NAME_001.npz, …
@@ -245,16 +247,32 @@ fn main() -> ExitCode {
 }
 
 fn load_model(path: Option<&Path>) -> Result<(Model, String), LearnError> {
-    let xml = match path {
-        Some(p) => std::fs::read_to_string(p).map_err(|e| LearnError::File {
-            path: p.to_path_buf(),
-            message: e.to_string(),
-        })?,
-        None => musculo::DEFAULT_MODEL_OSIM.to_string(),
+    let (model, hash, _) = load_model_with_identity(path)?;
+    Ok((model, hash))
+}
+
+/// The model at `path` (the built-in model without it), its file hash, and the identity of a
+/// motion generated on it ([`musculo_learn::data::generated_identity`]).
+fn load_model_with_identity(
+    path: Option<&Path>,
+) -> Result<(Model, String, ModelIdentity), LearnError> {
+    let (xml, source) = match path {
+        Some(p) => (
+            std::fs::read_to_string(p).map_err(|e| LearnError::File {
+                path: p.to_path_buf(),
+                message: e.to_string(),
+            })?,
+            p.display().to_string(),
+        ),
+        // named as `musculo augment` names it, so the identities agree
+        None => (
+            musculo::DEFAULT_MODEL_OSIM.to_string(),
+            "models/musculo_fullbody.osim".to_string(),
+        ),
     };
-    let source = path.map_or("<default model>".to_string(), |p| p.display().to_string());
     let model = Model::from_osim_str(&xml, &source)?;
-    Ok((model, musculo::augment::output::fnv1a_hex(&xml)))
+    let identity = musculo_learn::data::generated_identity(&model, &xml, &source);
+    Ok((model, musculo::augment::output::fnv1a_hex(&xml), identity))
 }
 
 /// The clips of `data` for `model` (read from `path`, the built-in model without it; file
@@ -601,9 +619,20 @@ fn generate(args: GenerateArgs) -> Result<(), LearnError> {
             weight: -args.not_weight,
         });
     }
+    // the body the motions are generated on: the model the autoencoder was trained on
+    let (model, hash, identity) = load_model_with_identity(args.model.as_deref())?;
+    if ae.model_hash != hash {
+        return Err(LearnError::invalid(
+            "--model",
+            format!(
+                "the autoencoder was trained on model {}, this is {hash}: pass the model it was \
+                 trained on with --model",
+                ae.model_hash
+            ),
+        ));
+    }
     let mut control = Control::none(args.frames, d);
     if let Some(path) = &args.control {
-        let (model, _) = load_model(args.model.as_deref())?;
         let source = ClipSet::read(std::slice::from_ref(path), &model)?;
         let clip = &source.clips[0];
         if source.layout != *layout {
@@ -669,6 +698,7 @@ fn generate(args: GenerateArgs) -> Result<(), LearnError> {
             layout,
             &y[k * args.frames * d..(k + 1) * args.frames * d],
             loaded.rate_hz,
+            &identity,
         )?;
     }
     eprintln!(
