@@ -202,15 +202,11 @@ fn compare(
     let groups = gm.len() / (3 * frames);
     let dt = (times[frames - 1] - times[0]) / (frames - 1) as f64;
     let level = 0.05 * weight;
-    let on_plates: Vec<Vec<bool>> = (0..groups)
-        .map(|g| {
-            if trial.whole_trial {
-                vec![true; frames]
-            } else {
-                foot_on_plates(trial, model, estimated, g)
-            }
-        })
-        .collect();
+    let on_plates: Vec<Vec<bool>> = if trial.whole_trial {
+        vec![vec![true; frames]; groups]
+    } else {
+        feet_on_plates(trial, model, estimated, groups)
+    };
     // Overground the model's mass is not the subject's (a C3D file does not say it): the
     // plates are expressed in the subject's body weight, from momentum over a stride of
     // steady walking — both feet's vertical impulses sum to W·T over a stride and are equal,
@@ -334,10 +330,10 @@ fn compare(
         .collect()
 }
 
-/// Per frame: whether every point of foot group `g` that touches the floor (lowest point
-/// within 3 cm of the lowest of all points) lies on one of the trial's plates (its corners in
-/// the floor plane, 1 cm margin). Poses from the estimate's `q`.
-fn foot_on_plates(trial: &Trial, model: &Model, out: &ClipOutput, g: usize) -> Vec<bool> {
+/// Per foot group and frame: whether every point of the group that touches the floor (lowest
+/// point within 3 cm of the lowest of all points) lies on one of the trial's plates (its
+/// corners in the floor plane, 1 cm margin). Poses from the estimate's `q`.
+fn feet_on_plates(trial: &Trial, model: &Model, out: &ClipOutput, groups: usize) -> Vec<Vec<bool>> {
     let MeasuredLoads::ForcePlates(path) = &trial.loads else {
         unreachable!("overground trials are C3D files")
     };
@@ -370,29 +366,33 @@ fn foot_on_plates(trial: &Trial, model: &Model, out: &ClipOutput, g: usize) -> V
     let q = array(out, "q");
     let nq = model.nq();
     let mut data = Data::new(model);
-    q.chunks(nq)
-        .map(|qf| {
-            let qf: Vec<f64> = qf.iter().map(|&v| v as f64).collect();
-            dynamics::forward_kinematics(model, &mut data, &qf).unwrap();
-            let positions: Vec<(usize, Vec3)> = set
-                .points
-                .iter()
-                .enumerate()
-                .map(|(p, point)| {
-                    let x = data.point_position(point.body, &point.location_in_body);
-                    (p, x - Vec3::y() * point.radius)
-                })
-                .collect();
-            let lowest = positions
-                .iter()
-                .map(|(_, x)| x.y)
-                .fold(f64::INFINITY, f64::min);
-            positions
-                .iter()
-                .filter(|(p, x)| set.group_of(*p) == g && x.y <= lowest + 0.03)
-                .all(|(_, x)| plates.iter().any(|c| inside(x, c)))
-        })
-        .collect()
+    let mut on = vec![Vec::new(); groups];
+    for qf in q.chunks(nq) {
+        let qf: Vec<f64> = qf.iter().map(|&v| v as f64).collect();
+        dynamics::forward_kinematics(model, &mut data, &qf).unwrap();
+        let positions: Vec<(usize, Vec3)> = set
+            .points
+            .iter()
+            .enumerate()
+            .map(|(p, point)| {
+                let x = data.point_position(point.body, &point.location_in_body);
+                (p, x - Vec3::y() * point.radius)
+            })
+            .collect();
+        let lowest = positions
+            .iter()
+            .map(|(_, x)| x.y)
+            .fold(f64::INFINITY, f64::min);
+        for (g, on) in on.iter_mut().enumerate() {
+            on.push(
+                positions
+                    .iter()
+                    .filter(|(p, x)| set.group_of(*p) == g && x.y <= lowest + 0.03)
+                    .all(|(_, x)| plates.iter().any(|c| inside(x, c))),
+            );
+        }
+    }
+    on
 }
 
 fn mean_abs(v: &[f64]) -> f64 {
