@@ -592,8 +592,8 @@ fn markers_the_model_lacks_are_named() {
     }
 }
 
-/// Measured-load options that cannot apply: a missing ExternalLoads file stops the run
-/// before it makes its output folder; `--force-plates` on a clip that is not a C3D file
+/// Measured-load options that cannot apply: a missing ExternalLoads file or a belt speed that
+/// is not a speed stops the run before it makes its output folder; `--force-plates` on a clip that is not a C3D file
 /// estimates its ground reactions and says so (on stderr and in the clip's warnings).
 #[test]
 fn measured_loads_that_cannot_apply_are_reported() {
@@ -609,6 +609,12 @@ fn measured_loads_that_cannot_apply_are_reported() {
         !out.exists(),
         "no output folder for a run that cannot start"
     );
+    // a belt speed that is no speed stops the run before its output folder, naming the flag
+    for speed in ["--treadmill=-1", "--treadmill=inf", "--treadmill=NaN"] {
+        let (ok, stderr) = run(&[speed]);
+        assert!(!ok && stderr.contains("`--treadmill`"), "{speed}: {stderr}");
+        assert!(!out.exists(), "{speed}");
+    }
     let (ok, stderr) = run(&["--force-plates"]);
     assert!(ok, "{stderr}");
     let said = "--force-plates: only C3D files carry force plates";

@@ -222,6 +222,14 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     };
     let mut options = options;
     if let Some(speed) = args.treadmill {
+        if let Some(v) = speed
+            && !(v >= 0.0 && v.is_finite())
+        {
+            return Err(invalid(
+                "--treadmill",
+                format!("{v}: the belt speed must be a finite number of m/s, ≥ 0"),
+            ));
+        }
         options.contact.floor_motion = musculo::solve::contact::FloorMotion::Treadmill { speed };
     }
     if args.overground {
