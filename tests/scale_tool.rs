@@ -1257,3 +1257,44 @@ fn the_returned_scaled_model_equals_a_parse_of_the_scaled_text() {
         "{checked} models, {rescaled} forces"
     );
 }
+
+/// The Rajagopal running pipeline's static trial: the default pose leads IK into a local
+/// minimum (upper arms rolled, elbows straight: 51 mm marker RMS); the first frame's starts
+/// find a pose no worse than OpenSim 4.6's ScaleTool reaches on the same setup and model.
+/// Its figure, from its log (`Frame at (t = 0): … marker error: RMS = 0.022132568299045176`,
+/// OpenSim 4.6 from PyPI, 2026-12-02; `validation/opensim/scale_compare.py --case
+/// rajagopal_run` regenerates it and compares the poses and placed markers in OpenSim).
+#[test]
+fn rajagopal_static_pose_is_no_worse_than_opensims() {
+    const OPENSIM_RMS: f64 = 0.022132568299045176;
+    let dir = "opensim-models/Pipelines/Rajagopal";
+    let (Some(setup), Some(generic)) = (
+        reference_file(&format!("{dir}/Scale/scale_setup_run.xml")),
+        reference_file("opensim-models/Models/Rajagopal/Rajagopal2016.osim"),
+    ) else {
+        return;
+    };
+    let setup = ScaleSetup::read(&setup).unwrap();
+    let result = tool::run(
+        &setup,
+        &ToolOptions {
+            model_file: Some(generic),
+            ..ToolOptions::default()
+        },
+    )
+    .unwrap();
+    let p = result.placement.as_ref().unwrap();
+    eprintln!(
+        "Rajagopal static pose: marker RMS {:.2} mm (OpenSim 4.6 {:.2} mm), max {:.2} mm; \
+         starts: {}",
+        1e3 * p.rmse,
+        1e3 * OPENSIM_RMS,
+        1e3 * p.max_error,
+        musculo::solve::ik::describe_starts(&p.starts)
+    );
+    assert!(p.rmse <= OPENSIM_RMS * 1.001 + 1e-4, "{} m", p.rmse);
+    // the kept start is the one of lowest objective, and more than one was tried
+    assert!(p.starts.len() >= 2);
+    let kept = p.starts.iter().find(|s| s.chosen).unwrap();
+    assert!(p.starts.iter().all(|s| kept.objective <= s.objective));
+}

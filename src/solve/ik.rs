@@ -51,6 +51,9 @@ use crate::spatial::{Force, Mat3, SpatialInertia, Vec3};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
+mod start;
+pub use start::{StartOutcome, describe as describe_starts};
+
 /// A frame ends when an accepted step lowers f by less than this fraction of f. Gauss–Newton
 /// converges linearly on real (non-zero-residual) data; at this threshold no single
 /// coordinate moved by ±10⁻⁴ lowers f by more than ~10⁻⁸ of itself (tests/ik_datasets.rs
@@ -207,6 +210,10 @@ pub struct IkSolution {
     /// The marker tasks that disagreed with the others and were down-weighted (empty without
     /// [`IkSettings::robust`]); [`ik_robust::warnings`] words them.
     pub disagreeing: Vec<DisagreeingMarker>,
+    /// The starts the first frame was solved from and the objective each reached (see
+    /// [`start`]); empty when the first frame started from a given pose (`initial_q`, or
+    /// [`solve_motion_from`]'s starts).
+    pub first_frame_starts: Vec<StartOutcome>,
 }
 
 impl IkSolution {
@@ -879,6 +886,8 @@ fn reweighted(
         return Ok(solution);
     };
     let nm = tasks.markers.len();
+    // the later passes start from the first pass's first frame: its starts stand
+    let first_frame_starts = solution.first_frame_starts.clone();
     let counted: Vec<bool> = tasks.markers.iter().map(|t| t.weight > 0.0).collect();
     // the weight factors of the last solve (all 1 for the first)
     let mut factors: Vec<Option<f64>> = vec![None; nm];
@@ -903,6 +912,7 @@ fn reweighted(
             ..settings.clone()
         };
         solution = solve(model, targets, &weighted, &again, None, &|_| {})?;
+        solution.first_frame_starts.clone_from(&first_frame_starts);
     }
     if factors.iter().all(Option::is_none) {
         return Ok(solution);
@@ -1009,8 +1019,36 @@ fn solve(
     for j in 0..n {
         ws.q[j] = start[j].clamp(ws.lo[j], ws.hi[j]);
     }
-    if starts.is_none() && settings.initial_q.is_none() {
-        move_start_to_targets(model, &mut ws, tasks, targets.frame(0))?;
+    // Without a given start, the first frame with a target is solved from several
+    // (`start`); the frames before it (none seen) keep the start pose.
+    let has_data = |f: usize| {
+        tasks
+            .markers
+            .iter()
+            .any(|t| t.weight > 0.0 && !targets.frame(f)[t.target].x.is_nan())
+            || tasks.coordinates.iter().any(|t| t.weight > 0.0)
+    };
+    // The frame solved from several starts is the first observed at least as well as the
+    // clip's median frame (weight of the markers present): a clip whose first frames see one
+    // or two markers (a C3D trial's subject walking into the volume) leaves the pose
+    // undetermined there.
+    let present_weight = |f: usize| -> f64 {
+        let frame = targets.frame(f);
+        (tasks.markers.iter())
+            .filter(|t| !frame[t.target].x.is_nan())
+            .map(|t| t.weight)
+            .sum()
+    };
+    let mut seen: Vec<f64> = (0..targets.n_frames()).map(present_weight).collect();
+    seen.sort_by(f64::total_cmp);
+    let typical = seen[seen.len() / 2];
+    let global_frame = (0..targets.n_frames())
+        .find(|&f| has_data(f) && present_weight(f) >= typical)
+        .unwrap_or(0);
+    let mut several_starts = starts.is_none() && settings.initial_q.is_none();
+    if several_starts {
+        let first = (0..targets.n_frames()).find(|&f| has_data(f)).unwrap_or(0);
+        move_start_to_targets(model, &mut ws, tasks, targets.frame(first))?;
     }
     ws.q_prev.copy_from_slice(&ws.q);
     ws.q_prev2.copy_from_slice(&ws.q);
@@ -1029,22 +1067,19 @@ fn solve(
         evaluations: Vec::with_capacity(frames),
         marker_weight: tasks.markers.iter().map(|t| t.weight).collect(),
         disagreeing: Vec::new(),
+        first_frame_starts: Vec::new(),
     };
     for f in 0..frames {
         // Start from the previous solution moved on at its last velocity (constant-velocity
         // prediction, q̂ = q_{f−1} + (t_f − t_{f−1})/(t_{f−1} − t_{f−2}) · (q_{f−1} − q_{f−2})),
         // kept within bounds: at 20 fps a walking pelvis moves 7 cm a frame. A frame with no
         // target at all keeps the previous pose.
-        let has_data = tasks
-            .markers
-            .iter()
-            .any(|t| t.weight > 0.0 && !targets.frame(f)[t.target].x.is_nan())
-            || tasks.coordinates.iter().any(|t| t.weight > 0.0);
+        let observed = has_data(f);
         if let Some(starts) = starts {
             for j in 0..n {
                 ws.q[j] = starts.frame(f)[j].clamp(ws.lo[j], ws.hi[j]);
             }
-        } else if f >= 2 && has_data {
+        } else if f >= 2 && observed {
             let ratio = (targets.time[f] - targets.time[f - 1])
                 / (targets.time[f - 1] - targets.time[f - 2]);
             for j in 0..n {
@@ -1070,21 +1105,42 @@ fn solve(
                 1.0
             },
         };
-        let max_iterations = if f == 0 {
+        let from_several = several_starts && f == global_frame;
+        let max_iterations = if f == 0 || from_several {
             settings.max_iterations * 10
         } else {
             settings.max_iterations
         };
         ws.evaluations = 0;
-        let (value, iterations) = solve_frame(
-            model,
-            &mut ws,
-            tasks,
-            &frame,
-            max_iterations,
-            settings.tolerance,
-            settings.relative_decrease,
-        )?;
+        let (value, iterations) = if from_several {
+            several_starts = false;
+            let (value, iterations, outcomes) = start::best_of_starts(
+                model,
+                &mut ws,
+                if (0..f).any(&has_data) {
+                    "previous frames"
+                } else {
+                    "default pose"
+                },
+                tasks,
+                &frame,
+                max_iterations,
+                settings.tolerance,
+                settings.relative_decrease,
+            )?;
+            out.first_frame_starts = outcomes;
+            (value, iterations)
+        } else {
+            solve_frame(
+                model,
+                &mut ws,
+                tasks,
+                &frame,
+                max_iterations,
+                settings.tolerance,
+                settings.relative_decrease,
+            )?
+        };
         out.evaluations.push(ws.evaluations);
         out.q.extend_from_slice(&ws.q);
         out.objective.push(value);

@@ -30,7 +30,7 @@ evaluator at OpenSim's solution (a check of the evaluator); OpenSim run again at
 (how far its default run is from its own optimum, and musculo's distance to that); and how the
 .mot files stored in the reference folders differ from OpenSim 4.6's run.
 
-Usage: ik_compare.py [--case gait2392|gait10dof]... [--musculo-mot CASE=FILE]... [--self-test]
+Usage: ik_compare.py [--case gait2392|gait10dof|rajagopal_run]... [--full-trial] [--musculo-mot CASE=FILE]... [--self-test]
   --self-test   feed OpenSim's own .mot as "musculo's" (checks the comparison code itself)
   --opensim-only   run and evaluate OpenSim only
 """
@@ -62,6 +62,17 @@ CASES = {
         markers=os.path.join(P, "Gait10dof18musc", "ExperimentalData", "subject01_walk.trc"),
         stored=[os.path.join(P, "Gait10dof18musc", "OutputReference", "IK",
                              "subject01_walk_IK.mot")],
+    ),
+    # The Rajagopal running trial on the model OpenSim 4.6's ScaleTool makes from the
+    # pipeline's Scale setup (scale_compare.py's rajagopal_run case; run here if absent).
+    "rajagopal_run": dict(
+        setup=os.path.join(P, "Rajagopal", "IK", "ik_setup_run.xml"),
+        model=os.path.join(ov.WORK, "scale_rajagopal_run", "opensim", "scaled.osim"),
+        markers=os.path.join(P, "Rajagopal", "ExpData", "motion_capture_run.trc"),
+        stored=[],
+        scaled_by="rajagopal_run",
+        # 150 of the trial's 510 frames (three strides) keep CI's time; --full-trial runs all
+        time_range="0.23 1.72",
     ),
 }
 
@@ -251,19 +262,31 @@ def run_opensim(case, setup, outdir, log_name="opensim_ik.log"):
     return dt, per_frame
 
 
-def prepare(case, spec):
+def scaled_model(spec):
+    """Runs OpenSim's ScaleTool for a case whose model it makes, unless already made."""
+    if spec.get("scaled_by") and not os.path.exists(spec["model"]):
+        import scale_compare
+        d, setup = scale_compare.prepare(scale_compare.CASES[spec["scaled_by"]])
+        scale_compare.run_opensim(d, setup)
+
+
+def prepare(case, spec, full_trial=False):
+    scaled_model(spec)
     d = os.path.join(ov.WORK, f"ik_{case}")
     ov.fresh_dir(d)
     os.makedirs(os.path.join(d, "opensim"))
     os.makedirs(os.path.join(d, "musculo"))
     for key in ("setup", "model", "markers"):
         ov.require(spec[key], f"{case} {key}")
-    setup = ov.edit_setup(spec["setup"], os.path.join(d, "setup.xml"), {
+    edits = {
         "model_file": spec["model"],
         "marker_file": spec["markers"],
         "results_directory": os.path.join(d, "opensim"),
         "output_motion_file": os.path.join(d, "opensim", "opensim_ik.mot"),
-    })
+    }
+    if spec.get("time_range") and not full_trial:
+        edits["time_range"] = spec["time_range"]
+    setup = ov.edit_setup(spec["setup"], os.path.join(d, "setup.xml"), edits)
     return d, setup
 
 
@@ -278,7 +301,7 @@ def evaluate(problem, times, q):
 
 def compare_case(case, spec, args, report):
     print(f"\n=== IK {case}: {os.path.relpath(spec['setup'], ov.MODELS)}")
-    d, setup = prepare(case, spec)
+    d, setup = prepare(case, spec, args.full_trial)
     seconds, per_frame = run_opensim(case, setup, os.path.join(d, "opensim"))
     problem = Problem(setup)
     os_mot = os.path.join(d, "opensim", "opensim_ik.mot")
@@ -542,6 +565,8 @@ def main():
     ap.add_argument("--musculo-mot", action="append", default=[], metavar="CASE=FILE")
     ap.add_argument("--self-test", action="store_true")
     ap.add_argument("--opensim-only", action="store_true")
+    ap.add_argument("--full-trial", action="store_true",
+                    help="every frame of a case whose spec shortens the setup's time range")
     args = ap.parse_args()
     args.musculo_mot = dict(s.split("=", 1) for s in args.musculo_mot)
     ov.quiet_opensim()

@@ -1,9 +1,11 @@
 """Scaling side by side: OpenSim 4.6's ScaleTool against `musculo scale`.
 
-OpenSim's ScaleTool runs on Pipelines/Gait2392_Simbody/subject01_Setup_Scale.xml, copied to
-target/opensim-validation/scale/setup.xml with its inputs named by paths relative to that folder
-(the generic model `gait2392_simbody.osim` is Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim,
-which opensim-models installs under that name) and its outputs as plain file names; the tool runs
+Two cases (CASES): Pipelines/Gait2392_Simbody/subject01_Setup_Scale.xml (the generic model
+`gait2392_simbody.osim` is Models/Gait2392_Simbody/gait2392_thelen2003muscle.osim, which
+opensim-models installs under that name) and Pipelines/Rajagopal/Scale/scale_setup_run.xml with
+Models/Rajagopal/Rajagopal2016.osim. OpenSim's ScaleTool runs on each setup, copied to
+target/opensim-validation/scale/setup.xml (scale_rajagopal_run/ for the second) with its inputs
+named by paths relative to that folder and its outputs as plain file names; the tool runs
 with that folder as working directory (OpenSim 4.6 prefixes the setup's folder to input paths,
 absolute ones included, and writes outputs relative to the working directory). It writes
 opensim/scaled.osim (after marker placement), opensim/scaled_only.osim and
@@ -23,7 +25,8 @@ Both scaled models are loaded in OpenSim 4.6 and compared (exit status 1 when on
 The same comparison, for information only, of the stored OutputReference/subject01_simbody.osim
 against OpenSim 4.6's result, with the inertia scaling law each follows.
 
-Usage: scale_compare.py [--opensim-only] [--self-test] [--musculo-model M.osim
+Usage: scale_compare.py [--case gait2392|rajagopal_run]... [--opensim-only] [--self-test]
+                        [--musculo-model M.osim
                         [--musculo-scale-set S.xml]]
 """
 
@@ -40,12 +43,28 @@ import numpy as np
 import osimval as ov
 from osimval import osim
 
-P = os.path.join(ov.MODELS, "Pipelines", "Gait2392_Simbody")
-SETUP = os.path.join(P, "subject01_Setup_Scale.xml")
-GENERIC = os.path.join(ov.MODELS, "Models", "Gait2392_Simbody", "gait2392_thelen2003muscle.osim")
-MARKER_SET = os.path.join(P, "gait2392_Scale_MarkerSet.xml")
-STATIC = os.path.join(P, "subject01_static.trc")
-STORED = os.path.join(P, "OutputReference", "subject01_simbody.osim")
+P = os.path.join(ov.MODELS, "Pipelines")
+# The Scale setups compared: each one's generic model, marker set, static trial and the scaled
+# model stored beside it (compared with OpenSim 4.6's for information), where there is one.
+CASES = {
+    "gait2392": dict(
+        setup=os.path.join(P, "Gait2392_Simbody", "subject01_Setup_Scale.xml"),
+        generic=os.path.join(ov.MODELS, "Models", "Gait2392_Simbody",
+                             "gait2392_thelen2003muscle.osim"),
+        marker_set=os.path.join(P, "Gait2392_Simbody", "gait2392_Scale_MarkerSet.xml"),
+        static=os.path.join(P, "Gait2392_Simbody", "subject01_static.trc"),
+        stored=os.path.join(P, "Gait2392_Simbody", "OutputReference", "subject01_simbody.osim"),
+        work="scale",
+    ),
+    "rajagopal_run": dict(
+        setup=os.path.join(P, "Rajagopal", "Scale", "scale_setup_run.xml"),
+        generic=os.path.join(ov.MODELS, "Models", "Rajagopal", "Rajagopal2016.osim"),
+        marker_set=None,
+        static=os.path.join(P, "Rajagopal", "ExpData", "static_run.trc"),
+        stored=None,
+        work="scale_rajagopal_run",
+    ),
+}
 
 # How musculo is asked to scale (run in the work folder): every output the setup names goes to
 # musculo/ under its file name (scaled.osim, scaled_only.osim, scale_set.xml, static_output.mot).
@@ -56,23 +75,29 @@ POS = 1e-3       # 1 mm
 N_POSES = 20
 
 
-def prepare():
-    d = ov.fresh_dir(os.path.join(ov.WORK, "scale"))
+def prepare(spec):
+    """The case's work folder and its setup copy (inputs relative to it, outputs named alike
+    for every case)."""
+    d = ov.fresh_dir(os.path.join(ov.WORK, spec["work"]))
     for sub in ("opensim", "musculo"):
         os.makedirs(os.path.join(d, sub))
-    for path in (SETUP, GENERIC, MARKER_SET, STATIC):
+    inputs = [spec["setup"], spec["generic"], spec["static"]]
+    inputs += [spec["marker_set"]] if spec["marker_set"] else []
+    for path in inputs:
         ov.require(path, "scale input")
     rel = lambda p: os.path.relpath(p, d)  # noqa: E731
-    setup = ov.edit_setup(SETUP, os.path.join(d, "setup.xml"), {
-        "GenericModelMaker/model_file": rel(GENERIC),
-        "GenericModelMaker/marker_set_file": rel(MARKER_SET),
-        "ModelScaler/marker_file": rel(STATIC),
+    edits = {
+        "GenericModelMaker/model_file": rel(spec["generic"]),
+        "ModelScaler/marker_file": rel(spec["static"]),
         "ModelScaler/output_model_file": "opensim/scaled_only.osim",
         "ModelScaler/output_scale_file": "opensim/scale_set.xml",
-        "MarkerPlacer/marker_file": rel(STATIC),
+        "MarkerPlacer/marker_file": rel(spec["static"]),
         "MarkerPlacer/output_model_file": "opensim/scaled.osim",
         "MarkerPlacer/output_motion_file": "opensim/static_output.mot",
-    })
+    }
+    if spec["marker_set"]:
+        edits["GenericModelMaker/marker_set_file"] = rel(spec["marker_set"])
+    setup = ov.edit_setup(spec["setup"], os.path.join(d, "setup.xml"), edits)
     return d, setup
 
 
@@ -289,13 +314,26 @@ class Placer:
     the AssemblySolver's default accuracy (1e-4).
     """
 
-    def __init__(self, setup, scaled_only):
+    def __init__(self, setup, scaled_only, static):
         tool = osim.ScaleTool(setup)
         placer = tool.getMarkerPlacer()
         tasks = placer.getIKTaskSet()
         time_range = placer.getTimeRange()
         self.t0, t1 = time_range.get(0), time_range.get(1)
-        table = osim.TimeSeriesTableVec3(STATIC)
+        table = osim.TimeSeriesTableVec3(static)
+        # where markers move to: MarkerData::averageFrames, which skips missing samples (the
+        # IK targets below are averageRow's, missing wherever one sample is)
+        times = np.array(table.getIndependentColumn())
+        rows = [r for r, t in enumerate(times) if self.t0 <= t <= t1]
+        unit = 1e-3 if table.getTableMetaDataAsString("Units").strip().lower() == "mm" else 1.0
+        labels = table.getColumnLabels()
+        self.window_mean = {}
+        for k, label in enumerate(labels):
+            col = table.getDependentColumnAtIndex(k)
+            samples = np.array([col[r].to_numpy() for r in rows]) * unit
+            present = samples[np.all(np.isfinite(samples), axis=1)]
+            if len(present):
+                self.window_mean[label] = present.mean(axis=0)
         avg = table.averageRow(self.t0, t1)
         for r in range(table.getNumRows() - 1, -1, -1):
             table.removeRowAtIndex(r)
@@ -372,8 +410,8 @@ class Placer:
         out = {}
         for mk in self.model.getMarkerSet():
             loc = mk.get_location().to_numpy().copy()
-            obs = dict((n, o) for n, _, o in self.markers).get(mk.getName())
-            if not mk.get_fixed() and obs is not None and np.all(np.isfinite(obs)):
+            obs = self.window_mean.get(mk.getName())
+            if not mk.get_fixed() and obs is not None:
                 loc = ground.findStationLocationInAnotherFrame(
                     self.state, osim.Vec3(*obs), mk.getParentFrame()).to_numpy().copy()
             out[mk.getName()] = (mk.getParentFrameName(), loc)
@@ -384,10 +422,10 @@ class Placer:
         return np.array([float(cols[n][0]) for n in self.names])
 
 
-def opensim_placement(d, setup):
+def opensim_placement(d, setup, static):
     """OpenSim's placer redone at accuracy 1e-4 (as the tool) and 1e-9; returns
     (placer, F of the tool's pose, converged pose, converged placement, report)."""
-    placer = Placer(setup, os.path.join(d, "opensim", "scaled_only.osim"))
+    placer = Placer(setup, os.path.join(d, "opensim", "scaled_only.osim"), static)
     q_os = placer.pose_of(os.path.join(d, "opensim", "static_output.mot"))
     q_loose = placer.solve(1e-4)
     q_tight = placer.solve(1e-9)
@@ -507,35 +545,30 @@ def run_musculo_scale(d, args):
     return model, scale if os.path.exists(scale) else None
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--opensim-only", action="store_true")
-    ap.add_argument("--self-test", action="store_true",
-                    help="compare OpenSim's scaled model with itself (checks this script)")
-    ap.add_argument("--musculo-model")
-    ap.add_argument("--musculo-scale-set")
-    args = ap.parse_args()
-    ov.quiet_opensim()
-
-    print(f"=== Scale: {os.path.relpath(SETUP, ov.MODELS)}")
-    d, setup = prepare()
+def compare_case(case, spec, args):
+    """Runs one Scale setup through OpenSim 4.6 and musculo; returns the case's report."""
+    print(f"=== Scale {case}: {os.path.relpath(spec['setup'], ov.MODELS)}")
+    d, setup = prepare(spec)
     seconds = run_opensim(d, setup)
     print(f"OpenSim 4.6 ScaleTool: {seconds:.3f} s (tool.run: load, scale, place markers, write)")
     os_model = os.path.join(d, "opensim", "scaled.osim")
     scale46 = read_scale_set(os.path.join(d, "opensim", "scale_set.xml"))
-    generic_model = osim.Model(GENERIC)
+    generic_model = osim.Model(spec["generic"])
     poses = poses_of(generic_model)
     s46 = summary(os_model, poses)
     report = dict(seconds=seconds, failures=[])
 
-    placer, f_placer, q_tight, placed, report["placer"] = opensim_placement(d, setup)
-    stored = summary(STORED, poses)
-    ck = compare(stored, s46, "stored OutputReference/subject01_simbody.osim vs OpenSim 4.6 "
-                 "(information; tolerances as for musculo)", enforce=False, placed=placed)
-    report["stored"] = {r[0]: r[1] for r in ck.rows}
-    generic = summary(GENERIC, poses)
-    report["inertia_law"] = inertia_law(generic, stored, s46, scale46)
-    report["muscle_scaling"] = muscle_scaling(generic, stored, s46)
+    placer, f_placer, q_tight, placed, report["placer"] = opensim_placement(
+        d, setup, spec["static"])
+    if spec["stored"]:
+        stored = summary(spec["stored"], poses)
+        ck = compare(stored, s46, f"stored {os.path.relpath(spec['stored'], ov.MODELS)} vs "
+                     "OpenSim 4.6 (information; tolerances as for musculo)", enforce=False,
+                     placed=placed)
+        report["stored"] = {r[0]: r[1] for r in ck.rows}
+        generic = summary(spec["generic"], poses)
+        report["inertia_law"] = inertia_law(generic, stored, s46, scale46)
+        report["muscle_scaling"] = muscle_scaling(generic, stored, s46)
 
     if args.self_test:
         cand, cand_scale = os_model, os.path.join(d, "opensim", "scale_set.xml")
@@ -563,9 +596,28 @@ def main():
         if os.path.exists(static) and not args.self_test:
             report["static_pose"] = static_pose(os_model, os.path.join(d, "opensim",
                                                                       "static_output.mot"), static)
+    for f in report["failures"]:
+        print(f"FAIL {case}: {f}")
+    return report
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--case", action="append", choices=sorted(CASES))
+    ap.add_argument("--opensim-only", action="store_true")
+    ap.add_argument("--self-test", action="store_true",
+                    help="compare OpenSim's scaled model with itself (checks this script)")
+    ap.add_argument("--musculo-model")
+    ap.add_argument("--musculo-scale-set")
+    args = ap.parse_args()
+    ov.quiet_opensim()
+    cases = args.case or sorted(CASES)
+    if args.musculo_model and len(cases) != 1:
+        sys.exit("--musculo-model needs one --case")
+    report = {case: compare_case(case, CASES[case], args) for case in cases}
     with open(os.path.join(ov.WORK, "scale_report.json"), "w", encoding="utf-8") as f:
         json.dump(report, f, indent=1, default=float)
-    ok = not report["failures"]
+    ok = not any(r["failures"] for r in report.values())
     print(f"\nScale side by side: {'PASS' if ok else 'FAIL'}")
     return 0 if ok else 1
 

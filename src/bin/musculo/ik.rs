@@ -167,6 +167,13 @@ fn summarize(
         worst * 1e3,
         frames as f64 / seconds.max(1e-9)
     );
+    if !solution.first_frame_starts.is_empty() {
+        eprintln!(
+            "first frame from {} starts: {}",
+            solution.first_frame_starts.len(),
+            musculo::solve::ik::describe_starts(&solution.first_frame_starts)
+        );
+    }
     let at_limit = solution.frames_at_limit();
     if at_limit > 0 {
         let names = model.q_names();

@@ -232,6 +232,13 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
                 format!(", {} removed (not in the trial)", p.removed.len())
             }
         );
+        if !p.starts.is_empty() {
+            println!(
+                "static pose from {} starts: {}",
+                p.starts.len(),
+                musculo::solve::ik::describe_starts(&p.starts)
+            );
+        }
     }
     let final_kind = if result.placement.is_some() {
         OutputKind::PlacedModel

@@ -45,6 +45,9 @@ pub struct Placement {
     pub marker_errors: Vec<(String, f64)>,
     pub rmse: f64,
     pub max_error: f64,
+    /// The starts the static pose was solved from and the objective each reached
+    /// ([`ik::StartOutcome`]).
+    pub starts: Vec<ik::StartOutcome>,
     /// Markers moved and how far (m, in the body).
     pub moved: Vec<(String, f64)>,
     /// Model markers removed because the trial lacks them.
@@ -178,6 +181,7 @@ pub fn place_markers(
         marker_errors,
         rmse: solution.rmse[0],
         max_error: solution.max_error[0],
+        starts: solution.first_frame_starts.clone(),
         moved,
         removed,
         static_pose,
