@@ -1584,3 +1584,47 @@ fn measured_loads_that_do_not_cover_the_clip_are_refused() {
     );
     let _ = std::fs::remove_dir_all(out);
 }
+
+#[test]
+fn a_weightless_model_is_refused_before_any_clip_and_a_non_finite_record_is_not_written() {
+    // Before: a model with zero gravity made every clip's record hold null (NaN ÷ body
+    // weight), and every later `--resume` and `merge` failed with "not a clip record".
+    let xml = musculo::DEFAULT_MODEL_OSIM.replace(
+        "<gravity>0 -9.8066499999999994 0</gravity>",
+        "<gravity>0 0 0</gravity>",
+    );
+    assert_ne!(xml, musculo::DEFAULT_MODEL_OSIM);
+    let Err(e) = Chain::new(xml, "weightless.osim".into(), ChainOptions::default()) else {
+        panic!("a weightless model was accepted");
+    };
+    let text = e.to_string();
+    assert!(
+        text.contains("weightless.osim") && text.contains("has no weight"),
+        "{text}"
+    );
+
+    let out = temp_dir("non-finite-record");
+    let record = output::ClipRecord {
+        clip: "c".into(),
+        input: "c.npy".into(),
+        status: ClipStatus::Ok,
+        reason: None,
+        variant: Variant::identity(),
+        quality: None,
+        warnings: Vec::new(),
+        x_sum: vec![1.0, f64::NAN],
+        x_sum_sq: vec![1.0, 1.0],
+        split: None,
+    };
+    let e = output::write_record(&out, &record).unwrap_err().to_string();
+    assert!(e.contains("not finite") && e.contains("c:"), "{e}");
+    assert_eq!(output::read_record(&out, "c").unwrap(), None);
+    // a finite record is written and reads back
+    let finite = output::ClipRecord {
+        x_sum: vec![1.0, 2.0],
+        ..record
+    };
+    output::write_record(&out, &finite).unwrap();
+    assert_eq!(output::read_record(&out, "c").unwrap(), Some(finite));
+    std::fs::remove_dir_all(&out).ok();
+}

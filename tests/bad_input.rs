@@ -963,9 +963,11 @@ fn deeply_nested_elements_are_an_error_not_a_stack_overflow() {
         &["nested more than"],
     );
     // Twenty levels of multipliers are fine (the first function element of the axis is used).
+    // (Halving at each level: doubling would turn the knee 2²⁰ rad, which the reader now
+    // refuses as no joint's motion.)
     let nested = format!(
         "{}<LinearFunction><coefficients>1 0</coefficients></LinearFunction>{}",
-        "<MultiplierFunction><scale>2</scale><function>".repeat(20),
+        "<MultiplierFunction><scale>0.5</scale><function>".repeat(20),
         "</function></MultiplierFunction>".repeat(20)
     );
     let (xml, _) = replace_after(
@@ -980,5 +982,146 @@ fn deeply_nested_elements_are_an_error_not_a_stack_overflow() {
         .iter()
         .find(|d| d.name == "knee/rotation1")
         .unwrap();
-    assert_eq!(dof.function.eval1(0.5).0, 2f64.powi(20) * 0.5);
+    assert_eq!(dof.function.eval1(0.5).0, 0.5f64.powi(20) * 0.5);
+}
+
+// ---------------------------------------------------------------------------------------
+// Kinematic functions over their coordinates' ranges: one check when the model is read, so
+// that `inspect`, `export-mjcf`, `id`, `evaluate` and `augment` refuse the same models.
+
+#[test]
+fn coordinate_range_whose_width_overflows_is_an_error() {
+    // Before: read, and `export-mjcf` panicked in the SVD of an empty matrix (exit 101).
+    let anchor = r#"<Coordinate name="knee_angle">"#;
+    let (xml, _) = replace_after(
+        DEMO,
+        anchor,
+        "<range>-2.0 0.15</range>",
+        "<range>-1e308 1e308</range>",
+    );
+    assert_model_error(
+        load(&xml),
+        r#"Coordinate "knee_angle""#,
+        line_of(&xml, anchor),
+        &["<range>", "-1e308", "width overflows"],
+    );
+}
+
+#[test]
+fn spline_knots_closer_than_a_billionth_of_their_span_are_an_error() {
+    // Before: knots one floating-point step apart passed the strictly-increasing check and
+    // `id` gave 10²⁶ N·m; a subnormal gap overflowed to NaN poses in `export-mjcf`.
+    let spline = "<x>-2.0 -1.0 -0.5 0 0.15</x>";
+    let one_step = f64::from_bits((-0.5f64).to_bits() - 1); // -0.49999999999999994
+    for (x, knot) in [
+        (format!("<x>-2.0 -1.0 -0.5 {one_step:?} 0.15</x>"), "x[3]"),
+        (
+            "<x>-2.0 -1.0 -0.5 0 5e-324</x>".to_string(),
+            "x[4] = 5e-324",
+        ),
+    ] {
+        let (xml, _) = replace_after(DEMO, spline, spline, &x);
+        let line = line_of(&xml, &x) - 1;
+        assert_model_error(
+            load(&xml),
+            r#"TransformAxis "rotation1" > SimmSpline "function""#,
+            line,
+            &[knot, "knots closer than 1e-9 of the knots' span"],
+        );
+    }
+}
+
+#[test]
+fn kinematic_functions_that_overflow_over_their_ranges_are_errors() {
+    // Each was read; `id` failed with a NaN torque named at a pelvis column, `export-mjcf`
+    // wrote NaN coefficients, `evaluate` printed NaN residuals under exit 0.
+    let coupler = r#"<CoordinateCouplerConstraint name="patella_follows_knee">"#;
+    let patella = r#"<CustomJoint name="patellofemoral">"#;
+    let spline_y = "<y>-0.6 -0.35 -0.12 0.0 0.01</y>";
+    let cases: Vec<(String, &str, &str, &[&str])> = vec![
+        (
+            replace_unique(
+                DEMO,
+                "<scale_factor>1</scale_factor>",
+                "<scale_factor>1e308</scale_factor>",
+            ),
+            coupler,
+            r#"CoordinateCouplerConstraint "patella_follows_knee""#,
+            &["scale_factor 1e308", "-inf", "knee_angle = -2"],
+        ),
+        (
+            replace_after(
+                DEMO,
+                coupler,
+                "<LinearFunction>\n\t\t\t\t\t\t\t<coefficients>1 0</coefficients>\n\t\t\t\t\t\t</LinearFunction>",
+                "<PolynomialFunction><coefficients>1e200 1e200 1 0</coefficients></PolynomialFunction>",
+            )
+            .0,
+            coupler,
+            r#"CoordinateCouplerConstraint "patella_follows_knee""#,
+            &["PolynomialFunction", "beyond ±1e6"],
+        ),
+        (
+            replace_unique(DEMO, spline_y, "<y>-0.6 -0.35 -0.12 1e300 0.01</y>"),
+            patella,
+            r#"CustomJoint "patellofemoral" > TransformAxis "rotation1" > SimmSpline"#,
+            &["patella_angle = ", "beyond ±1e6"],
+        ),
+        (
+            replace_unique(
+                DEMO,
+                "<x>-2.0 -1.0 -0.5 0 0.15</x>",
+                "<x>0 1e-300 2e-300 3e-300 5e-300</x>",
+            ),
+            "<x>0 1e-300",
+            r#"TransformAxis "rotation1" > SimmSpline "function""#,
+            &["too large for the spacing of its knots"],
+        ),
+    ];
+    for (xml, anchor, element, message) in cases {
+        // the spline's own errors are at its element (the line before its <x>)
+        let line = match anchor {
+            "<x>0 1e-300" => line_of(&xml, anchor) - 1,
+            _ => line_of(&xml, anchor),
+        };
+        assert_model_error(load(&xml), element, line, message);
+    }
+}
+
+#[test]
+fn every_command_refuses_a_model_whose_functions_overflow_with_the_same_located_message() {
+    // One validation for every command: before, `inspect` and `export-mjcf` accepted what
+    // `id` refused (or panicked on it).
+    let dir = std::env::temp_dir().join(format!("musculo-overflow-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("m.osim");
+    let xml = replace_after(
+        DEMO,
+        r#"<Coordinate name="knee_angle">"#,
+        "<range>-2.0 0.15</range>",
+        "<range>-1e308 1e308</range>",
+    )
+    .0;
+    std::fs::write(&model, xml).unwrap();
+    let m = model.to_str().unwrap();
+    let out = dir.join("out.xml");
+    let o = out.to_str().unwrap();
+    for args in [
+        vec!["inspect", m],
+        vec!["export-mjcf", m, "-o", o],
+        vec!["check", m],
+    ] {
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_musculo"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("m.osim:115: ") && stderr.contains(r#"Coordinate "knee_angle""#),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!out.exists());
+    std::fs::remove_dir_all(&dir).ok();
 }

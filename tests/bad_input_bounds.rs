@@ -503,3 +503,101 @@ fn augment_inputs_are_refused_with_their_reason() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_cutoff_below_one_cycle_over_the_recording_is_refused_naming_the_lowest() {
+    // Before: `--lowpass 0.01` was accepted and the filter's start-up transient, far longer
+    // than the recording, ran the angles away (3,100 rad; the clip called "ok"). One second
+    // of rows: the lowest cutoff is one cycle over it, 1 Hz.
+    let times: Vec<String> = (0..=100).map(|k| format!("{}", k as f64 * 0.01)).collect();
+    let times: Vec<&str> = times.iter().map(String::as_str).collect();
+    let model = Model::demo();
+    let table = Table::parse(&motion(&times), "m.mot").unwrap();
+    let id = |hz: f64| {
+        let options = InverseDynamicsOptions {
+            lowpass_hz: Some(hz),
+            ..InverseDynamicsOptions::default()
+        };
+        inverse_dynamics(&model, &table, "m.mot", None, &options, &mut |_, _| {})
+    };
+    match id(0.01) {
+        Err(Error::Model {
+            file,
+            line,
+            element,
+            message,
+        }) => {
+            assert_eq!(
+                (file.as_str(), line, element.as_str()),
+                ("m.mot", 7, "column \"time\"")
+            );
+            assert!(
+                message.contains("0.01 Hz is below 1 cycle") && message.contains("at least 1 Hz"),
+                "{message}"
+            );
+        }
+        Err(other) => panic!("expected a located error, got {other}"),
+        Ok(_) => panic!("a 0.01 Hz cutoff on one second of rows was accepted"),
+    }
+    assert!(id(1.0).is_ok());
+}
+
+#[test]
+fn a_trc_whose_units_header_contradicts_its_markers_spread_is_refused() {
+    // Before: millimetre data under `Units m` were fitted with 966 m marker errors under
+    // exit 0. The spread is judged against a body's size; the data are not rescaled.
+    let trc = |units: &str, scale: f64| {
+        let mut s = format!(
+            "PathFileType\t4\t(X/Y/Z)\tt.trc\n\
+             DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n\
+             100\t100\t3\t3\t{units}\t100\t1\t3\n\
+             Frame#\tTime\tHEAD\t\t\tLHIP\t\t\tRTOE\t\t\n\
+             \t\tX1\tY1\tZ1\tX2\tY2\tZ2\tX3\tY3\tZ3\n\n"
+        );
+        for f in 0..3 {
+            let x = 0.01 * f as f64;
+            let p = |v: f64| format!("{}", v * scale);
+            s.push_str(&format!(
+                "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\n",
+                f + 1,
+                f as f64 * 0.01,
+                p(x),
+                p(1.7),
+                p(0.0),
+                p(x),
+                p(0.9),
+                p(0.1),
+                p(x + 0.2),
+                p(0.02),
+                p(0.1)
+            ));
+        }
+        s
+    };
+    let read = |text: &str| {
+        let t = musculo::io::trc::Trc::parse(text, "t.trc").unwrap();
+        musculo::motion::Motion::from_trc(&t, "t.trc")
+    };
+    // a person 1.7 m tall, in metres and in millimetres
+    assert!(read(&trc("m", 1.0)).is_ok());
+    assert!(read(&trc("mm", 1000.0)).is_ok());
+    match read(&trc("m", 1000.0)) {
+        Err(Error::Motion {
+            file,
+            location,
+            message,
+        }) => {
+            assert_eq!(
+                (file.as_str(), location.as_str()),
+                ("t.trc", "header \"Units\"")
+            );
+            assert!(
+                message.contains("Units `m`")
+                    && message.contains("the markers span 1694.")
+                    && message.contains("in mm it would be 1.69 m"),
+                "{message}"
+            );
+        }
+        other => panic!("expected a located error, got {other:?}"),
+    }
+}

@@ -1292,3 +1292,38 @@ fn inconsistent_files_are_errors_naming_file_and_place() {
     let missing = std::path::Path::new("/nonexistent/trial.c3d");
     assert!(matches!(C3d::read(missing), Err(Error::Io { ref path, .. }) if path == missing));
 }
+
+#[test]
+fn markers_all_at_the_origin_are_refused_not_fitted() {
+    // Before: a trial whose markers all sit at the origin was read, and `ik` fitted it with
+    // 123 mm errors and called the clip "ok".
+    let Some((bytes, _, _)) = trial("walking2") else {
+        return;
+    };
+    let c = C3d::parse(&bytes, "walking2").unwrap();
+    let mut spec = spec_of(&c, 20);
+    for frame in &mut spec.points {
+        for p in frame.iter_mut() {
+            *p = Some([0.0, 0.0, 0.0]);
+        }
+    }
+    let dir = std::env::temp_dir().join(format!("musculo-c3d-origin-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("origin.c3d");
+    std::fs::write(&path, spec.build()).unwrap();
+    let e = musculo::motion::read(&path, None, &Default::default()).unwrap_err();
+    std::fs::remove_dir_all(&dir).ok();
+    let (file, location, message) = motion_error(Err(e), "origin");
+    assert!(file.ends_with("origin.c3d"), "{file}");
+    assert_eq!(location, "POINT");
+    assert!(message.contains("same point"), "{message}");
+    // The unedited trial still reads (its markers span a walking person).
+    let spec = spec_of(&c, c.n_frames);
+    let path = dir.join("walking.c3d");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(&path, spec.build()).unwrap();
+    let read = musculo::motion::read(&path, None, &Default::default());
+    std::fs::remove_dir_all(&dir).ok();
+    let spread = read.unwrap().marker_spread().unwrap();
+    assert!((0.2..2.5).contains(&spread), "{spread}");
+}

@@ -242,6 +242,41 @@ fn model_reader_survives_mutations() {
     );
 }
 
+/// The model reader and `export-mjcf` together: a mutated model the reader accepts exports
+/// to MJCF with finite numbers only (one validation for every command: before, a coupler
+/// scale of 1e308, a range of ±1e308 or knots a subnormal distance apart were read, and the
+/// export panicked or wrote NaN). A non-finite number written is reported as a failure.
+#[test]
+fn model_reader_and_mjcf_export_survive_mutations() {
+    let read = |b: &[u8], name: &str| {
+        let model = Model::from_osim_str(&text(b), name)?;
+        let export = musculo::model::mjcf::to_mjcf(&model);
+        let bad = export.xml.split(['"', ' ']).find(|w| {
+            let w = w.trim_start_matches('-').to_ascii_lowercase();
+            w == "nan" || w == "inf" || w == "infinity"
+        });
+        assert!(
+            bad.is_none(),
+            "an accepted model exported to MJCF with a non-finite number ({bad:?})"
+        );
+        Ok(())
+    };
+    run(
+        Reader {
+            name: "model (.osim) then export-mjcf",
+            fuzz_target: "osim",
+            also_reads: &[],
+            xml: true,
+            seeds: seeds_of(vec![
+                ("demo.osim", seeds::DEMO_OSIM.to_string()),
+                ("small.osim", seeds::small_osim()),
+            ]),
+            read: &read,
+        },
+        0x05EE_D00E,
+    );
+}
+
 #[test]
 fn force_set_reader_survives_mutations() {
     let read = |b: &[u8], name: &str| {

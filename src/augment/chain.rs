@@ -303,6 +303,13 @@ impl Chain {
         };
         let model = Model::from_osim_str(&xml, &source)?;
         contact_set(&model)?;
+        // the verdicts are per body weight: refused before any clip, not NaN in every record
+        if let Some(why) = model.weightless() {
+            return Err(Error::invalid(
+                "model",
+                format!("{source}: {why}: the contact forces and verdicts are per body weight"),
+            ));
+        }
         let base = super::identity::BaseModel::new(
             &model.name,
             &source,

@@ -486,6 +486,19 @@ pub fn write_record(out: &Path, record: &ClipRecord) -> crate::Result<()> {
     create_parent(&path)?;
     let text = serde_json::to_string(record)
         .map_err(|e| Error::invalid("record", format!("{}: {e}", record.clip)))?;
+    // JSON has no NaN or infinity (serde writes null), and a record that does not read back
+    // makes every later `--resume` and `merge` of the folder fail: refuse it here instead.
+    if let Err(e) = serde_json::from_str::<ClipRecord>(&text) {
+        return Err(Error::invalid(
+            "record",
+            format!(
+                "{}: the clip's record holds a number that is not finite (written as null, \
+                 column {} of the record: {e}); it would not read back, so it is not written",
+                record.clip,
+                e.column()
+            ),
+        ));
+    }
     npy::write_file_atomic(&path, text.as_bytes())
 }
 

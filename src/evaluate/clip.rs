@@ -123,12 +123,8 @@ pub fn evaluate_clip(
     let np = set.points.len();
     let mass = model.total_mass();
     let weight = mass * model.gravity.norm();
-    if !(weight > 0.0) {
-        return Err(bad(format!(
-            "the model \"{}\" has no weight (mass {mass} kg, gravity {})",
-            model.name,
-            model.gravity.norm()
-        )));
+    if let Some(why) = model.weightless() {
+        return Err(bad(why));
     }
     let muscles = MuscleSet::new(model)?;
     let m = muscles.muscles.len();

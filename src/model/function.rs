@@ -6,6 +6,7 @@
 //! coordinate reduction needs for Φ and Φ̇q̇.
 
 use super::natural_spline::NaturalSpline;
+use crate::io::text::short_number;
 
 /// A function of zero or more coordinates.
 #[derive(Clone, Debug, PartialEq)]
@@ -209,6 +210,39 @@ pub(crate) fn check_xy(x: &[f64], y: &[f64], min_points: usize) -> Result<(), St
     Ok(())
 }
 
+/// The smallest gap between consecutive knots of a model's function, as a fraction of the
+/// knots' span (x_{n−1} − x_0).
+///
+/// Knots closer than this are a typing error, not a curve: a spline's slope over a gap h is
+/// Δy/h and its second derivative Δy/h², so knots one floating-point step apart (h ≈ 10⁻¹⁶)
+/// gave a knee torque of 10²⁶ N·m, and subnormal gaps overflow. A billionth of the span is
+/// far below any digitised curve's spacing (OpenSim's splines have tens of knots).
+pub const MIN_KNOT_GAP_FRACTION: f64 = 1e-9;
+
+/// Checks that consecutive knots of a model's function are at least
+/// [`MIN_KNOT_GAP_FRACTION`] of their span apart (after [`check_xy`]).
+pub(crate) fn check_knot_spacing(x: &[f64]) -> Result<(), String> {
+    let span = x[x.len() - 1] - x[0];
+    for i in 1..x.len() {
+        let gap = x[i] - x[i - 1];
+        // the span itself may overflow (knots near ±f64::MAX): then no gap is small enough
+        // to measure against it, and the span is refused
+        if !span.is_finite() || !(gap >= MIN_KNOT_GAP_FRACTION * span) {
+            return Err(format!(
+                "x[{i}] = {} is only {} after x[{}] = {}: knots closer than \
+                 {MIN_KNOT_GAP_FRACTION:e} of the knots' span ({}) make slopes and \
+                 curvatures that are rounding noise",
+                short_number(x[i]),
+                short_number(gap),
+                i - 1,
+                short_number(x[i - 1]),
+                short_number(span)
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Index k of the interval [x_k, x_{k+1}] holding t, for x[0] ≤ t ≤ x[n-1].
 #[inline]
 fn interval(x: &[f64], t: f64) -> usize {
@@ -293,6 +327,17 @@ impl SimmSpline {
         b[n - 1] = delta[n - 2] + h[n - 2] * (sigma[n - 2] + 2.0 * sigma[n - 1]);
         c[n - 1] = 3.0 * sigma[n - 1];
         d[n - 1] = d[n - 2];
+        // knots a subnormal distance apart, or values huge for their spacing, overflow here
+        for (name, v) in [("slope", &b), ("curvature", &c), ("third-order", &d)] {
+            if let Some(i) = v.iter().position(|a| !a.is_finite()) {
+                return Err(format!(
+                    "the spline's {name} coefficient on [x[{i}], x[{}]] is {}: its values are \
+                     too large for the spacing of its knots",
+                    (i + 1).min(n - 1),
+                    v[i]
+                ));
+            }
+        }
         Ok(SimmSpline { x, y, b, c, d })
     }
 
@@ -359,6 +404,10 @@ impl PiecewiseLinear {
     }
 
     #[inline]
+    pub fn x(&self) -> &[f64] {
+        &self.x
+    }
+
     pub fn eval(&self, t: f64) -> (f64, f64, f64) {
         let k = if t < self.x[0] {
             0

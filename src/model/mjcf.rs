@@ -72,22 +72,23 @@ fn joint_frames_at_zero(model: &Model, j: usize) -> (Transform, HashMap<usize, T
     (joint.parent_offset.compose(&x_fb), frames)
 }
 
-/// Least-squares quartic y ≈ Σ a_k x^k on samples; returns (coefficients, max |error|).
-fn fit_quartic(x: &[f64], y: &[f64]) -> ([f64; 5], f64) {
+/// Least-squares quartic y ≈ Σ a_k x^k on samples; returns (coefficients, max |error|), or
+/// None when fewer than five finite samples (or a non-finite fit) leave nothing to fit:
+/// the model reader refuses functions that overflow over their ranges, so this is a guard.
+fn fit_quartic(x: &[f64], y: &[f64]) -> Option<([f64; 5], f64)> {
+    if x.len() < 5 || x.iter().chain(y).any(|v| !v.is_finite()) {
+        return None;
+    }
     let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
     let a = DMatrix::from_fn(x.len(), 5, |i, k| (x[i] / scale).powi(k as i32));
     let b = DVector::from_column_slice(y);
-    let sol = a
-        .clone()
-        .svd(true, true)
-        .solve(&b, 1e-14)
-        .unwrap_or_else(|_| DVector::zeros(5));
+    let sol = a.clone().svd(true, true).solve(&b, 1e-14).ok()?;
     let err = (&a * &sol - &b).amax();
     let mut c = [0.0; 5];
     for k in 0..5 {
         c[k] = sol[k] / scale.powi(k as i32);
     }
-    (c, err)
+    (c.iter().all(|v| v.is_finite()) && err.is_finite()).then_some((c, err))
 }
 
 /// Exports `model` to MJCF.
@@ -540,13 +541,21 @@ fn couplings(model: &Model, notes: &mut Vec<String>) -> (String, Vec<Option<[f64
                 let (mut xs, mut ys) = (Vec::new(), Vec::new());
                 let mut q = q0.clone();
                 for k in 0..=40 {
-                    q[*j] = lo + (hi - lo) * k as f64 / 40.0;
+                    let s = k as f64 / 40.0;
+                    q[*j] = lo * (1.0 - s) + hi * s;
                     if dynamics::forward_kinematics(model, &mut data, &q).is_ok() {
                         xs.push(data.theta(model)[rd]);
                         ys.push(data.theta(model)[d]);
                     }
                 }
-                let (c, err) = fit_quartic(&xs, &ys);
+                let Some((c, err)) = fit_quartic(&xs, &ys) else {
+                    notes.push(format!(
+                        "`{}` could not be fitted to `{}` over [{lo}, {hi}] (the model's pose \
+                         there is not finite), so it is left free",
+                        model.dofs[d].name, model.dofs[rd].name
+                    ));
+                    continue;
+                };
                 let scale = ys.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
                 if err > 1e-9 * scale {
                     notes.push(format!(

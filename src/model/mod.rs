@@ -555,6 +555,20 @@ impl Model {
         self.bodies.iter().map(|b| b.mass).sum()
     }
 
+    /// Why the model has no weight m |g| > 0 (zero gravity, or no mass), or None. The
+    /// results that are per body weight (the verdicts of `augment`, the metrics of
+    /// `evaluate`) are NaN for such a model.
+    pub fn weightless(&self) -> Option<String> {
+        let mass = self.total_mass();
+        let gravity = self.gravity.norm();
+        (!(mass * gravity > 0.0 && (mass * gravity).is_finite())).then(|| {
+            format!(
+                "the model \"{}\" has no weight (mass {mass} kg, gravity {gravity})",
+                self.name
+            )
+        })
+    }
+
     pub fn body_index(&self, name: &str) -> Option<usize> {
         self.bodies.iter().position(|b| b.name == name)
     }

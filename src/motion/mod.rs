@@ -212,6 +212,8 @@ pub fn read_with_warnings(
             for p in &mut markers.positions {
                 *p = c3d::lab_to_opensim(p);
             }
+            // the reader converted POINT:UNITS to metres
+            markers.check_marker_spread("the POINT:UNITS parameter", "POINT", 1.0)?;
             Ok(markers)
         }
         Format::Trc => {
@@ -411,7 +413,82 @@ impl Motion {
             positions: trc.positions.clone(),
         };
         m.validate()?;
+        m.check_marker_spread(
+            &format!("the header's Units `{}`", trc.units.symbol()),
+            "header \"Units\"",
+            1.0 / trc.units.per_metre(),
+        )?;
         Ok(m)
+    }
+
+    /// Per frame, the diagonal of the box holding its markers (m), for frames with at least
+    /// two markers present; the median over frames (robust to a mislabelled marker).
+    pub fn marker_spread(&self) -> Option<f64> {
+        let mut diagonals: Vec<f64> = (0..self.n_frames())
+            .filter_map(|f| {
+                let present = self.frame(f).iter().filter(|p| !p[0].is_nan());
+                let (mut lo, mut hi, mut count) =
+                    (Vec3::repeat(f64::INFINITY), -Vec3::repeat(f64::INFINITY), 0);
+                for p in present {
+                    lo = lo.inf(p);
+                    hi = hi.sup(p);
+                    count += 1;
+                }
+                (count >= 2).then(|| (hi - lo).norm())
+            })
+            .collect();
+        if diagonals.is_empty() {
+            return None;
+        }
+        diagonals.sort_by(f64::total_cmp);
+        Some(diagonals[diagonals.len() / 2])
+    }
+
+    /// Refuses markers whose spread ([`Motion::marker_spread`]) is not a body's
+    /// ([`PLAUSIBLE_MARKER_SPREAD_M`]) in the unit the file states (`unit`, described as
+    /// `stated`, `metres_per_unit` metres): the markers of millimetre data under a header of
+    /// `m` were fitted 966 m away under exit 0, and markers all at the origin were fitted
+    /// with 123 mm errors and called "ok". The data are not rescaled: the file is wrong.
+    /// Files with fewer than two markers in every frame are not judged.
+    pub fn check_marker_spread(
+        &self,
+        stated: &str,
+        location: &str,
+        metres_per_unit: f64,
+    ) -> crate::Result<()> {
+        let Some(spread) = self.marker_spread() else {
+            return Ok(());
+        };
+        let [lo, hi] = PLAUSIBLE_MARKER_SPREAD_M;
+        if (lo..=hi).contains(&spread) {
+            return Ok(());
+        }
+        if spread == 0.0 {
+            return Err(self.error(
+                location.into(),
+                "every marker lies on the same point in every frame (spread 0 m): there is \
+                 no body to fit"
+                    .into(),
+            ));
+        }
+        let raw = spread / metres_per_unit;
+        let suggestion = [("m", 1.0), ("cm", 0.01), ("mm", 0.001)]
+            .iter()
+            .find(|(_, m)| (lo..=hi).contains(&(raw * m)))
+            .map(|(name, m)| format!("; in {name} it would be {:.2} m", raw * m))
+            .unwrap_or_default();
+        Err(self.error(
+            location.into(),
+            format!(
+                "the markers span {} m in a frame (the median over frames, read in {stated}), \
+                 not a body's {lo}–{hi} m: a wrong length unit?{suggestion}",
+                if (1e-3..1e6).contains(&spread) {
+                    format!("{spread:.3}")
+                } else {
+                    format!("{spread:.3e}")
+                }
+            ),
+        ))
     }
 
     /// The frames whose time lies in `[start, end]` (inclusive, with a tolerance of a
@@ -491,6 +568,10 @@ impl LengthUnit {
 /// Standing-height bounds (m) a motion's implied body height must lie in: a clip whose
 /// skeleton is 17 m or 17 mm tall was read in the wrong units.
 pub const PLAUSIBLE_HEIGHT_M: [f64; 2] = [0.5, 2.6];
+
+/// The markers' spread in a frame ([`Motion::marker_spread`], m) a recording of a person may
+/// have: from a limb's few markers (0.2 m) to a tall adult's full set with raised arms.
+pub const PLAUSIBLE_MARKER_SPREAD_M: [f64; 2] = [0.2, 2.5];
 
 /// Checks that `height` (m, implied by the skeleton read in `unit`) is a human's; the error
 /// names the unit that would make it one.

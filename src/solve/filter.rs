@@ -90,9 +90,43 @@ pub fn accumulated_grid(first: f64, last: f64, dt: f64) -> Result<Vec<f64>, Stri
 /// anyway (its gain is above 0.5 up to 0.4 of the rate).
 pub const HIGHEST_CUTOFF_FRACTION: f64 = 0.4;
 
-/// Why `cutoff` Hz cannot filter samples `dt` apart (above [`HIGHEST_CUTOFF_FRACTION`] of the
-/// rate), or None.
-pub fn cutoff_problem(cutoff: f64, dt: f64) -> Option<String> {
+/// The lowest cutoff, in cycles over the recording: f_c ≥ LOWEST_CUTOFF_CYCLES / T for a
+/// recording of duration T.
+///
+/// The zero-lag filter's start-up transient lasts about 1/f_c (its slowest poles decay as
+/// e^(−π f_c t)), and the odd padding gives it T/2 at each end to die out in. A cutoff of a
+/// fraction of a cycle over the whole recording leaves no room: on a smooth signal (a trend
+/// and a slow sine) of 40 to 600 samples padded by half their length (the test below),
+/// f_c T = 0.3 gives outputs up to 4–14 times the signal's largest value and 0.01 gives
+/// 34–133 times (`--lowpass 0.01` turned joint angles of a radian into 3,100 rad), while at
+/// f_c T = 1 the output stays within the signal's range.
+pub const LOWEST_CUTOFF_CYCLES: f64 = 1.0;
+
+/// Why `cutoff` Hz cannot filter a recording of `duration` s sampled `dt` apart — above
+/// [`HIGHEST_CUTOFF_FRACTION`] of the rate, or below [`LOWEST_CUTOFF_CYCLES`] over the
+/// duration — or None.
+pub fn cutoff_problem(cutoff: f64, dt: f64, duration: f64) -> Option<String> {
+    cutoff_above_rate(cutoff, dt).or_else(|| {
+        let lowest = LOWEST_CUTOFF_CYCLES / duration;
+        (cutoff < lowest * (1.0 - 1e-9)).then(|| {
+            format!(
+                "the low-pass cutoff {} Hz is below {LOWEST_CUTOFF_CYCLES} cycle over the \
+                 recording's {} s: the filter's start-up transient (about 1/cutoff = {} s) \
+                 does not fit in the padding of half the recording at each end, and the \
+                 filtered values run away from the data; give a cutoff of at least {} Hz, or \
+                 none",
+                short_number(cutoff),
+                short_number(duration),
+                short_number(1.0 / cutoff),
+                short_number(millihertz(lowest, f64::ceil))
+            )
+        })
+    })
+}
+
+/// Why `cutoff` Hz cannot filter samples `dt` apart (above [`HIGHEST_CUTOFF_FRACTION`] of
+/// the rate), or None.
+fn cutoff_above_rate(cutoff: f64, dt: f64) -> Option<String> {
     let rate = 1.0 / dt;
     let highest = HIGHEST_CUTOFF_FRACTION * rate;
     // a relative margin, for a rate computed another way (the span over the sample count)
@@ -138,7 +172,7 @@ pub fn lowpass_butterworth3(signal: &[f64], dt: f64, cutoff: f64) -> Result<Vec<
             "sampling interval {dt} s and cutoff {cutoff} Hz must be positive finite numbers"
         ));
     }
-    if let Some(problem) = cutoff_problem(cutoff, dt) {
+    if let Some(problem) = cutoff_above_rate(cutoff, dt) {
         return Err(problem);
     }
     Ok(forward_backward(signal, dt, cutoff))
@@ -219,6 +253,40 @@ mod tests {
             .iter()
             .fold(0.0f64, |m, v| m.max(v.abs()));
         assert!((amp - 0.5).abs() < 2e-3, "gain at the cutoff {amp}");
+    }
+
+    /// The grounds of [`LOWEST_CUTOFF_CYCLES`]: below a cycle over the recording the
+    /// filtered signal runs away from the data; at one cycle it stays within its range.
+    #[test]
+    fn a_cutoff_below_one_cycle_over_the_recording_runs_away_and_is_refused() {
+        for (rate, n) in [(20.0, 40usize), (120.0, 240), (120.0, 600)] {
+            let dt = 1.0 / rate;
+            let duration = (n - 1) as f64 * dt;
+            let s: Vec<f64> = (0..n)
+                .map(|i| {
+                    let t = i as f64 * dt;
+                    0.5 * (2.0 * std::f64::consts::PI * 0.7 * t).sin() + 0.3 * t
+                })
+                .collect();
+            let largest = s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let peak = |cycles: f64| {
+                let f = lowpass_butterworth3(&pad_odd(&s, n / 2), dt, cycles / duration).unwrap();
+                f[n / 2..n / 2 + n]
+                    .iter()
+                    .fold(0.0f64, |m, v| m.max(v.abs()))
+                    / largest
+            };
+            assert!(peak(1.0) <= 1.0, "{n} samples at 1 cycle: {}", peak(1.0));
+            assert!(peak(0.3) > 3.0, "{n} samples at 0.3 cycle: {}", peak(0.3));
+            assert!(
+                peak(0.01) > 30.0,
+                "{n} samples at 0.01 cycle: {}",
+                peak(0.01)
+            );
+            assert!(cutoff_problem(1.0 / duration, dt, duration).is_none());
+            let refused = cutoff_problem(0.3 / duration, dt, duration).unwrap();
+            assert!(refused.contains("below 1 cycle"), "{refused}");
+        }
     }
 
     /// The grounds of [`HIGHEST_CUTOFF_FRACTION`]: a smooth signal (a trend and two slow

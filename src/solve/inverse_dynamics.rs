@@ -258,7 +258,8 @@ pub fn prepare_coordinates(
             time = new_time;
             resampled = true;
         }
-        if let Some(problem) = cutoff_problem(fc, dt) {
+        let duration = recorded_span[1] - recorded_span[0];
+        if let Some(problem) = cutoff_problem(fc, dt, duration) {
             return Err(err("column \"time\"".into(), problem));
         }
         for (col, name) in columns.iter_mut().zip(&names) {

@@ -84,7 +84,7 @@ impl CoordinateTrajectory {
                     "filtering needs uniformly sampled rows; resample the motion first".into(),
                 ));
             }
-            if let Some(problem) = cutoff_problem(fc, dt) {
+            if let Some(problem) = cutoff_problem(fc, dt, time[n - 1] - time[0]) {
                 return Err(err("column \"time\"".into(), problem));
             }
             let pad = n / 2;

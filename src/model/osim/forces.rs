@@ -137,6 +137,10 @@ pub(super) fn read_contact_geometry(
     }))
 }
 
+/// The largest radius or length of a wrap object (m): the bound of a joint's motion
+/// ([`super::kinematic_range::MAX_AXIS_VALUE`]).
+const MAX_WRAP_SIZE: f64 = super::kinematic_range::MAX_AXIS_VALUE;
+
 pub(super) fn read_wrap_object(
     ctx: &mut Ctx,
     w: XNode,
@@ -147,6 +151,14 @@ pub(super) fn read_wrap_object(
         let v = ctx.req_f64(w, tag)?;
         if v <= 0.0 {
             return Err(ctx.err(w, format!("<{tag}> must be positive, found {v}")));
+        }
+        // as a joint's motion (kinematic_range): beyond, no body's wrap surface, and the
+        // MJCF export's sites at twice the radius overflowed
+        if v > MAX_WRAP_SIZE {
+            return Err(ctx.err(
+                w,
+                format!("<{tag}> {v:e} m is beyond {MAX_WRAP_SIZE:e} m, which no body reaches"),
+            ));
         }
         Ok(v)
     };
@@ -160,8 +172,15 @@ pub(super) fn read_wrap_object(
         },
         "WrapEllipsoid" => {
             let d = ctx.vec3_or(w, "dimensions", Vec3::zeros())?;
-            if child(w, "dimensions").is_none() || d.iter().any(|&v| v <= 0.0) {
-                return Err(ctx.err(w, "<dimensions> must hold three positive radii"));
+            if child(w, "dimensions").is_none()
+                || d.iter().any(|&v| !(v > 0.0 && v <= MAX_WRAP_SIZE))
+            {
+                return Err(ctx.err(
+                    w,
+                    format!(
+                        "<dimensions> must hold three positive radii up to {MAX_WRAP_SIZE:e} m"
+                    ),
+                ));
             }
             WrapShape::Ellipsoid { dimensions: d }
         }

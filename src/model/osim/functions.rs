@@ -2,7 +2,7 @@
 
 use super::xml::{Ctx, XNode, child, elements};
 use crate::error::Error;
-use crate::model::function::{Function, PiecewiseLinear, SimmSpline};
+use crate::model::function::{Function, PiecewiseLinear, SimmSpline, check_knot_spacing};
 use crate::model::natural_spline::NaturalSpline;
 
 /// Tags of the function elements musculo reads.
@@ -48,6 +48,9 @@ pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
         let y = ctx
             .vec_opt(node, "y")?
             .ok_or_else(|| ctx.err(node, "missing <y>"))?;
+        // the constructors check lengths, finiteness and order first (their messages)
+        crate::model::function::check_xy(&x, &y, 1).map_err(|m| ctx.err(node, m))?;
+        check_knot_spacing(&x).map_err(|m| ctx.err(node, m))?;
         Ok((x, y))
     };
     match tag {

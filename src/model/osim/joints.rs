@@ -166,6 +166,18 @@ fn read_coordinate<'a, 'i>(
             format!("<range> minimum {} exceeds maximum {}", range[0], range[1]),
         ));
     }
+    // The functions of the coordinate are checked, and MJCF fits made, over samples of the
+    // range: a range whose width overflows (±1e308) has no samples.
+    if !(range[1] - range[0]).is_finite() {
+        return Err(ctx.err(
+            k,
+            format!(
+                "<range> [{:e}, {:e}] is wider than the largest number (its width overflows): \
+                 give the coordinate's real limits",
+                range[0], range[1]
+            ),
+        ));
+    }
     let prescribed = ctx.bool_or(k, "prescribed", false)?;
     for c in elements(k) {
         match c.tag_name().name() {

@@ -7,6 +7,7 @@
 mod forces;
 mod functions;
 mod joints;
+mod kinematic_range;
 mod xml;
 
 use self::functions::{function_child, parse_function};
@@ -347,6 +348,7 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 message,
             }
         })?;
+        kinematic_range::check_kinematic_functions(ctx, &model)?;
         for c in model.coordinates.iter_mut() {
             if !matches!(c.role, CoordinateRole::Dependent(_)) {
                 c.role = CoordinateRole::Locked;
