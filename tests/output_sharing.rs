@@ -71,12 +71,16 @@ fn shards_in_separate_pid_namespaces_keep_each_others_files_and_merge_to_one_run
         "2",
         "--out",
     ];
-    let ok = Command::new(MUSCULO)
+    let one = Command::new(MUSCULO)
         .args(args)
         .arg(&single)
-        .status()
+        .output()
         .unwrap();
-    assert!(ok.success());
+    assert!(
+        one.status.success(),
+        "{}",
+        String::from_utf8_lossy(&one.stderr)
+    );
     // Live temporaries of writers this run cannot probe, of files the shards write: one of a
     // process on another host, one named before names carried a host (a bare process id
     // that no process here has). Both fresh: their writers may be running.
