@@ -78,6 +78,16 @@ pub enum Error {
         message: String,
     },
 
+    /// A file is over one of the limits of [`crate::limits`] (size, archive members, inflated
+    /// bytes, XML attributes or depth, bodies, BVH joints or depth), or is not a regular
+    /// file; refused before the work it would have cost.
+    #[error("{file}: {location}: {message}")]
+    Limit {
+        file: String,
+        location: String,
+        message: String,
+    },
+
     /// MuJoCo (feature `mujoco`) refused the model or is the wrong version.
     #[error("MuJoCo: {message}")]
     Mujoco { message: String },

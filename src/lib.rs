@@ -21,6 +21,7 @@ pub mod dynamics;
 pub mod error;
 pub mod evaluate;
 pub mod io;
+pub mod limits;
 pub mod loss;
 pub mod model;
 pub mod motion;

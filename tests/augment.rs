@@ -365,7 +365,12 @@ fn a_run_removes_only_its_own_abandoned_temporaries() {
         .arg("60")
         .spawn()
         .unwrap();
-    let live_pid = live.id();
+    // writers on this host, in this PID namespace (whose processes can be looked up)
+    let (ended_pid, live_pid) = (
+        musculo::io::output::writer_token(ended_pid),
+        musculo::io::output::writer_token(live.id()),
+    );
+    let me = musculo::io::output::writer_token(std::process::id());
     let files = [
         (format!(".walk.npz.tmp-{ended_pid}-0"), false),
         (format!("{records}/.walk.json.tmp-{ended_pid}-1"), false),
@@ -373,7 +378,10 @@ fn a_run_removes_only_its_own_abandoned_temporaries() {
         // a shard of the same run still writing this file
         (format!(".walk.npz.tmp-{live_pid}-0"), true),
         // this very process writing it
-        (format!(".walk.npz.tmp-{}-9", std::process::id()), true),
+        (format!(".walk.npz.tmp-{me}-9"), true),
+        // a writer named by a bare process id (no host): it cannot be probed, and its
+        // lease is fresh
+        (format!(".walk.osim.tmp-{}-5", ended.id()), true),
         // another shard's clip (whatever its writer)
         (format!(".walk_fast.npz.tmp-{ended_pid}-3"), true),
         (format!("{records}/.walk_fast.json.tmp-{ended_pid}-4"), true),

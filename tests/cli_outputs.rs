@@ -287,7 +287,9 @@ fn a_write_that_fails_after_some_files_leaves_none_of_them() {
     let motion = d.join("walk.mot");
     generated_motion(demo(), 20, &motion);
     let pid_digits = 7; // at most, on Linux
-    let prefix_len = 255 - ".".len() - "_Length.sto".len() - ".tmp-".len() - pid_digits - 3;
+    // `<host>-<pidns>-<pid>`: this host's and namespace's parts, a pid of at most 7 digits
+    let writer_len = musculo::io::output::writer_token(0).len() - 1 + pid_digits;
+    let prefix_len = 255 - ".".len() - "_Length.sto".len() - ".tmp-".len() - writer_len - 3;
     let prefix = d.join(&"p".repeat(prefix_len));
     let (ok, err) = run(&args(
         "muscles {} --coords {} -o {}",

@@ -36,6 +36,10 @@ fn check(model: &Model) {
         dynamics::forward_kinematics_velocity(model, &mut data, &q, &qd).unwrap();
         (data.theta(model).to_vec(), data.theta_dot(model).to_vec())
     };
+    // The inertia matrices are allocated by their first computation (a workspace for inverse
+    // dynamics alone holds no n × n matrix); every later call allocates nothing.
+    dynamics::crba(model, &mut data, &q).unwrap();
+    dynamics::crba_full(model, &mut data).unwrap();
     let count = allocations_during(|| {
         for _ in 0..3 {
             dynamics::forward_kinematics(model, &mut data, &q).unwrap();

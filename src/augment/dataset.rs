@@ -200,10 +200,7 @@ pub fn text_path(out: &Path, clip: &str) -> PathBuf {
 
 /// Copies `source` (a caption file) to `target`, atomically.
 pub fn copy_text(source: &Path, target: &Path) -> crate::Result<()> {
-    let bytes = std::fs::read(source).map_err(|source_error| Error::Io {
-        path: source.to_path_buf(),
-        source: source_error,
-    })?;
+    let bytes = crate::limits::read_text_file_bytes(source)?;
     if let Some(parent) = target.parent() {
         std::fs::create_dir_all(parent).map_err(|source| Error::Io {
             path: parent.to_path_buf(),

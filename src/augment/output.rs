@@ -15,8 +15,11 @@
 //!   the records in clip order only, so the same clips give the same bytes whatever the
 //!   number of threads, shards or interruptions.
 //!
-//! Every file is written atomically (temporary file, sync, rename). A process killed
-//! mid-write leaves a hidden temporary file (`.<name>.tmp-…`), which the next run removes.
+//! Every file is written atomically (temporary file, sync, rename), and a clip's files
+//! together ([`write_clip_files`]): a clip has all its files under their names, record
+//! included, or none. A process killed mid-write leaves hidden temporary files
+//! (`.<name>.tmp-…`), which a later run removes once their writer has certainly ended
+//! ([`remove_temporaries`]).
 
 use super::chain::{Array, ClipOutput, ClipQuality};
 use super::layout::BlockRange;
@@ -445,14 +448,7 @@ pub fn write_clip_with_identity(
 ) -> crate::Result<()> {
     let path = npz_path(out, clip);
     create_parent(&path)?;
-    let owned: Vec<(&str, ArrayD<f32>)> = arrays
-        .iter()
-        .map(|a| {
-            ArrayD::from_shape_vec(IxDyn(&a.shape), a.values.clone())
-                .map(|arr| (a.name, arr))
-                .map_err(|e| Error::invalid("arrays", format!("{}: {e}", a.name)))
-        })
-        .collect::<crate::Result<_>>()?;
+    let owned = owned_arrays(arrays)?;
     let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
         owned.iter().map(|(n, a)| (*n, a.view())).collect();
     let texts: Vec<(&str, &str)> = identity
@@ -532,12 +528,15 @@ pub fn clip_files(clip: &str, suffixes: &[&str]) -> Vec<String> {
 }
 
 /// Removes the temporary files that interrupted runs left in `out` (recursively) for the
-/// targets `owns` accepts (paths relative to `out`, `/`-separated), and returns how many.
+/// targets `owns` accepts (paths relative to `out`, `/`-separated), and finishes the commits
+/// they left journaled (a clip whose files were all written but not all named); returns how
+/// many temporaries were removed.
 ///
-/// Only a temporary whose writing process has ended is removed
-/// ([`npy::abandoned_temporary_target`]): shards of one run write into the same folder at
-/// the same time, and each keeps to its own clips' files, so neither removes what another
-/// is writing (on a shared file system process ids of other hosts mean nothing here).
+/// Only a file whose writer has certainly ended is touched
+/// ([`npy::abandoned_temporary_target`]: on this host and in this PID namespace, a process
+/// that is gone or a zombie; elsewhere, a lease that has run out): shards of one run write
+/// into the same folder at the same time, from other hosts and namespaces, and each keeps
+/// to its own clips' files.
 pub fn remove_temporaries(out: &Path, owns: impl Fn(&str) -> bool) -> crate::Result<usize> {
     let mut removed = 0;
     let mut stack = vec![(out.to_path_buf(), String::new())];
@@ -547,6 +546,8 @@ pub fn remove_temporaries(out: &Path, owns: impl Fn(&str) -> bool) -> crate::Res
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
             Err(source) => return Err(Error::Io { path: dir, source }),
         };
+        let mut journals = Vec::new();
+        let mut temporaries = Vec::new();
         for entry in entries {
             let entry = entry.map_err(|source| Error::Io {
                 path: dir.clone(),
@@ -556,19 +557,86 @@ pub fn remove_temporaries(out: &Path, owns: impl Fn(&str) -> bool) -> crate::Res
             let name = entry.file_name().to_string_lossy().into_owned();
             if path.is_dir() {
                 stack.push((path, format!("{relative}{name}/")));
-            } else if let Some(target) = npy::abandoned_temporary_target(&name)
+            } else if crate::io::output::is_abandoned_journal(&dir, &name) {
+                journals.push(path);
+            } else if let Some(target) = npy::abandoned_temporary_target(&dir, &name)
                 && owns(&format!("{relative}{target}"))
             {
-                match std::fs::remove_file(&path) {
-                    Ok(()) => removed += 1,
-                    // another run tidied it first
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                    Err(source) => return Err(Error::Io { path, source }),
-                }
+                temporaries.push(path);
+            }
+        }
+        // a journal names complete files: they are given their names, not removed
+        for journal in journals {
+            crate::io::output::finish_journal(&journal);
+        }
+        for path in temporaries {
+            match std::fs::remove_file(&path) {
+                Ok(()) => removed += 1,
+                // another run tidied it first, or a journal named it
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(source) => return Err(Error::Io { path, source }),
             }
         }
     }
     Ok(removed)
+}
+
+/// Writes every file of a clip — its caption copy, `.npz`, OpenSim files and model (when it
+/// was computed) and its record — as one [`crate::io::output::OutputSet`]: all are written
+/// to temporaries first and named together, so a clip interrupted by a full disk or a kill
+/// leaves none of its files under their names (a run killed during the renames leaves a
+/// journal that the next run there finishes).
+pub fn write_clip_files(
+    out: &Path,
+    record: &ClipRecord,
+    output: Option<&ClipOutput>,
+    caption: Option<&Path>,
+) -> crate::Result<()> {
+    let mut set = crate::io::output::OutputSet::new_in_tidied_folders();
+    if let Some(o) = output {
+        if let Some(text) = caption {
+            let bytes = crate::limits::read_text_file_bytes(text)?;
+            set.add(&super::dataset::text_path(out, &record.clip), &bytes)?;
+        }
+        set.add(&npz_path(out, &record.clip), &clip_npz_bytes(o)?)?;
+        for (suffix, table) in &o.tables {
+            let path = out.join(format!("{}{suffix}", record.clip));
+            set.add(&path, table.to_file_string()?.as_bytes())?;
+        }
+        if let Some(xml) = &o.model_xml {
+            set.add(&out.join(format!("{}.osim", record.clip)), xml.as_bytes())?;
+        }
+    }
+    let text = serde_json::to_string(record)
+        .map_err(|e| Error::invalid("record", format!("{}: {e}", record.clip)))?;
+    set.add(&record_path(out, &record.clip), text.as_bytes())?;
+    set.commit()?;
+    Ok(())
+}
+
+/// The bytes of a clip's `.npz` ([`write_clip_output`]).
+fn clip_npz_bytes(output: &ClipOutput) -> crate::Result<Vec<u8>> {
+    let owned = owned_arrays(&output.arrays)?;
+    let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
+        owned.iter().map(|(n, a)| (*n, a.view())).collect();
+    let identity = output.identity.to_json();
+    npy::npz_bytes(
+        &views,
+        &[(super::identity::MEMBER, identity.as_str())],
+        false,
+    )
+}
+
+/// The arrays as ndarray arrays, named.
+fn owned_arrays(arrays: &[Array]) -> crate::Result<Vec<(&str, ArrayD<f32>)>> {
+    arrays
+        .iter()
+        .map(|a| {
+            ArrayD::from_shape_vec(IxDyn(&a.shape), a.values.clone())
+                .map(|arr| (a.name, arr))
+                .map_err(|e| Error::invalid("arrays", format!("{}: {e}", a.name)))
+        })
+        .collect()
 }
 
 /// Σ x and Σ x² per feature over the frames of the `x` array (f64 accumulation).

@@ -423,26 +423,19 @@ pub fn run(
     // Writing a clip (its `.npz`, OpenSim files and record, each synced to disk before it is
     // renamed into place) waits mostly on the disk: it is handed to writer threads, one per
     // worker, so the workers go on computing. A bounded queue (one clip per worker) keeps
-    // memory independent of the dataset; a clip's record is written after its arrays, so a
-    // run killed before that recomputes the clip on --resume.
+    // memory independent of the dataset; a clip's files, record included, are named
+    // together, so a run killed before that recomputes the clip on --resume.
     let writers = rayon::current_num_threads().max(1);
     let (queue, jobs) = std::sync::mpsc::sync_channel::<WriteJob>(writers);
     let jobs = std::sync::Mutex::new(jobs);
     let write_error: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
     let write = |job: WriteJob| -> crate::Result<()> {
-        if let Some(out) = &job.output {
-            if let Some(text) = &job.text {
-                dataset::copy_text(text, &dataset::text_path(&options.out, &job.record.clip))?;
-            }
-            output::write_clip_output(&options.out, &job.record.clip, out)?;
-            output::write_opensim_files(
-                &options.out,
-                &job.record.clip,
-                &out.tables,
-                out.model_xml.as_deref(),
-            )?;
-        }
-        output::write_record(&options.out, &job.record)?;
+        output::write_clip_files(
+            &options.out,
+            &job.record,
+            job.output.as_ref(),
+            job.text.as_deref(),
+        )?;
         let f = job.record.quality.as_ref().map_or(0, |q| q.frames);
         report(f, job.record.status == ClipStatus::Failed, false);
         Ok(())

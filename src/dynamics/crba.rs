@@ -18,6 +18,9 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&
     composite_inertias(model, data);
     let cols = &model.reduction.columns;
     let n = model.nq();
+    if data.mass_matrix.nrows() != n {
+        data.mass_matrix = DMatrix::zeros(n, n); // the first call: allocated once
+    }
     let Data {
         composite,
         col_motion,
@@ -51,6 +54,10 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> crate::Result<&
 pub fn crba_full<'d>(model: &Model, data: &'d mut Data) -> crate::Result<&'d DMatrix<f64>> {
     data.require(model, Stage::Position, "crba_full")?;
     composite_inertias(model, data);
+    let nf = model.n_full();
+    if data.mass_matrix_full.nrows() != nf {
+        data.mass_matrix_full = DMatrix::zeros(nf, nf); // the first call: allocated once
+    }
     let Data {
         composite,
         dof_motion,

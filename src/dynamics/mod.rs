@@ -153,8 +153,10 @@ impl Data {
             body_force: vec![Force::ZERO; nb],
             composite: vec![SpatialInertia::ZERO; nb],
             tau_full: vec![0.0; nf],
-            mass_matrix_full: DMatrix::zeros(nf, nf),
-            mass_matrix: DMatrix::zeros(n, n),
+            // n × n: allocated by the first crba / crba_full, so that the algorithms that
+            // never need them (inverse dynamics, kinematics) stay linear in the bodies
+            mass_matrix_full: DMatrix::zeros(0, 0),
+            mass_matrix: DMatrix::zeros(0, 0),
             tau: DVector::zeros(n),
             bias: DVector::zeros(n),
             coriolis: DVector::zeros(n),
@@ -321,12 +323,13 @@ impl Data {
         Ok(())
     }
 
-    /// The joint-space inertia matrix from the last [`crba`] call.
+    /// The joint-space inertia matrix from the last [`crba`] call (0 × 0 before the first).
     pub fn mass_matrix(&self) -> &DMatrix<f64> {
         &self.mass_matrix
     }
 
-    /// The full-coordinate inertia matrix from the last [`crba_full`] call.
+    /// The full-coordinate inertia matrix from the last [`crba_full`] call (0 × 0 before the
+    /// first).
     pub fn mass_matrix_full(&self) -> &DMatrix<f64> {
         &self.mass_matrix_full
     }

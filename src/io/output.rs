@@ -14,12 +14,35 @@
 //! 3. an `OutputSet` dropped without a commit (an error on the way) removes its temporaries.
 //!
 //! A run killed before step 2 leaves only hidden temporaries; one killed during the renames
-//! (a few microseconds) leaves its journal as well. Both carry the process id, and once that
-//! process is gone the next `OutputSet` writing into the folder removes the temporaries and
-//! finishes a journaled commit (its files were complete and synced before the journal was
-//! written), saying so in [`Committed::notes`]. Where the system has no `/proc` to tell a
-//! live process from a dead one, stale files are left alone: hidden, and never taken for
-//! outputs.
+//! (a few microseconds) leaves its journal as well. Both carry their writer's identity —
+//! host, PID namespace and process id ([`owner`]) — and once that writer has certainly ended
+//! the next `OutputSet` writing into the folder removes the temporaries and finishes a
+//! journaled commit (its files were complete and synced before the journal was written),
+//! saying so in [`Committed::notes`]. A file whose writer cannot be shown to have ended is
+//! left alone: hidden, and never taken for an output.
+//!
+//! ## Whose file is it, and has its writer ended?
+//!
+//! Output folders are shared: shards of one dataset on a Slurm array or a Kubernetes job
+//! write into one folder on a network file system, from several hosts and PID namespaces,
+//! where a process id means nothing outside its own namespace. So a temporary's name is
+//! `.<name>.tmp-<host>-<pidns>-<pid>-<n>`:
+//! - `<host>`: 8 hex digits hashing the host's identity — `/etc/machine-id` (else the
+//!   kernel's boot id) and the host name — the same in every PID namespace of one host and
+//!   different on another host; `00000000` where neither can be read (the writer's host is
+//!   then unknown, and nothing is ever probed for it);
+//! - `<pidns>`: the writer's PID namespace (the inode of `/proc/self/ns/pid`; 0 unknown);
+//! - `<pid>`: its process id in that namespace, `<n>` a counter.
+//!
+//! A writer on this host, in this PID namespace, with a `/proc` that shows this namespace
+//! (`/proc/self` is this process), has ended when `/proc/<pid>` is gone or the process is a
+//! zombie (killed, not yet reaped: state `Z` or `X`). Any other writer — another host,
+//! another namespace, an unknown host, a name written before identities existed — cannot
+//! be probed, and is judged by its lease: a live writer sets the modification time of each
+//! of its temporaries and journals to the present every [`LEASE_REFRESH`] (a background
+//! thread), so a file not touched for [`LEASE_PERIOD`] belongs to a writer that has ended
+//! (or been stopped that long). This assumes the hosts' clocks agree to within a few
+//! minutes, as NTP keeps them; the file system needs no locks, so NFS and the like work.
 //!
 //! Refused before anything is written ([`OutputSet::check`]): an output that is one of the
 //! command's inputs (compared as canonical paths, so `a.mot`, `./a.mot` and a symbolic link
@@ -30,16 +53,24 @@
 //!
 //! Errors are [`Error::Output`] naming the output file (or the folder that could not be made).
 
+mod owner;
+
 use crate::error::Error;
 use std::ffi::OsString;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Marks the temporary name of a file being written: `.<name>.tmp-<pid>-<n>`.
+/// Marks the temporary name of a file being written: `.<name>.tmp-<owner>-<n>`.
 const TEMPORARY_MARK: &str = ".tmp-";
-/// Starts the name of a commit journal: `.musculo-commit-<pid>-<n>`.
+/// Starts the name of a commit journal: `.musculo-commit-<owner>-<n>`.
 const JOURNAL_PREFIX: &str = ".musculo-commit-";
+
+/// How often a running writer refreshes the lease (modification time) of its temporaries.
+pub const LEASE_REFRESH: std::time::Duration = std::time::Duration::from_secs(60);
+/// How long a temporary of a writer that cannot be probed (another host or PID namespace)
+/// may go untouched before its writer is taken to have ended: 15 minutes.
+pub const LEASE_PERIOD: std::time::Duration = std::time::Duration::from_secs(15 * 60);
 
 fn output_error(path: &Path, message: impl Into<String>) -> Error {
     Error::Output {
@@ -48,12 +79,12 @@ fn output_error(path: &Path, message: impl Into<String>) -> Error {
     }
 }
 
-/// A process-unique suffix `<pid>-<n>`.
+/// A process-unique suffix `<host>-<pidns>-<pid>-<n>` ([`owner`]).
 fn unique_suffix() -> String {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     format!(
         "{}-{}",
-        std::process::id(),
+        owner::Owner::this_process().token(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     )
 }
@@ -127,6 +158,7 @@ impl AtomicFile {
             .create_new(true)
             .open(&temp)
             .map_err(|e| output_error(target, e.to_string()))?;
+        owner::lease_taken(&temp);
         let atomic = AtomicFile {
             temp,
             target: target.to_path_buf(),
@@ -144,6 +176,7 @@ impl AtomicFile {
     pub(crate) fn rename(mut self) -> crate::Result<()> {
         std::fs::rename(&self.temp, &self.target)
             .map_err(|e| output_error(&self.target, e.to_string()))?;
+        owner::lease_released(&self.temp);
         self.temp = PathBuf::new();
         Ok(())
     }
@@ -158,6 +191,7 @@ impl AtomicFile {
 impl Drop for AtomicFile {
     fn drop(&mut self) {
         if !self.temp.as_os_str().is_empty() {
+            owner::lease_released(&self.temp);
             let _ = std::fs::remove_file(&self.temp);
         }
     }
@@ -173,29 +207,41 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
     atomic.commit(file)
 }
 
-/// True for the name of a temporary file written here (`.<name>.tmp-<pid>-<n>`): left behind
-/// only when a process is killed mid-write, and safe to delete once that process is gone.
+/// True for the name of a temporary file written here (`.<name>.tmp-<owner>-<n>`): left
+/// behind only when a process is killed mid-write, and safe to delete once that process has
+/// ended.
 pub fn is_temporary_name(name: &str) -> bool {
     name.starts_with('.') && name.contains(TEMPORARY_MARK)
 }
 
-/// For the name of a temporary file whose writing process has certainly ended: the name of
-/// the file it was to become (`.walk.npz.tmp-77-0` → `walk.npz`). None for any other name, and
-/// for a temporary whose writer may still be running (another process writing beside us, or a
-/// system where that cannot be told): such a file must be left alone.
-pub fn abandoned_temporary_target(name: &str) -> Option<&str> {
+/// For the temporary file `name` in `folder` whose writer has certainly ended (see the
+/// module documentation): the name of the file it was to become (`.walk.npz.tmp-…` →
+/// `walk.npz`). None for any other name, and for a temporary whose writer may still be
+/// running (another process writing beside us, on this host or another, whose lease is
+/// fresh): such a file must be left alone.
+pub fn abandoned_temporary_target<'n>(folder: &Path, name: &'n str) -> Option<&'n str> {
     if !is_temporary_name(name) || name.starts_with(JOURNAL_PREFIX) {
         return None;
     }
-    let pid = writer_pid(name)?;
-    if !process_has_ended(pid) {
+    let owner = writer_of(name)?;
+    if !owner.has_ended(&folder.join(name)) {
         return None;
     }
     Some(&name[1..name.rfind(TEMPORARY_MARK)?])
 }
 
-/// The process id in a temporary file's or a journal's name.
-fn writer_pid(name: &str) -> Option<u32> {
+/// The writer part `<host>-<pidns>-<pid>` of the temporary names of process `pid` on this
+/// host and in this PID namespace (see the module documentation).
+pub fn writer_token(pid: u32) -> String {
+    owner::Owner {
+        pid,
+        ..owner::Owner::this_process()
+    }
+    .token()
+}
+
+/// The writer named in a temporary file's or a journal's name.
+fn writer_of(name: &str) -> Option<owner::Owner> {
     let suffix = if let Some(rest) = name.strip_prefix(JOURNAL_PREFIX) {
         rest
     } else if is_temporary_name(name) {
@@ -203,16 +249,9 @@ fn writer_pid(name: &str) -> Option<u32> {
     } else {
         return None;
     };
-    let (pid, serial) = suffix.split_once('-')?;
+    let (token, serial) = suffix.rsplit_once('-')?;
     serial.parse::<u64>().ok()?;
-    pid.parse().ok()
-}
-
-/// True when process `pid` has certainly ended (Linux: no `/proc/<pid>`); false where that
-/// cannot be told.
-fn process_has_ended(pid: u32) -> bool {
-    let proc = Path::new("/proc");
-    pid != std::process::id() && proc.join("self").exists() && !proc.join(pid.to_string()).exists()
+    owner::Owner::parse(token)
 }
 
 /// `name` as a file name inside a results folder, or why it cannot be one: a path separator
@@ -281,6 +320,9 @@ pub struct OutputSet {
     staged: Vec<Staged>,
     /// Canonical folders already searched for stale files.
     tidied: Vec<PathBuf>,
+    /// Whether to search each destination folder for stale files (see
+    /// [`OutputSet::new_in_tidied_folders`]).
+    tidy: bool,
     notes: Vec<String>,
 }
 
@@ -296,7 +338,19 @@ impl OutputSet {
             inputs,
             staged: Vec::new(),
             tidied: Vec::new(),
+            tidy: true,
             notes: Vec::new(),
+        }
+    }
+
+    /// An empty set with no inputs that leaves the destination folders' stale files alone:
+    /// for a caller that writes many sets into one folder and tidied it once before (`augment`
+    /// writes each clip's files as a set; searching the folder for every clip would cost
+    /// time quadratic in the clips).
+    pub fn new_in_tidied_folders() -> OutputSet {
+        OutputSet {
+            tidy: false,
+            ..OutputSet::new([])
         }
     }
 
@@ -350,7 +404,7 @@ impl OutputSet {
         let canonical_folder = folder
             .canonicalize()
             .map_err(|e| output_error(target, e.to_string()))?;
-        if !self.tidied.contains(&canonical_folder) {
+        if self.tidy && !self.tidied.contains(&canonical_folder) {
             tidy_folder(&canonical_folder, &mut self.notes);
             self.tidied.push(canonical_folder.clone());
         }
@@ -396,6 +450,7 @@ impl OutputSet {
             }
         }
         if let Some(j) = journal {
+            owner::lease_released(&j);
             let _ = std::fs::remove_file(j);
         }
         match result {
@@ -432,10 +487,11 @@ fn write_journal(folder: &Path, staged: &[Staged]) -> crate::Result<PathBuf> {
     }
     let path = folder.join(format!("{JOURNAL_PREFIX}{}", unique_suffix()));
     write_file_atomic(&path, text.as_bytes())?;
+    owner::lease_taken(&path);
     Ok(path)
 }
 
-/// Finishes the journaled commits and removes the temporaries that ended processes left in
+/// Finishes the journaled commits and removes the temporaries that ended writers left in
 /// `folder`, noting each. Best effort: what cannot be tidied is left (it is hidden).
 fn tidy_folder(folder: &Path, notes: &mut Vec<String>) {
     let Ok(entries) = std::fs::read_dir(folder) else {
@@ -445,57 +501,71 @@ fn tidy_folder(folder: &Path, notes: &mut Vec<String>) {
     let mut temporaries = Vec::new();
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
-        let Some(pid) = writer_pid(&name) else {
+        let Some(owner) = writer_of(&name) else {
             continue;
         };
-        if !process_has_ended(pid) {
+        if !owner.has_ended(&entry.path()) {
             continue;
         }
         if name.starts_with(JOURNAL_PREFIX) {
-            journals.push((pid, entry.path()));
+            journals.push((owner, entry.path()));
         } else {
-            temporaries.push((pid, entry.path()));
+            temporaries.push((owner, entry.path()));
         }
     }
     // Journals first: their temporaries are complete files waiting for their names.
-    for (pid, journal) in journals {
-        let Ok(text) = std::fs::read_to_string(&journal) else {
-            continue;
-        };
-        let mut finished = Vec::new();
-        for line in text.lines() {
-            let Some((temp, target)) = line.split_once('\t') else {
-                continue;
-            };
-            if Path::new(temp).exists() && std::fs::rename(temp, target).is_ok() {
-                finished.push(target.to_string());
-            }
-        }
-        let _ = std::fs::remove_file(&journal);
+    for (owner, journal) in journals {
+        let finished = finish_journal(&journal);
         if !finished.is_empty() {
             notes.push(format!(
-                "an interrupted run (process {pid}) had written {} file(s) but not yet named them \
+                "an interrupted run ({owner}) had written {} file(s) but not yet named them \
                  all; named now: {}",
                 finished.len(),
                 finished.join(", ")
             ));
         }
     }
-    let mut removed: Vec<(u32, usize)> = Vec::new();
-    for (pid, temp) in temporaries {
+    let mut removed: Vec<(String, usize)> = Vec::new();
+    for (owner, temp) in temporaries {
         if temp.exists() && std::fs::remove_file(&temp).is_ok() {
-            match removed.iter_mut().find(|(p, _)| *p == pid) {
+            let owner = owner.to_string();
+            match removed.iter_mut().find(|(p, _)| *p == owner) {
                 Some((_, n)) => *n += 1,
-                None => removed.push((pid, 1)),
+                None => removed.push((owner, 1)),
             }
         }
     }
-    for (pid, n) in removed {
+    for (owner, n) in removed {
         notes.push(format!(
-            "removed {n} unfinished temporary file(s) of an interrupted run (process {pid}) from {}",
+            "removed {n} unfinished temporary file(s) of an interrupted run ({owner}) from {}",
             folder.display()
         ));
     }
+}
+
+/// True for the name of a commit journal whose writer has certainly ended.
+pub(crate) fn is_abandoned_journal(folder: &Path, name: &str) -> bool {
+    name.starts_with(JOURNAL_PREFIX)
+        && writer_of(name).is_some_and(|o| o.has_ended(&folder.join(name)))
+}
+
+/// Gives the files of an ended writer's journal their names (each file listed whose
+/// temporary is still there) and removes the journal; returns the names given.
+pub(crate) fn finish_journal(journal: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(journal) else {
+        return Vec::new();
+    };
+    let mut finished = Vec::new();
+    for line in text.lines() {
+        let Some((temp, target)) = line.split_once('\t') else {
+            continue;
+        };
+        if Path::new(temp).exists() && std::fs::rename(temp, target).is_ok() {
+            finished.push(target.to_string());
+        }
+    }
+    let _ = std::fs::remove_file(journal);
+    finished
 }
 
 #[cfg(test)]
@@ -621,14 +691,16 @@ mod tests {
 
     #[test]
     fn stale_files_of_an_ended_process_are_tidied_and_a_journal_is_finished() {
-        if !Path::new("/proc/self").exists() {
+        if std::fs::read_link("/proc/self").ok()
+            != Some(PathBuf::from(std::process::id().to_string()))
+        {
             return; // process ids cannot be checked here; stale files are left alone
         }
         let d = Dir::new("stale");
         // A process id that has ended: a child that has been waited for.
         let mut child = std::process::Command::new("true").spawn().unwrap();
         child.wait().unwrap();
-        let dead = child.id();
+        let dead = writer_token(child.id());
         // Killed while writing: a temporary only.
         std::fs::write(d.0.join(format!(".x.sto.tmp-{dead}-0")), "half").unwrap();
         // Killed during the renames: one file named, one waiting, the journal.
@@ -647,8 +719,10 @@ mod tests {
         )
         .unwrap();
         // A live process's temporary (this one's) is left alone.
-        let mine =
-            d.0.join(format!(".y.sto.tmp-{}-999999", std::process::id()));
+        let mine = d.0.join(format!(
+            ".y.sto.tmp-{}-999999",
+            writer_token(std::process::id())
+        ));
         std::fs::write(&mine, "live").unwrap();
         let mut set = OutputSet::new([]);
         set.add(&d.0.join("c.sto"), b"C").unwrap();
@@ -665,37 +739,89 @@ mod tests {
     }
 
     #[test]
-    fn a_write_into_a_read_only_folder_fails_and_leaves_nothing() {
-        let d = Dir::new("readonly");
-        let ro = d.0.join("ro");
-        std::fs::create_dir_all(&ro).unwrap();
-        let mut perms = std::fs::metadata(&ro).unwrap().permissions();
-        perms.set_readonly(true);
-        std::fs::set_permissions(&ro, perms.clone()).unwrap();
-        if std::fs::write(ro.join("probe"), "x").is_ok() {
-            // running as root: permissions are not enforced
-            let _ = std::fs::remove_file(ro.join("probe"));
-        } else {
-            let mut set = OutputSet::new([]);
-            set.add(&d.0.join("ok.sto"), b"1").unwrap();
-            let e = set.add(&ro.join("a.sto"), b"2").unwrap_err().to_string();
-            assert!(
-                e.contains("cannot write output") && e.contains("a.sto"),
-                "{e}"
-            );
-            drop(set);
-            assert_eq!(d.names(), vec!["ro"]);
+    fn a_temporary_of_a_writer_that_cannot_be_probed_is_kept_until_its_lease_runs_out() {
+        let d = Dir::new("lease");
+        // A process id no process here has: on another host, or in another PID namespace
+        // (where it may well be running), or in a name without a host — none can be probed.
+        let absent = u32::MAX - 7;
+        let me = owner::Owner::this_process();
+        let other_host = owner::Owner {
+            host: Some(me.host.unwrap_or(1) ^ 0x5a5a_5a5a),
+            pid: absent,
+            ..me
+        };
+        let other_namespace = owner::Owner {
+            pid_namespace: me.pid_namespace + 1,
+            pid: absent,
+            ..me
+        };
+        let names = [
+            format!(".a.npz.tmp-{}-0", other_host.token()),
+            format!(".b.npz.tmp-{}-0", other_namespace.token()),
+            format!(".c.npz.tmp-{absent}-0"),
+            format!("{JOURNAL_PREFIX}{}-1", other_host.token()),
+        ];
+        for n in &names {
+            std::fs::write(d.0.join(n), "live").unwrap();
         }
-        #[allow(clippy::permissions_set_readonly_false)]
-        perms.set_readonly(false);
-        std::fs::set_permissions(&ro, perms).unwrap();
+        let mut set = OutputSet::new([]);
+        set.add(&d.0.join("d.sto"), b"D").unwrap();
+        let done = set.commit().unwrap();
+        assert!(done.notes.is_empty(), "{:?}", done.notes);
+        for n in &names {
+            assert!(d.0.join(n).exists(), "{n} removed while its lease is fresh");
+            assert!(abandoned_temporary_target(&d.0, n).is_none(), "{n}");
+        }
+        // Untouched for longer than the lease period: their writers have ended.
+        let old = std::time::SystemTime::now() - LEASE_PERIOD - std::time::Duration::from_secs(60);
+        for n in &names {
+            let f = std::fs::OpenOptions::new()
+                .write(true)
+                .open(d.0.join(n))
+                .unwrap();
+            f.set_modified(old).unwrap();
+        }
+        assert_eq!(abandoned_temporary_target(&d.0, &names[0]), Some("a.npz"));
+        let mut set = OutputSet::new([]);
+        set.add(&d.0.join("e.sto"), b"E").unwrap();
+        let done = set.commit().unwrap();
+        assert_eq!(d.names(), vec!["d.sto", "e.sto"], "{:?}", done.notes);
     }
 
     #[test]
-    fn writer_pids_are_read_from_temporary_and_journal_names() {
-        assert_eq!(writer_pid(".a.sto.tmp-123-4"), Some(123));
-        assert_eq!(writer_pid(".musculo-commit-77-0"), Some(77));
-        assert_eq!(writer_pid("a.sto"), None);
-        assert_eq!(writer_pid(".a.tmp-x-1"), None);
+    fn a_temporary_of_a_killed_writer_not_yet_reaped_is_removed() {
+        if std::fs::read_link("/proc/self").ok()
+            != Some(PathBuf::from(std::process::id().to_string()))
+        {
+            return;
+        }
+        let d = Dir::new("zombie");
+        let mut child = std::process::Command::new("sleep")
+            .arg("30")
+            .spawn()
+            .unwrap();
+        let name = format!(".z.npz.tmp-{}-0", writer_token(child.id()));
+        std::fs::write(d.0.join(&name), "half").unwrap();
+        assert!(abandoned_temporary_target(&d.0, &name).is_none(), "alive");
+        child.kill().unwrap();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        while abandoned_temporary_target(&d.0, &name).is_none()
+            && std::time::Instant::now() < deadline
+        {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert_eq!(abandoned_temporary_target(&d.0, &name), Some("z.npz"));
+        child.wait().unwrap();
+    }
+
+    #[test]
+    fn writers_are_read_from_temporary_and_journal_names() {
+        let me = owner::Owner::this_process();
+        let w = writer_of(&format!(".a.sto.tmp-{}-4", me.token())).unwrap();
+        assert_eq!(w, me);
+        assert_eq!(writer_of(".musculo-commit-77-0").map(|o| o.pid), Some(77));
+        assert_eq!(writer_of(".a.sto.tmp-123-4").map(|o| o.host), Some(None));
+        assert!(writer_of("a.sto").is_none());
+        assert!(writer_of(".a.tmp-x-1").is_none());
     }
 }

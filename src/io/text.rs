@@ -8,17 +8,28 @@ use std::path::Path;
 
 /// Reads the file at `path` as UTF-8 text. Errors: [`Error::Io`] when it cannot be read,
 /// [`Error::Encoding`] when it is not UTF-8.
+///
+/// The file must be a regular file within [`crate::limits::MAX_TEXT_FILE_BYTES`] (else
+/// [`Error::Limit`], before anything is read). A UTF-8 byte-order mark at its start (some
+/// Windows editors write one) is dropped, for every text format alike.
 pub fn read_text(path: &Path) -> crate::Result<String> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::limits::read_text_file_bytes(path)?;
     text_from_bytes(bytes, &path.display().to_string())
 }
 
-/// `bytes` as UTF-8 text; `source` names the file in the [`Error::Encoding`] for bytes that
-/// are not UTF-8.
-pub fn text_from_bytes(bytes: Vec<u8>, source: &str) -> crate::Result<String> {
+/// The UTF-8 byte-order mark, `U+FEFF` encoded.
+const UTF8_BOM: &[u8] = &[0xEF, 0xBB, 0xBF];
+
+/// `bytes` as UTF-8 text without a leading UTF-8 byte-order mark; `source` names the file
+/// in the [`Error::Encoding`] for bytes that are not UTF-8 (its offset counts from the start
+/// of the file, mark included).
+pub fn text_from_bytes(mut bytes: Vec<u8>, source: &str) -> crate::Result<String> {
+    let skipped = if bytes.starts_with(UTF8_BOM) {
+        bytes.drain(..UTF8_BOM.len());
+        UTF8_BOM.len()
+    } else {
+        0
+    };
     String::from_utf8(bytes).map_err(|e| {
         let bytes = e.as_bytes();
         let offset = e.utf8_error().valid_up_to();
@@ -36,7 +47,7 @@ pub fn text_from_bytes(bytes: Vec<u8>, source: &str) -> crate::Result<String> {
             file: source.to_string(),
             line,
             column,
-            offset,
+            offset: offset + skipped,
             message: format!("byte 0x{byte:02X} is not UTF-8 text; {hint}"),
         }
     })

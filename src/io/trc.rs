@@ -271,6 +271,7 @@ impl Trc {
 
     /// Parses `.trc` text; `source` names it in errors.
     pub fn parse(text: &str, source: &str) -> crate::Result<Trc> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let err = |line: usize, element: String, message: String| Error::Model {
             file: source.to_string(),
             line: u32::try_from(line).unwrap_or(u32::MAX),

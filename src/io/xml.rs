@@ -7,6 +7,12 @@
 //! "billion laughs" family of attacks, and its quadratic variant that stays under
 //! roxmltree's own depth limits). OpenSim files never declare entities, so refusing them
 //! costs nothing and keeps the memory a file can demand proportional to its size.
+//!
+//! Before parsing, one linear scan ([`check_shape`]) refuses an element with more than
+//! [`crate::limits::MAX_XML_ATTRIBUTES`] attributes: roxmltree compares each attribute with
+//! every earlier one of its element (quadratic in the attributes of one element: 200,000 of
+//! them took over a minute). Nesting depth is the model reader's check (it is the reader
+//! that recurses), against [`crate::limits::MAX_XML_DEPTH`].
 
 use crate::error::Error;
 use roxmltree::{Document, ParsingOptions};
@@ -15,6 +21,7 @@ use roxmltree::{Document, ParsingOptions};
 /// 1-based line and column: malformed XML, a file that ends inside an element (reported
 /// where it ends), or an entity declaration (reported at its `<!ENTITY`).
 pub(crate) fn parse<'i>(text: &'i str, source: &str) -> crate::Result<Document<'i>> {
+    check_shape(text, source)?;
     if let Some(at) = entity_declaration(text) {
         let (line, column) = line_column(text, at);
         // The entity's name only (its value may be megabytes), itself cut at 40 characters.
@@ -64,6 +71,99 @@ pub(crate) fn parse<'i>(text: &'i str, source: &str) -> crate::Result<Document<'
             message,
         }
     })
+}
+
+/// Refuses, in one pass over `text`, an element with more than
+/// [`crate::limits::MAX_XML_ATTRIBUTES`] attributes ([`Error::Limit`] at the element's line
+/// and column).
+/// Comments, CDATA sections, processing instructions and the document type declaration are
+/// skipped; text that is not well-formed is left for the parser to report.
+fn check_shape(text: &str, source: &str) -> crate::Result<()> {
+    use crate::limits::MAX_XML_ATTRIBUTES;
+    let b = text.as_bytes();
+    let refuse = |at: usize, message: String| {
+        let (line, column) = line_column(text, at);
+        Err(crate::limits::exceeded(
+            source,
+            &format!("line {line}, column {column}"),
+            message,
+        ))
+    };
+    // The end of `close` searched from `from`; None: the text ends first.
+    let skip_to =
+        |from: usize, close: &str| text[from..].find(close).map(|i| from + i + close.len());
+    let mut i = 0;
+    while let Some(lt) = b[i..].iter().position(|&c| c == b'<').map(|k| i + k) {
+        let rest = &b[lt + 1..];
+        let next = if rest.starts_with(b"!--") {
+            skip_to(lt + 4, "-->")
+        } else if rest.starts_with(b"![CDATA[") {
+            skip_to(lt + 9, "]]>")
+        } else if rest.starts_with(b"?") {
+            skip_to(lt + 2, "?>")
+        } else if rest.starts_with(b"!") {
+            // a declaration: to its `>`, past an internal subset in brackets and quotes
+            let (mut brackets, mut quote, mut end) = (0usize, 0u8, None);
+            for (k, &c) in rest.iter().enumerate() {
+                if quote != 0 {
+                    if c == quote {
+                        quote = 0;
+                    }
+                    continue;
+                }
+                match c {
+                    b'"' | b'\'' => quote = c,
+                    b'[' => brackets += 1,
+                    b']' => brackets = brackets.saturating_sub(1),
+                    b'>' if brackets == 0 => {
+                        end = Some(lt + 1 + k + 1);
+                        break;
+                    }
+                    _ => {}
+                }
+            }
+            end
+        } else if rest.starts_with(b"/") {
+            skip_to(lt + 2, ">")
+        } else {
+            // a start tag: its attributes are its `=` outside quoted values
+            let (mut attributes, mut quote, mut end) = (0usize, 0u8, None);
+            for (k, &c) in rest.iter().enumerate() {
+                if quote != 0 {
+                    if c == quote {
+                        quote = 0;
+                    }
+                    continue;
+                }
+                match c {
+                    b'"' | b'\'' => quote = c,
+                    b'=' => {
+                        attributes += 1;
+                        if attributes > MAX_XML_ATTRIBUTES {
+                            return refuse(
+                                lt,
+                                format!(
+                                    "the element has more than {MAX_XML_ATTRIBUTES} attributes \
+                                     (musculo::limits::MAX_XML_ATTRIBUTES)"
+                                ),
+                            );
+                        }
+                    }
+                    b'>' => {
+                        end = Some(lt + 1 + k + 1);
+                        break;
+                    }
+                    _ => {}
+                }
+            }
+            end
+        };
+        match next {
+            Some(n) => i = n,
+            None => break, // the text ends inside markup: the parser says where
+        }
+    }
+    Ok(())
 }
 
 /// Byte offset of the first `<!ENTITY` after a `<!DOCTYPE`, if any. XML's grammar spells
@@ -124,6 +224,35 @@ mod tests {
             Err(Error::Xml { line, column, .. }) => assert_eq!((line, column), (3, 13)),
             other => panic!("expected an XML error, got {other:?}"),
         }
+    }
+
+    #[test]
+    fn many_attributes_are_refused_before_parsing() {
+        use crate::limits::MAX_XML_ATTRIBUTES;
+        let attrs: String = (0..=MAX_XML_ATTRIBUTES)
+            .map(|i| format!(" a{i}='1'"))
+            .collect();
+        let text = format!("<a>\n <b{attrs}/></a>");
+        match parse(&text, "x.xml") {
+            Err(Error::Limit {
+                location, message, ..
+            }) => {
+                assert_eq!(location, "line 2, column 2");
+                assert!(message.contains("MAX_XML_ATTRIBUTES"), "{message}");
+            }
+            other => panic!("expected a limit error, got {other:?}"),
+        }
+        // At the limits, with comments, CDATA, a DOCTYPE and `=`/`>` inside values: accepted.
+        let attrs: String = (0..MAX_XML_ATTRIBUTES)
+            .map(|i| format!(" a{i}=\"x=>y\""))
+            .collect();
+        let ok = format!(
+            "<?xml version='1.0'?><!DOCTYPE a [<!ELEMENT a ANY>]><!-- <b c='1'> -->{}<e{attrs}/>\
+             <![CDATA[<x>]]>{}",
+            "<a>".repeat(300),
+            "</a>".repeat(300)
+        );
+        parse(&ok, "ok.xml").unwrap();
     }
 
     #[test]

@@ -254,6 +254,7 @@ impl Bvh {
 
     /// Parses BVH text; `source` names it in errors.
     pub fn parse(text: &str, source: &str) -> crate::Result<Bvh> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
         // The hierarchy's tokens, up to the MOTION line.
         let mut tokens = Vec::new();
@@ -569,6 +570,9 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
         return Err(p.error(p.line(), format!("expected 'HIERARCHY', found '{first}'")));
     }
     let mut joints: Vec<Joint> = Vec::new();
+    // Every name given so far: a name is checked against it in constant time, so a
+    // hierarchy of n joints is read in O(n), however deep or wide.
+    let mut names: std::collections::HashSet<String> = std::collections::HashSet::new();
     // Open joints (indices into `joints`), innermost last.
     let mut open: Vec<usize> = Vec::new();
     let mut n_channels = 0usize;
@@ -587,8 +591,9 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
                     },
                 ));
             }
+            check_hierarchy_size(p, line, joints.len(), open.len())?;
             let name = p.name(line)?;
-            if joints.iter().any(|j| j.name == name) {
+            if !names.insert(name.clone()) {
                 return Err(p.error(line, format!("duplicate joint name \"{name}\"")));
             }
             p.expect("{")?;
@@ -632,10 +637,12 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
             p.expect("{")?;
             let offset = p.offset()?;
             p.expect("}")?;
+            // an end site closes at once: it counts as a joint, not as a level
+            check_hierarchy_size(p, line, joints.len(), 0)?;
             let base = format!("{}_end", joints[parent].name);
             let mut name = base.clone();
             let mut k = 2;
-            while joints.iter().any(|j| j.name == name) {
+            while !names.insert(name.clone()) {
                 name = format!("{base}{k}");
                 k += 1;
             }
@@ -672,6 +679,30 @@ fn parse_hierarchy(p: &mut Parser) -> crate::Result<Vec<Joint>> {
         return Err(p.error(p.last_line, "the hierarchy has no joints"));
     }
     Ok(joints)
+}
+
+/// Refuses one more joint (or end site) at nesting depth `depth` beyond
+/// [`crate::limits::MAX_BVH_JOINTS`] or [`crate::limits::MAX_BVH_DEPTH`].
+fn check_hierarchy_size(p: &Parser, line: usize, joints: usize, depth: usize) -> crate::Result<()> {
+    use crate::limits::{MAX_BVH_DEPTH, MAX_BVH_JOINTS};
+    let over = if joints >= MAX_BVH_JOINTS {
+        format!(
+            "the hierarchy has more than {MAX_BVH_JOINTS} joints and end sites \
+             (musculo::limits::MAX_BVH_JOINTS)"
+        )
+    } else if depth >= MAX_BVH_DEPTH {
+        format!(
+            "the hierarchy nests deeper than {MAX_BVH_DEPTH} joints \
+             (musculo::limits::MAX_BVH_DEPTH)"
+        )
+    } else {
+        return Ok(());
+    };
+    Err(crate::limits::exceeded(
+        p.source,
+        &format!("line {line}"),
+        over,
+    ))
 }
 
 /// Reads a BVH file's joint-centre positions.

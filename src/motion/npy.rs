@@ -26,7 +26,7 @@ use ndarray_npy::{
     NpzWriter, ReadNpyExt, ReadableElement, ViewElement, ViewNpyError, ViewNpyExt, WritableElement,
     WriteNpyExt,
 };
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
 
 /// The float element types musculo reads and writes (`f32`, `f64`).
@@ -155,7 +155,7 @@ pub fn parse_array_as_f64(bytes: &[u8], source: &str) -> crate::Result<ArrayD<f6
 }
 
 fn read_bytes(path: &Path) -> crate::Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| io_error(path, e))
+    crate::limits::read_binary_file_bytes(path)
 }
 
 /// Reads an `.npy` file of little-endian `A` (`f32` or `f64`) data of any rank.
@@ -199,7 +199,11 @@ pub fn expect_rank<'a, A, D: Dimension>(
 }
 
 /// An `.npz` file opened as a zip archive, with the file's name for messages.
+/// A regular file within [`crate::limits::MAX_BINARY_FILE_BYTES`] of at most
+/// [`crate::limits::MAX_NPZ_MEMBERS`] members (else [`Error::Limit`]).
 fn open_npz(path: &Path) -> crate::Result<(String, NpzArchive)> {
+    use crate::limits::{MAX_BINARY_FILE_BYTES, MAX_NPZ_MEMBERS, check_regular_file};
+    check_regular_file(path, MAX_BINARY_FILE_BYTES, "MAX_BINARY_FILE_BYTES")?;
     let source = path.display().to_string();
     let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
     let zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
@@ -209,22 +213,61 @@ fn open_npz(path: &Path) -> crate::Result<(String, NpzArchive)> {
             format!("not an .npz (zip) archive: {e}"),
         )
     })?;
+    if zip.len() > MAX_NPZ_MEMBERS {
+        return Err(crate::limits::exceeded(
+            &source,
+            "archive",
+            format!(
+                "{} members, more than {MAX_NPZ_MEMBERS} (musculo::limits::MAX_NPZ_MEMBERS)",
+                zip.len()
+            ),
+        ));
+    }
     Ok((source, zip))
 }
 
 type NpzArchive = zip::ZipArchive<std::io::BufReader<std::fs::File>>;
 
-/// The bytes of archive member `name` into `bytes` (cleared first).
+/// The bytes of archive member `member` into `bytes` (cleared first). `inflated` counts
+/// the bytes the archive's members have inflated to so far: the member's size as the
+/// archive's directory gives it is checked against what is left of
+/// [`crate::limits::MAX_NPZ_INFLATED_BYTES`] before it is inflated, and inflating stops one
+/// byte past that size (a directory may understate it).
 fn read_member(
-    member: &mut impl Read,
+    member: &mut zip::read::ZipFile<'_, impl Read>,
     source: &str,
-    name: &str,
+    inflated: &mut u64,
     bytes: &mut Vec<u8>,
 ) -> crate::Result<()> {
+    use crate::limits::MAX_NPZ_INFLATED_BYTES;
+    let name = member.name().to_string();
+    let location = format!("archive member \"{name}\"");
+    let declared = member.size();
+    if declared > MAX_NPZ_INFLATED_BYTES - *inflated {
+        return Err(crate::limits::exceeded(
+            source,
+            &location,
+            format!(
+                "inflates to {declared} bytes, which with the members before it is more than \
+                 the {MAX_NPZ_INFLATED_BYTES} bytes musculo inflates from one archive \
+                 (musculo::limits::MAX_NPZ_INFLATED_BYTES)"
+            ),
+        ));
+    }
     bytes.clear();
+    bytes.reserve(usize::try_from(declared).unwrap_or(0));
     member
+        .take(declared + 1)
         .read_to_end(bytes)
-        .map_err(|e| motion_error(source, &format!("archive member \"{name}\""), e.to_string()))?;
+        .map_err(|e| motion_error(source, &location, e.to_string()))?;
+    if bytes.len() as u64 > declared {
+        return Err(motion_error(
+            source,
+            &location,
+            format!("inflates past the {declared} bytes the archive's directory gives it"),
+        ));
+    }
+    *inflated += declared;
     Ok(())
 }
 
@@ -237,12 +280,13 @@ fn read_npz_with<T>(
     let (source, mut zip) = open_npz(path)?;
     let mut out = Vec::with_capacity(zip.len().min(1024));
     let mut bytes = Vec::new();
+    let mut inflated = 0;
     for i in 0..zip.len() {
         let mut member = zip
             .by_index(i)
             .map_err(|e| motion_error(&source, &format!("archive member {i}"), e.to_string()))?;
         let name = member.name().to_string();
-        read_member(&mut member, &source, &name, &mut bytes)?;
+        read_member(&mut member, &source, &mut inflated, &mut bytes)?;
         if is_text(&bytes) {
             continue;
         }
@@ -275,7 +319,7 @@ pub fn read_npz_text(path: &Path, name: &str) -> crate::Result<Option<String>> {
         }
     };
     let mut bytes = Vec::new();
-    read_member(&mut member, &source, &member_name, &mut bytes)?;
+    read_member(&mut member, &source, &mut 0, &mut bytes)?;
     let location = format!("archive member \"{member_name}\"");
     let text = ndarray::ArrayView1::<u8>::view_npy(&bytes)
         .map_err(|e| view_error(e, &source, "uint8 ('|u1') text"))?;
@@ -309,6 +353,7 @@ pub fn read_npz_some_as_f64(
 ) -> crate::Result<Vec<(String, Option<ArrayD<f64>>)>> {
     let (source, mut zip) = open_npz(path)?;
     let mut out = Vec::with_capacity(zip.len().min(1024));
+    let mut inflated = 0;
     for i in 0..zip.len() {
         let mut member = zip
             .by_index(i)
@@ -317,7 +362,7 @@ pub fn read_npz_some_as_f64(
         let key = name.strip_suffix(".npy").unwrap_or(&name).to_string();
         let array = if wanted.contains(&key.as_str()) {
             let mut bytes = Vec::new();
-            read_member(&mut member, &source, &name, &mut bytes)?;
+            read_member(&mut member, &source, &mut inflated, &mut bytes)?;
             Some(parse_array_as_f64(&bytes, &format!("{source} [{name}]"))?)
         } else {
             None
@@ -364,6 +409,20 @@ pub fn write_npz_with_texts<A: NpyFloat>(
     texts: &[(&str, &str)],
     compressed: bool,
 ) -> crate::Result<()> {
+    let bytes = npz_bytes(arrays, texts, compressed)?;
+    write_file_atomic(path, &bytes)
+}
+
+/// The bytes of the `.npz` archive [`write_npz_with_texts`] writes, for a caller that writes
+/// them itself (with other files, in an [`crate::io::output::OutputSet`]). The archive is
+/// assembled in memory: writing it cannot fail half-way, so the zip writer never reports a
+/// failure of its own (it printed `ZipWriter drop failed` on a full disk); the file's write
+/// errors come once, from the file.
+pub fn npz_bytes<A: NpyFloat>(
+    arrays: &[(&str, ArrayViewD<'_, A>)],
+    texts: &[(&str, &str)],
+    compressed: bool,
+) -> crate::Result<Vec<u8>> {
     let names: Vec<&str> = (arrays.iter().map(|(n, _)| *n))
         .chain(texts.iter().map(|(n, _)| *n))
         .collect();
@@ -375,8 +434,8 @@ pub fn write_npz_with_texts<A: NpyFloat>(
             ));
         }
     }
-    let (atomic, file) = AtomicFile::create(path)?;
-    let writer = std::io::BufWriter::new(file);
+    let bad = |e: &dyn std::fmt::Display| Error::invalid("arrays", e.to_string());
+    let writer = std::io::Cursor::new(Vec::new());
     let mut npz = if compressed {
         NpzWriter::new_compressed(writer)
     } else {
@@ -384,18 +443,13 @@ pub fn write_npz_with_texts<A: NpyFloat>(
     };
     for (name, array) in arrays {
         npz.add_array(*name, &array.as_standard_layout())
-            .map_err(|e| write_error(path, e))?;
+            .map_err(|e| bad(&e))?;
     }
     for (name, text) in texts {
         npz.add_array(*name, &ndarray::ArrayView1::from(text.as_bytes()))
-            .map_err(|e| write_error(path, e))?;
+            .map_err(|e| bad(&e))?;
     }
-    let mut writer = npz.finish().map_err(|e| write_error(path, e))?;
-    writer.flush().map_err(|e| io_error(path, e))?;
-    let file = writer
-        .into_inner()
-        .map_err(|e| write_error(path, e.error()))?;
-    atomic.commit(file)
+    Ok(npz.finish().map_err(|e| bad(&e))?.into_inner())
 }
 
 /// Writes one `f32` array as `.npy` (see [`write_npy`]).

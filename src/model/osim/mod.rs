@@ -62,7 +62,7 @@ impl<'a, 'i> FunctionReader<'a, 'i> {
 const MIN_VERSION: u32 = 40000;
 
 /// The deepest element nesting read; OpenSim files nest about 15 levels.
-const MAX_NESTING: usize = 256;
+const MAX_NESTING: usize = crate::limits::MAX_XML_DEPTH;
 
 /// Force-set files added to a model as OpenSim's tools do (`<force_set_files>` with
 /// `<replace_force_set>`): each is an `OpenSimDocument` holding one `<ForceSet>` (or, in files
@@ -112,7 +112,10 @@ fn parse_inner(
             file: source.to_string(),
             line: ctx.line(deep),
             element: format!("<{}>", deep.tag_name().name()),
-            message: format!("elements are nested more than {MAX_NESTING} levels deep"),
+            message: format!(
+                "elements are nested more than {MAX_NESTING} levels deep \
+                 (musculo::limits::MAX_XML_DEPTH)"
+            ),
         });
     }
     let root = doc.root_element();
@@ -204,7 +207,20 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                     }
                 }
                 "BodySet" => {
-                    for b in set_members(c) {
+                    let members = set_members(c);
+                    // ground is a body too
+                    if members.len() + 1 > crate::limits::MAX_BODIES {
+                        return Err(ctx.err(
+                            c,
+                            format!(
+                                "{} bodies: more than the {} a model may have \
+                                 (musculo::limits::MAX_BODIES, ground included)",
+                                members.len() + 1,
+                                crate::limits::MAX_BODIES
+                            ),
+                        ));
+                    }
+                    for b in members {
                         if b.tag_name().name() == "Body" {
                             self.read_body(ctx, b, options)?;
                         } else {

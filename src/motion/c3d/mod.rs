@@ -185,10 +185,7 @@ pub fn markers_to_opensim(motion: &Motion) -> Motion {
 impl C3d {
     /// Reads a C3D file.
     pub fn read(path: &Path) -> crate::Result<C3d> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let bytes = crate::limits::read_binary_file_bytes(path)?;
         Self::parse(&bytes, &path.display().to_string())
     }
 
