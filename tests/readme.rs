@@ -405,7 +405,12 @@ fn version_names_the_file_formats_read() {
         "BVH",
         "HumanML3D",
         "MJCF",
+        "CHANGELOG.md",
     ] {
         assert!(text.contains(needle), "--version lacks `{needle}`:\n{text}");
     }
+    assert!(
+        Path::new(ROOT).join("CHANGELOG.md").is_file(),
+        "--version points to CHANGELOG.md, which is missing"
+    );
 }
