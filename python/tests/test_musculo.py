@@ -549,7 +549,7 @@ def test_inverse_kinematics_of_marker_and_bvh_files():
     assert bvh["q"].shape == (994, model.nq) and np.all(np.isfinite(bvh["q"]))
     assert bvh["model_xml"] is None
     # the 1.43 m subject on the unscaled 1.8 m model: about 8 cm; scaled to the clip's bones
-    # as `musculo ik --scale auto` does (README: 8.3 mm median for this clip)
+    # as `musculo ik --scale auto` does (the book, "Motion inputs": 8.3 mm median for this clip)
     scaled = model.inverse_kinematics_file(BVH, length_unit="0.056444", scale=True)
     assert np.median(scaled["rmse"]) < 0.012 < 0.05 < np.median(bvh["rmse"])
     refit = musculo.Model.from_osim_string(scaled["model_xml"]).inverse_kinematics_file(
