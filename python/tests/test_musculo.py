@@ -228,8 +228,8 @@ def documentation_python_blocks():
 
 def test_documentation_examples(monkeypatch):
     """Runs every Python example of the README and the book as written, from the repository
-    root, the blocks of one document in one namespace. A block that imports torch is skipped
-    without torch; one that reads ../shared/reference without the reference data; one that reads
+    root, the blocks of one document in one namespace. A block that imports torch or
+    musculo.torch is skipped without torch; one that reads ../shared/reference without the reference data; one that reads
     out/demo (the README's main command, `musculo augment --demo --out out/demo`) runs it first
     with the built binary when out/demo is missing, and is skipped without one."""
     blocks = documentation_python_blocks()
@@ -245,7 +245,7 @@ def test_documentation_examples(monkeypatch):
     namespaces, ran, skipped = {}, 0, []
     for doc, line, code in blocks:
         where = f"{doc}:{line}"
-        if "import torch" in code and not have_torch:
+        if ("import torch" in code or "musculo.torch" in code) and not have_torch:
             skipped.append(f"{where} (torch)")
             continue
         needs = [p for p in code.split('"') if p.startswith("../shared/reference/")]
