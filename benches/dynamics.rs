@@ -5,7 +5,7 @@
 //! textbook way in the same process — M by n + 1 inverse-dynamics calls
 //! (M e_j = ID(q, q̇, e_j) − bias); the bias by the Lagrangian brute force
 //! Φᵀ(bias_full + M_full Φ̇q̇) — and the ratio musculo / peer is printed (< 1: musculo
-//! faster). The MuJoCo comparison is `cargo bench --features mujoco` (see README).
+//! faster). The MuJoCo comparison is `cargo bench --features mujoco` (see docs/src/benchmarks.md).
 //!
 //! Run: `cargo bench --bench dynamics` (reference data from MUSCULO_REFERENCE or
 //! ../shared/reference).

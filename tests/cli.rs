@@ -444,3 +444,31 @@ fn a_model_with_nothing_to_move_is_refused_by_the_per_coordinate_commands() {
         assert!(ok && stdout.contains("COORDINATES"), "inspect: {err}");
     }
 }
+
+#[test]
+fn help_texts_name_the_demo_clips_and_every_model_subcommand() {
+    // the demo's clips, as `augment --demo` writes them (src/augment/demo.rs)
+    let (ok, out, _) = run_musculo(&["augment", "--help"]);
+    assert!(ok);
+    assert!(out.contains("march in place, squat, reach"), "{out}");
+    assert!(!out.contains("walk, squat"), "{out}");
+    let (ok, out, _) = run_musculo(&["--help"]);
+    assert!(ok);
+    let model_line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("model "))
+        .expect("a `model` line in --help");
+    assert!(!model_line.contains("build it"), "{model_line}");
+    let (ok, out, _) = run_musculo(&["model", "--help"]);
+    assert!(ok);
+    for sub in ["build", "scale", "reserves", "strengthen"] {
+        assert!(
+            out.lines().any(|l| l.trim_start().starts_with(sub)),
+            "`model --help` lacks `{sub}`:\n{out}"
+        );
+        assert!(
+            out.lines().next().unwrap_or("").contains(sub),
+            "`model --help`'s first line does not name `{sub}`:\n{out}"
+        );
+    }
+}

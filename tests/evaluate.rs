@@ -457,7 +457,7 @@ fn bad_inputs_are_errors_naming_the_clip() {
 /// Real data through `musculo augment` and `musculo evaluate` (CLI): the C3D trials with their
 /// force plates (the measured loads enter the residual through `external`) and the HumanML3D
 /// sample. The Euler–Lagrange residual of what augment wrote is zero, as the physics says; the
-/// other figures are printed (README, "Evaluation").
+/// other figures are printed (docs/src/guide/evaluation.md).
 #[test]
 fn real_clips_have_a_zero_residual_and_print_their_figures() {
     let (Some(c3d), Some(hml)) = (

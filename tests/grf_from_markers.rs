@@ -15,7 +15,7 @@
 //! that foot carries.
 //!
 //! `cargo test --release --test grf_from_markers -- --nocapture` prints the table of the
-//! README's "Ground reactions from markers alone".
+//! docs/src/guide/contact.md, "Against force plates".
 
 mod common;
 

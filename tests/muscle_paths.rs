@@ -58,7 +58,7 @@ fn q_from_names(model: &Model, values: &[(&str, f64)]) -> Vec<f64> {
 }
 
 /// `known_bad`: paths whose mismatches are counted and printed instead of failing the test
-/// (each is an open problem named in the README).
+/// (each is an open problem named in docs/src/reference/default-model.md).
 fn check_model(path: &Path, states: usize, seed: u64, known_bad: &[&str]) {
     let model = load(path);
     let name = path.file_name().unwrap().to_string_lossy().to_string();

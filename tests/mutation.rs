@@ -129,7 +129,7 @@ fn check_located(e: &Error, source: &str, also_reads: &[&str]) -> Result<(), Str
 }
 
 /// With `MUSCULO_FUZZ_SEEDS=<dir>`, writes `seeds` as `<dir>/<target>/<name>`: the
-/// starting corpus of the `cargo fuzz` targets (see README.md, "Fuzzing").
+/// starting corpus of the `cargo fuzz` targets (see docs/src/validation/tests.md, "Fuzzing").
 fn write_fuzz_seeds(target: &str, seeds: &[(String, Vec<u8>)]) {
     let Some(dir) = std::env::var_os("MUSCULO_FUZZ_SEEDS") else {
         return;

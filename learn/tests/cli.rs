@@ -438,3 +438,17 @@ fn a_killed_train_ae_resumes_to_the_uninterrupted_network() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn usage_lines_name_the_musculo_command_that_runs_this_program() {
+    // reached as `musculo train-ae …` (src/bin/musculo/learn.rs), so usage says `musculo`
+    for sub in ["train-ae", "reconstruct", "train-diffusion", "generate"] {
+        let (ok, text) = run(&[sub, "--help"]);
+        assert!(ok, "{text}");
+        assert!(
+            text.contains(&format!("Usage: musculo {sub}")),
+            "{sub} --help:\n{text}"
+        );
+        assert!(!text.contains("musculo-learn"), "{sub} --help:\n{text}");
+    }
+}

@@ -196,31 +196,94 @@ def test_torch_muscle_loss_passes_gradcheck(model):
     assert torch.autograd.gradcheck(muscle, args, eps=1e-7, atol=1e-4, rtol=1e-5)
 
 
-def test_readme_examples(monkeypatch):
-    readme = os.path.join(os.path.dirname(__file__), "..", "..", "README.md")
-    if not os.path.exists(readme):
-        pytest.skip("README.md not beside the tests")
-    text = open(readme, encoding="utf-8").read()
-    section = text[text.index("## Python package"):]
-    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:5]]
-    namespace = {}
-    exec(blocks[0], namespace)
-    assert namespace["out"]["grad_q"].shape == (16, 196, namespace["model"].nq)
-    # the file examples, from the repository root as the README runs them
-    monkeypatch.chdir(os.path.join(os.path.dirname(readme)))
-    if os.path.exists(os.path.join("..", "shared", "reference", "c3d", "walking2.c3d")):
-        exec(blocks[1], namespace)
-        assert namespace["m"]["targets"].shape[2] == 3 and namespace["ik"]["model_xml"]
-        assert namespace["out"]["quality"]["reserve_share"] < 0.05
+REPOSITORY = os.path.join(os.path.dirname(__file__), "..", "..")
+
+
+def documentation_python_blocks():
+    """Every ```python block of README.md and of the book (docs/src, in SUMMARY.md's order), as
+    (document, line, code); tests/readme.rs checks the same documents' tags and shell blocks."""
+    docs = ["README.md"]
+    summary = os.path.join(REPOSITORY, "docs", "src", "SUMMARY.md")
+    if os.path.exists(summary):
+        for line in open(summary, encoding="utf-8"):
+            if "](" in line:
+                docs.append(os.path.join("docs", "src", line.split("](", 1)[1].split(")", 1)[0]))
+    out = []
+    for doc in docs:
+        path = os.path.join(REPOSITORY, doc)
+        if not os.path.exists(path):
+            continue
+        block, start = None, 0
+        for k, line in enumerate(open(path, encoding="utf-8"), start=1):
+            fence = line.strip().startswith("```")
+            if block is None and fence and line.strip()[3:].strip() == "python":
+                block, start = [], k
+            elif block is not None and fence:
+                out.append((doc, start, "".join(block)))
+                block = None
+            elif block is not None:
+                block.append(line)
+    return out
+
+
+def test_documentation_examples(monkeypatch):
+    """Runs every Python example of the README and the book as written, from the repository
+    root, the blocks of one document in one namespace. A block that imports torch or
+    musculo.torch is skipped without torch; one that reads ../shared/reference without the reference data; one that reads
+    out/demo (the README's main command, `musculo augment --demo --out out/demo`) runs it first
+    with the built binary when out/demo is missing, and is skipped without one."""
+    blocks = documentation_python_blocks()
+    if not blocks:
+        pytest.skip("README.md and docs/ not beside the tests")
+    assert any(doc == "README.md" for doc, _, _ in blocks)
+    monkeypatch.chdir(REPOSITORY)
     try:
         import torch  # noqa: F401
+        have_torch = True
     except ImportError:
+        have_torch = False
+    namespaces, ran, skipped = {}, 0, []
+    for doc, line, code in blocks:
+        where = f"{doc}:{line}"
+        if ("import torch" in code or "musculo.torch" in code) and not have_torch:
+            skipped.append(f"{where} (torch)")
+            continue
+        needs = [p for p in code.split('"') if p.startswith("../shared/reference/")]
+        if any(not os.path.exists(p) for p in needs):
+            skipped.append(f"{where} (reference data)")
+            continue
+        if "out/demo/" in code and not os.path.exists(os.path.join("out", "demo", "manifest.json")):
+            binary = os.path.join("target", "release", "musculo")
+            if not os.path.exists(binary):
+                skipped.append(f"{where} (out/demo and no target/release/musculo to make it)")
+                continue
+            import subprocess
+            subprocess.run([binary, "augment", "--demo", "--out", "out/demo"], check=True,
+                           capture_output=True)
+        namespace = namespaces.setdefault(doc, {})
+        try:
+            exec(compile(code, where, "exec"), namespace)
+        except Exception as e:  # name the block, not this test's line
+            raise AssertionError(f"{where}: the example fails: {e!r}") from e
+        ran += 1
+        check_documented_results(doc, code, namespace)
+    print(f"{ran} documentation examples ran; skipped: {skipped}")
+    assert ran >= 2
+
+
+def check_documented_results(doc, code, namespace):
+    """What the Python chapter's examples promise, checked once each has run."""
+    if not doc.endswith("python.md"):
         return
-    exec(blocks[2], namespace)
-    assert namespace["q"].grad is not None
-    if os.path.exists(os.path.join("..", "shared", "reference", "humanml3d",
-                                   "new_joints_012314.npy")):
-        exec(blocks[3], namespace)
+    out = namespace.get("out")
+    if "EulerLagrangeLoss(" in code:
+        assert out["grad_q"].shape == (16, 196, namespace["model"].nq)
+    if "augment_file(" in code:
+        assert namespace["m"]["targets"].shape[2] == 3 and namespace["ik"]["model_xml"]
+        assert out["quality"]["reserve_share"] < 0.05
+    if "PhysicsLoss(model" in code:
+        assert namespace["q"].grad is not None
+    if "LayoutPhysicsLoss(" in code:
         assert all(x.grad is not None for x in namespace["x"])
 
 
@@ -486,7 +549,7 @@ def test_inverse_kinematics_of_marker_and_bvh_files():
     assert bvh["q"].shape == (994, model.nq) and np.all(np.isfinite(bvh["q"]))
     assert bvh["model_xml"] is None
     # the 1.43 m subject on the unscaled 1.8 m model: about 8 cm; scaled to the clip's bones
-    # as `musculo ik --scale auto` does (README: 8.3 mm median for this clip)
+    # as `musculo ik --scale auto` does (the book, "Motion inputs": 8.3 mm median for this clip)
     scaled = model.inverse_kinematics_file(BVH, length_unit="0.056444", scale=True)
     assert np.median(scaled["rmse"]) < 0.012 < 0.05 < np.median(bvh["rmse"])
     refit = musculo.Model.from_osim_string(scaled["model_xml"]).inverse_kinematics_file(

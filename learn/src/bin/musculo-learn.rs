@@ -19,6 +19,8 @@ use std::process::ExitCode;
 #[derive(Parser)]
 #[command(
     name = "musculo-learn",
+    // run as `musculo train-ae …` (src/bin/musculo/learn.rs): usage lines name that command
+    bin_name = "musculo",
     version,
     about = "musculo's learned module: a physics-aware motion autoencoder on musculo's tensors"
 )]

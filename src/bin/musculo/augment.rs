@@ -20,7 +20,8 @@ pub struct Args {
     /// tree mirrors each folder's tree.
     #[arg(long, num_args = 1.., required_unless_present = "demo")]
     input: Vec<PathBuf>,
-    /// Run the shipped sample clips (walk, squat, reach on the default model).
+    /// Run the three sample clips built into musculo (march in place, squat, reach) on the
+    /// default model.
     #[arg(long, conflicts_with = "input")]
     demo: bool,
     /// Input format (default: from each file's extension and array shape).

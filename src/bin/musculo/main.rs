@@ -33,7 +33,8 @@ const VERSION: &str = concat!(
     "  tables       .sto/.mot (version=1 and OpenSim 4 headers, SIMM .mot), .trc markers\n",
     "  motion       C3D (force platforms of types 1-4), BVH, HumanML3D and KIT-ML .npy, .npy/.npz\n",
     "writes:\n",
-    "  .osim (Version 40000), .sto/.mot (OpenSim 4 headers), MuJoCo MJCF (MuJoCo 3.x), .npz",
+    "  .osim (Version 40000), .sto/.mot (OpenSim 4 headers), MuJoCo MJCF (MuJoCo 3.x), .npz\n",
+    "changes: CHANGELOG.md in musculo's source, beside README.md; the manual: docs/ (an mdBook)",
 );
 
 #[derive(Parser)]
@@ -72,7 +73,8 @@ enum Command {
     /// OpenSim's Scale tool from a setup file: scale factors from marker-pair measurements
     /// and manual factors, mass scaling, marker placement on a static trial.
     Scale(scale::Args),
-    /// The default full-body model: build it from its parameter tables (data/model).
+    /// Model files: build the default full-body model from its tables (data/model), scale or
+    /// strengthen a model, write its reserves (residual and reserve actuators).
     #[command(subcommand)]
     Model(model::Command),
     /// Biomechanics unit checks: connectivity, masses and inertias, coordinate ranges,
