@@ -1039,13 +1039,17 @@ fn solve(
             .map(|t| t.weight)
             .sum()
     };
-    let mut seen: Vec<f64> = (0..targets.n_frames()).map(present_weight).collect();
-    seen.sort_by(f64::total_cmp);
-    let typical = seen[seen.len() / 2];
-    let global_frame = (0..targets.n_frames())
-        .find(|&f| has_data(f) && present_weight(f) >= typical)
-        .unwrap_or(0);
     let mut several_starts = starts.is_none() && settings.initial_q.is_none();
+    let global_frame = if several_starts {
+        let mut seen: Vec<f64> = (0..targets.n_frames()).map(present_weight).collect();
+        seen.sort_by(f64::total_cmp);
+        let typical = seen[seen.len() / 2];
+        (0..targets.n_frames())
+            .find(|&f| has_data(f) && present_weight(f) >= typical)
+            .unwrap_or(0)
+    } else {
+        0
+    };
     if several_starts {
         let first = (0..targets.n_frames()).find(|&f| has_data(f)).unwrap_or(0);
         move_start_to_targets(model, &mut ws, tasks, targets.frame(first))?;

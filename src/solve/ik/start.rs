@@ -58,32 +58,27 @@ pub(super) fn best_of_starts(
     tolerance: f64,
     relative_decrease: f64,
 ) -> crate::Result<(f64, u32, Vec<StartOutcome>)> {
+    // each start solved whole, every coordinate free (evaluations of f accumulate in ws)
+    let whole = |ws: &mut IkWorkspace| {
+        solve_frame(
+            model,
+            ws,
+            tasks,
+            frame,
+            max_iterations,
+            tolerance,
+            relative_decrease,
+        )
+    };
     let q0 = ws.q.clone();
     let mu0 = ws.mu;
-    let (f_default, it_default) = solve_frame(
-        model,
-        ws,
-        tasks,
-        frame,
-        max_iterations,
-        tolerance,
-        relative_decrease,
-    )?;
-    let (q_default, mu_default, evals_default) = (ws.q.clone(), ws.mu, ws.evaluations);
+    let (f_default, it_default) = whole(ws)?;
+    let (q_default, mu_default) = (ws.q.clone(), ws.mu);
 
     ws.q.copy_from_slice(&q0);
     ws.mu = mu0;
     limbs_in_turn(model, ws, tasks, frame, tolerance, relative_decrease)?;
-    let (f_limbs, it_limbs) = solve_frame(
-        model,
-        ws,
-        tasks,
-        frame,
-        max_iterations,
-        tolerance,
-        relative_decrease,
-    )?;
-    ws.evaluations += evals_default;
+    let (f_limbs, it_limbs) = whole(ws)?;
     // ties keep the default pose (as every first frame was solved before)
     let limbs_better = f_limbs < f_default;
     let outcomes = vec![
