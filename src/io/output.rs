@@ -15,7 +15,7 @@
 //!
 //! A run killed before step 2 leaves only hidden temporaries; one killed during the renames
 //! (a few microseconds) leaves its journal as well. Both carry their writer's identity —
-//! host, PID namespace and process id ([`owner`]) — and once that writer has certainly ended
+//! host, PID namespace and process id (see the `owner` module) — and once that writer has certainly ended
 //! the next `OutputSet` writing into the folder removes the temporaries and finishes a
 //! journaled commit (its files were complete and synced before the journal was written),
 //! saying so in [`Committed::notes`]. A file whose writer cannot be shown to have ended is

@@ -211,7 +211,7 @@ pub struct IkSolution {
     /// [`IkSettings::robust`]); [`ik_robust::warnings`] words them.
     pub disagreeing: Vec<DisagreeingMarker>,
     /// The starts the first frame was solved from and the objective each reached (see
-    /// [`start`]); empty when the first frame started from a given pose (`initial_q`, or
+    /// [`describe_starts`]); empty when the first frame started from a given pose (`initial_q`, or
     /// [`solve_motion_from`]'s starts).
     pub first_frame_starts: Vec<StartOutcome>,
 }
