@@ -102,7 +102,7 @@ pub enum Error {
 
     /// The default model's parameter tables are unreadable or inconsistent.
     #[error(transparent)]
-    ModelBuild(#[from] crate::model::builder::BuildError),
+    ModelBuild(#[from] BuildError),
 }
 
 impl Error {
@@ -112,4 +112,31 @@ impl Error {
             message: message.into(),
         }
     }
+}
+
+/// A table of the default model (`model::builder`) could not be read: the file, and the row
+/// (1-based, header = row 1) when known.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    #[error("{path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("{path}, row {row}: {message}")]
+    Row {
+        path: PathBuf,
+        row: usize,
+        message: String,
+    },
+}
+
+/// The default model's tables (`model::builder`) are inconsistent (each message names the
+/// table and the row's key).
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error(transparent)]
+    Table(#[from] TableError),
+    #[error("{table}: {message}")]
+    Inconsistent {
+        table: &'static str,
+        message: String,
+    },
 }

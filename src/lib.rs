@@ -22,6 +22,7 @@ pub mod error;
 pub mod evaluate;
 pub mod io;
 pub mod limits;
+pub(crate) mod linalg;
 pub mod loss;
 pub mod model;
 pub mod motion;
@@ -33,6 +34,8 @@ pub mod reference;
 pub mod report;
 pub mod solve;
 pub mod spatial;
+pub mod text;
+pub(crate) mod xml;
 
 pub use dynamics::Data;
 pub use error::{Error, Result};

@@ -7,7 +7,7 @@
 //! Names: `cpu` (Flex), `wgpu` (the adapter wgpu prefers; `CUBECL_WGPU_DEFAULT_DEVICE`
 //! overrides it), `cuda` or `cuda:N` (GPU N).
 
-use crate::data::{LearnError, Result};
+use crate::error::{LearnError, Result};
 use burn::tensor::Device;
 
 /// The device named `name` (module docs); an error names the feature a build lacks.

@@ -23,11 +23,13 @@ pub mod checkpoint;
 pub mod data;
 pub mod device;
 pub mod diffusion;
+pub mod error;
 pub mod physics;
 pub mod text;
 pub mod train;
 
-pub use data::{ClipSet, LearnError, Result};
+pub use data::ClipSet;
+pub use error::{LearnError, Result};
 
 /// burn seeds a device's random generator globally (`Device::seed`), so two trainings that
 /// initialize their networks at once on one device would interleave their draws. Every seeded

@@ -12,7 +12,7 @@
 //! HumanML3D's `texts/<clip>.txt` (the caption is the text before the first `#` of its first
 //! line); a clip without either is captioned by its name with `_` and `-` read as spaces.
 
-use crate::data::{LearnError, Result};
+use crate::error::{LearnError, Result};
 use std::path::{Path, PathBuf};
 
 /// V, the buckets of the built-in bag of words.

@@ -23,7 +23,6 @@ use super::verdict::{self, ClipVerdict};
 use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
-use crate::io::text::short_number;
 use crate::model::{ActuatorKind, ForceElement, Model, ScalarActuator};
 use crate::motion::Motion;
 use crate::motion::skeleton::SkeletonMap;
@@ -41,6 +40,7 @@ use crate::solve::static_optimization::{
     SoFrame, SoStatus, SoWorkspace, StaticOptimization, StaticOptimizationOptions,
 };
 use crate::spatial::Vec3;
+use crate::text::short_number;
 
 /// Excitation samples clamped by more than this (in excitation units) are counted in
 /// [`ClipQuality::clamped_excitations`]: an activation resting on its lower bound asks for

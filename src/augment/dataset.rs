@@ -123,7 +123,7 @@ impl DatasetRoot {
             if !path.is_file() {
                 continue;
             }
-            let text = crate::io::text::read_text(&path)?;
+            let text = crate::text::read_text(&path)?;
             let ids = text
                 .lines()
                 .map(str::trim)

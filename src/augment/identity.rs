@@ -272,7 +272,7 @@ pub struct GivenModel {
 
 impl GivenModel {
     pub fn read(path: &Path) -> crate::Result<GivenModel> {
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         let model = Model::from_osim_str(&text, &path.display().to_string())?;
         Ok(GivenModel {
             path: path.to_path_buf(),
@@ -356,7 +356,7 @@ impl Bodies {
                     format!("--model {}", g.path.display()),
                 ),
                 None if beside.is_file() => {
-                    let text = crate::io::text::read_text(&beside)?;
+                    let text = crate::text::read_text(&beside)?;
                     let key = format!("file {}", fnv1a_hex(&text));
                     let source = beside.display().to_string();
                     let model = self.held(&key, || Model::from_osim_str(&text, &source))?;
@@ -407,7 +407,7 @@ impl Bodies {
         if let Some(want) = &id.osim_hash
             && beside.is_file()
         {
-            let text = crate::io::text::read_text(&beside)?;
+            let text = crate::text::read_text(&beside)?;
             if &fnv1a_hex(&text) == want {
                 let source = beside.display().to_string();
                 return Ok(found(

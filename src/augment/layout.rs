@@ -30,8 +30,8 @@
 //! FlexMotion's eq. 1.
 
 use crate::dynamics::{self, Data, Stage};
+use crate::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::model::{CoordinateRole, DofKind, Model, MotionType};
-use crate::solve::qp::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::spatial::{Mat3, Vec3};
 use nalgebra::{DMatrix, Rotation3, UnitQuaternion};
 

@@ -42,8 +42,8 @@
 
 use super::layout::{JointLayout, rotation_vector};
 use crate::dynamics::{self, Data};
+use crate::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::model::Model;
-use crate::solve::qp::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::spatial::{Mat3, Vec3};
 use nalgebra::{DMatrix, Rotation3};
 

@@ -40,9 +40,9 @@
 use super::layout::JointLayout;
 use super::layout_inverse::{LayoutClip, LayoutCoordinates, POSITION_WEIGHT, Solver, root_stencil};
 use crate::dynamics;
+use crate::linalg::lu_solve_in_place;
 use crate::model::reduction::NodeKind;
 use crate::model::{DofKind, JointStep, Model};
-use crate::solve::qp::linalg::lu_solve_in_place;
 use crate::spatial::{Mat3, Vec3};
 use rayon::prelude::*;
 use std::cell::RefCell;

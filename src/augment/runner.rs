@@ -771,7 +771,7 @@ pub fn merge(out: &Path) -> crate::Result<Manifest> {
             })?
             .path();
         if path.extension().is_some_and(|e| e == "json") {
-            let text = crate::io::text::read_text(&path)?;
+            let text = crate::text::read_text(&path)?;
             let list: ShardList = serde_json::from_str(&text).map_err(|e| Error::Motion {
                 file: path.display().to_string(),
                 location: format!("line {}", e.line()),

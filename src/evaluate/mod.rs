@@ -99,7 +99,7 @@ pub use capacity::{CapacityCurves, capacity_at, isometric_forces};
 pub use clip::{Capacity, Control, differentiate, evaluate_clip};
 pub use set::{ClipFile, SetOptions, SetReport, collect, evaluate_set, model_of};
 
-use crate::io::text::short_number;
+use crate::text::short_number;
 use serde::{Deserialize, Serialize};
 
 /// The largest floor height from the data's origin (m): no capture volume spans a kilometre,

@@ -318,7 +318,7 @@ impl Shared<'_> {
     /// The augmentation chain without muscles, on `--model` or the default model.
     fn motion_chain(&self) -> crate::Result<Chain> {
         let (xml, source) = match &self.options.model {
-            Some(p) => (crate::io::text::read_text(p)?, p.display().to_string()),
+            Some(p) => (crate::text::read_text(p)?, p.display().to_string()),
             None => (
                 crate::DEFAULT_MODEL_OSIM.to_string(),
                 "models/musculo_fullbody.osim".to_string(),

@@ -74,7 +74,7 @@ pub struct ExternalLoads {
 
 impl ExternalLoads {
     pub fn read(path: &Path) -> crate::Result<ExternalLoads> {
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         let mut loads = Self::parse(&text, &path.display().to_string())?;
         if let Some(d) = &loads.datafile {
             let base = crate::io::setup::base_dir(path);
@@ -84,7 +84,7 @@ impl ExternalLoads {
     }
 
     pub fn parse(text: &str, source: &str) -> crate::Result<ExternalLoads> {
-        let doc = super::xml::parse(text, source)?;
+        let doc = crate::xml::parse(text, source)?;
         let line = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row;
         let err = |n: roxmltree::Node, element: String, message: String| Error::Model {
             file: source.to_string(),

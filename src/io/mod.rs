@@ -14,9 +14,7 @@ pub mod output;
 pub mod scale_setup;
 pub mod setup;
 pub mod storage;
-pub mod text;
 pub mod trc;
-pub(crate) mod xml;
 
 pub use storage::{Dialect, ReadOptions, RepeatedTime, Table, TableLines, TableLocator};
 

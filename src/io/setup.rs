@@ -209,11 +209,11 @@ impl AnalyzeSetup {
 }
 
 pub(crate) fn read_text(path: &Path) -> crate::Result<String> {
-    crate::io::text::read_text(path)
+    crate::text::read_text(path)
 }
 
 pub(crate) fn parse_xml<'i>(text: &'i str, path: &Path) -> crate::Result<Document<'i>> {
-    super::xml::parse(text, &path.display().to_string())
+    crate::xml::parse(text, &path.display().to_string())
 }
 
 pub(crate) fn base_dir(path: &Path) -> &Path {

@@ -50,8 +50,8 @@
 //! it is exact.)
 
 use crate::error::Error;
-use crate::io::text::short_number;
 use crate::spatial::Vec3;
+use crate::text::short_number;
 use std::path::Path;
 
 /// The largest magnitude of a marker coordinate (m, after the file's unit). Capture volumes
@@ -265,7 +265,7 @@ impl Trc {
 
     /// Reads a `.trc` file.
     pub fn read(path: &Path) -> crate::Result<Trc> {
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         Trc::parse(&text, &path.display().to_string())
     }
 

@@ -32,9 +32,9 @@
 
 use super::{EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LossContact};
 use crate::dynamics::{self, Data};
+use crate::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::model::Model;
 use crate::solve::contact::ContactSet;
-use crate::solve::qp::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::spatial::Vec3;
 use nalgebra::DMatrix;
 use rayon::prelude::*;

@@ -29,10 +29,10 @@
 //! and moving points included). No finite differences anywhere.
 
 use crate::dynamics::{Data, PointForces, RneaVjp, crba, forward_kinematics_velocity};
+use crate::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use crate::model::Model;
 use crate::muscle::MuscleSet;
 use crate::muscle::path::{MomentArmRates, PathData, PathSet, compute_paths};
-use crate::solve::qp::linalg::{cholesky_in_place, cholesky_solve_in_place};
 use rayon::prelude::*;
 
 /// The loss's settings and the model's muscles.

@@ -26,10 +26,10 @@ use super::{
     EulerLagrange, EulerLagrangeBatch, EulerLagrangeOutput, LayoutEulerLagrange,
     LayoutEulerLagrangeBatch, LayoutEulerLagrangeOutput, MuscleBatch, MuscleLoss, MuscleLossOutput,
 };
-use crate::io::text::short_number;
 use crate::model::Model;
 use crate::motion::npy::read_npz_as_f64;
 use crate::solve::kinematics::MAX_COORDINATE_MAGNITUDE;
+use crate::text::short_number;
 use std::path::Path;
 
 /// The largest magnitude of any value of a tensor file. For `q` it is the coordinates' bound

@@ -15,6 +15,7 @@
 pub mod builder;
 mod frames;
 pub mod function;
+mod knots;
 pub mod mjcf;
 pub mod natural_spline;
 mod osim;
@@ -473,7 +474,7 @@ impl Model {
         options: &LoadOptions,
     ) -> crate::Result<Model> {
         let path = path.as_ref();
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         osim::parse(&text, &path.display().to_string(), options)
     }
 
@@ -486,7 +487,7 @@ impl Model {
         force_set_files: &[impl AsRef<Path>],
         replace: bool,
     ) -> crate::Result<Model> {
-        let read = crate::io::text::read_text;
+        let read = crate::text::read_text;
         let path = path.as_ref();
         let text = read(path)?;
         let mut sets = ForceSetFiles {

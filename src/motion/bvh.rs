@@ -248,7 +248,7 @@ impl Bvh {
     /// Reads and parses a BVH file.
     pub fn read(path: &Path) -> crate::Result<Bvh> {
         let source = path.display().to_string();
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         Bvh::parse(&text, &source)
     }
 

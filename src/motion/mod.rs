@@ -20,11 +20,12 @@ pub mod humanml3d;
 pub mod kit;
 pub mod npy;
 pub mod skeleton;
+pub mod tasks;
 
 use crate::error::Error;
-use crate::io::text::short_number;
 use crate::io::trc::Trc;
 use crate::spatial::Vec3;
+use crate::text::short_number;
 use std::path::Path;
 
 /// The motion file formats [`read`] knows.

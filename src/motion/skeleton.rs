@@ -45,9 +45,9 @@
 //! every name missing.
 
 use super::Motion;
+use super::tasks::{IkTasks, MarkerTask};
 use crate::error::Error;
 use crate::model::Model;
-use crate::solve::ik::{IkTasks, MarkerTask};
 use crate::spatial::{Mat3, Vec3};
 use serde::Deserialize;
 
@@ -163,7 +163,7 @@ impl SkeletonMap {
 
     /// Reads a map file.
     pub fn read(path: &std::path::Path) -> crate::Result<SkeletonMap> {
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         Self::parse(&text, &path.display().to_string())
     }
 
@@ -406,8 +406,8 @@ impl SkeletonMap {
                          clip's body {} m tall, not a person's ({lo}–{hi} m)",
                         motion.source,
                         self.source,
-                        crate::io::text::short_number(self.scale),
-                        crate::io::text::short_number((height * 1e3).round() / 1e3)
+                        crate::text::short_number(self.scale),
+                        crate::text::short_number((height * 1e3).round() / 1e3)
                     ),
                 ));
             }

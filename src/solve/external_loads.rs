@@ -30,11 +30,11 @@ use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
 use crate::io::external_loads::ExternalLoads;
-use crate::io::text::short_number;
 use crate::model::Model;
 use crate::model::function::{Function, PiecewiseLinear};
 use crate::model::natural_spline::NaturalSpline;
 use crate::spatial::Vec3;
+use crate::text::short_number;
 use std::path::Path;
 
 /// The largest magnitude of a force (N), point (m) or torque (N·m) value in an external

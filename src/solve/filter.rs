@@ -1,7 +1,7 @@
 //! Low-pass filtering of sampled signals, as OpenSim's tools do it: odd-reflection padding at
 //! both ends, then a third-order Butterworth filter run forward and backward (zero lag).
 
-use crate::io::text::short_number;
+use crate::text::short_number;
 
 /// Pads a signal with `pad` points at each end by odd reflection about its end values,
 /// x(−i) = 2 x(0) − x(i), which keeps value and slope continuous (OpenSim's Signal::Pad; the

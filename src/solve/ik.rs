@@ -41,12 +41,12 @@
 use crate::dynamics::Data;
 use crate::dynamics::forward_kinematics::{body_poses_only, motion_subspaces};
 use crate::error::Error;
+use crate::linalg::dot;
 use crate::model::reduction::NONE;
 use crate::model::{CoordinateRole, Model};
 use crate::motion::Motion;
 use crate::solve::ik_robust::{self, DisagreeingMarker, RobustMarkers};
 use crate::solve::ltl::EliminationTree;
-use crate::solve::qp::linalg::dot;
 use crate::spatial::{Force, Mat3, SpatialInertia, Vec3};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -54,38 +54,15 @@ use rayon::prelude::*;
 mod start;
 pub use start::{StartOutcome, describe as describe_starts};
 
+// The task types are the motion readers' too (a skeleton map produces them): they live in
+// `motion`, below both.
+pub use crate::motion::tasks::{CoordinateTask, IkTasks, MarkerTask};
+
 /// A frame ends when an accepted step lowers f by less than this fraction of f. Gauss–Newton
 /// converges linearly on real (non-zero-residual) data; at this threshold no single
 /// coordinate moved by ±10⁻⁴ lowers f by more than ~10⁻⁸ of itself (tests/ik_datasets.rs
 /// probes every frame), while 10⁻⁷ leaves up to 4·10⁻⁵ in poorly determined directions.
 pub const RELATIVE_DECREASE: f64 = 1e-8;
-
-/// A model marker that follows a target column of the motion.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MarkerTask {
-    /// Index in `Model::markers`.
-    pub marker: usize,
-    /// Column of the target motion.
-    pub target: usize,
-    pub weight: f64,
-}
-
-/// An independent coordinate held near a value (OpenSim's IKCoordinateTask).
-#[derive(Clone, Debug, PartialEq)]
-pub struct CoordinateTask {
-    /// Index in q.
-    pub q: usize,
-    pub weight: f64,
-    /// The value per frame, or one value for every frame.
-    pub value: Vec<f64>,
-}
-
-/// What the solver fits.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct IkTasks {
-    pub markers: Vec<MarkerTask>,
-    pub coordinates: Vec<CoordinateTask>,
-}
 
 /// Which coordinate ranges bound the solution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

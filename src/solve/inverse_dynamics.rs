@@ -62,10 +62,10 @@ use super::kinematics::{
 };
 use crate::dynamics::{self, Data};
 use crate::error::Error;
-use crate::io::text::short_number;
 use crate::io::{Dialect, Table};
 use crate::model::natural_spline::NaturalSpline;
 use crate::model::{Model, MotionType};
+use crate::text::short_number;
 
 /// OpenSim's `Storage::MAX_RESAMPLE_SIZE`: resampling never makes more rows than this.
 const MAX_RESAMPLE_SIZE: f64 = 100_000.0;

@@ -16,10 +16,10 @@
 
 use super::filter::{cutoff_problem, lowpass_butterworth3, pad_odd};
 use crate::error::Error;
-use crate::io::text::short_number;
 use crate::io::{Table, TableLocator};
 use crate::model::natural_spline::NaturalSpline;
 use crate::model::{Model, MotionType};
+use crate::text::short_number;
 
 /// How q̈ is obtained from the spline of q.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -253,9 +253,9 @@ pub fn segment_factors(
                     "the clip's bones are {} times the model's (with the skeleton map {}'s \
                      scale {}), outside {MIN_SCALE_FACTOR} to {MAX_SCALE_FACTOR}: a wrong \
                      length unit or map scale",
-                    crate::io::text::short_number(factor),
+                    crate::text::short_number(factor),
                     map.source,
-                    crate::io::text::short_number(map.scale)
+                    crate::text::short_number(map.scale)
                 ),
             });
         }

@@ -28,7 +28,6 @@
 use crate::dynamics::{self, Data, Stage};
 use crate::error::Error;
 use crate::io::Table;
-use crate::io::text::short_number;
 use crate::model::{ActuatorKind, Model};
 use crate::muscle::MuscleSet;
 use crate::muscle::hill::{HillMuscle, MuscleKind, MuscleState, MuscleStatus};
@@ -38,6 +37,7 @@ use crate::solve::inverse_dynamics::{prepare_coordinates, rows_in_range};
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation};
 use crate::solve::qp::{QpMatrix, QpProblem, QpSettings, QpStatus, QpWorkspace, SparseColumns};
 use crate::spatial::Vec3;
+use crate::text::short_number;
 
 /// Options of [`StaticOptimization`] (the StaticOptimization analysis' properties).
 #[derive(Clone, Debug)]

@@ -52,7 +52,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             format!(
                 "{}: give a height in metres in (0, {MAX_CONTACT_HEIGHT}] (a foot a metre above \
                  the ground is at a hip's height, never in contact)",
-                musculo::io::text::short_number(args.contact_height)
+                musculo::text::short_number(args.contact_height)
             ),
         ));
     }

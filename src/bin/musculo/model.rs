@@ -141,7 +141,7 @@ fn reserves(args: &ReservesArgs) -> Result<(), musculo::Error> {
 }
 
 fn strengthen(args: &StrengthenArgs) -> Result<(), musculo::Error> {
-    let xml = musculo::io::text::read_text(&args.model)?;
+    let xml = musculo::text::read_text(&args.model)?;
     let source = args.model.display().to_string();
     args.strict.load_str(&xml, &source)?;
     let (text, count) =
@@ -188,7 +188,7 @@ pub fn run(command: &Command) -> Result<(), musculo::Error> {
             Ok(())
         }
         Command::Scale(args) => {
-            let xml = musculo::io::text::read_text(&args.model)?;
+            let xml = musculo::text::read_text(&args.model)?;
             let source = args.model.display().to_string();
             let model = args.strict.load_str(&xml, &source)?;
             let model_height = match args.model_height.or_else(|| credited_height(&xml)) {

@@ -73,7 +73,7 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
                      largest, {}, is beyond what the muscle paths can compute)",
                     set.names().nth(k).unwrap_or("?"),
                     paths.length[k],
-                    musculo::io::text::short_number(q[j])
+                    musculo::text::short_number(q[j])
                 ),
             ));
         }

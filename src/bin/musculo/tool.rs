@@ -94,7 +94,7 @@ pub fn read_coordinates(
 /// The text of `--model FILE` and its name for messages, or the built-in default model's.
 pub fn model_text(model: Option<&Path>) -> Result<(String, String), musculo::Error> {
     match model {
-        Some(p) => Ok((musculo::io::text::read_text(p)?, p.display().to_string())),
+        Some(p) => Ok((musculo::text::read_text(p)?, p.display().to_string())),
         None => Ok((
             musculo::DEFAULT_MODEL_OSIM.to_string(),
             "models/musculo_fullbody.osim".to_string(),

@@ -39,7 +39,7 @@ impl Table {
 
     /// Reads a `.sto` or `.mot` file with options.
     pub fn read_with(path: &Path, options: &ReadOptions) -> Result<Table> {
-        let text = crate::io::text::read_text(path)?;
+        let text = crate::text::read_text(path)?;
         Table::parse_with(&text, &path.display().to_string(), options)
     }
 

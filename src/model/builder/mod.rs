@@ -19,22 +19,11 @@
 
 pub mod tables;
 
+pub use crate::error::{BuildError, TableError};
 use crate::spatial::{Mat3, Vec3};
 use std::collections::BTreeMap;
 use std::fmt::Write;
-pub use tables::{ModelTables, TableError};
-
-/// The tables are inconsistent (each message names the table and the row's key).
-#[derive(Debug, thiserror::Error)]
-pub enum BuildError {
-    #[error(transparent)]
-    Table(#[from] TableError),
-    #[error("{table}: {message}")]
-    Inconsistent {
-        table: &'static str,
-        message: String,
-    },
-}
+pub use tables::ModelTables;
 
 fn inconsistent(table: &'static str, message: impl Into<String>) -> BuildError {
     BuildError::Inconsistent {

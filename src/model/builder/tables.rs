@@ -2,21 +2,9 @@
 //! with the column names as headers. Every record carries the publication of its figures in
 //! `source`; the reader refuses a row without one.
 
+use crate::error::TableError;
 use serde::Deserialize;
-use std::path::{Path, PathBuf};
-
-/// A table could not be read: the file, and the row (1-based, header = row 1) when known.
-#[derive(Debug, thiserror::Error)]
-pub enum TableError {
-    #[error("{path}: {message}")]
-    Io { path: PathBuf, message: String },
-    #[error("{path}, row {row}: {message}")]
-    Row {
-        path: PathBuf,
-        row: usize,
-        message: String,
-    },
-}
+use std::path::Path;
 
 /// The reference subject the tables describe (`reference_subject.csv`: quantity,value,source).
 #[derive(Clone, Debug, Deserialize)]

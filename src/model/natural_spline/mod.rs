@@ -115,7 +115,7 @@ impl NaturalSpline {
         }
         let n = x.len();
         for (c, y) in ys.iter().enumerate() {
-            super::function::check_xy(&x, y, m.max(1)).map_err(|e| (c, e))?;
+            super::knots::check_xy(&x, y, m.max(1)).map_err(|e| (c, e))?;
         }
         if n == 1 {
             // Only possible for m = 1: the "interpolating polynomial of degree 0".

@@ -11,8 +11,8 @@
 
 use super::xml::Ctx;
 use crate::error::Error;
-use crate::io::text::short_number;
 use crate::model::{Arity, Function, Model};
+use crate::text::short_number;
 
 /// The largest |θ| a transform axis or coupler may reach over its coordinates' ranges (m for
 /// a translation, rad for a rotation). No body of a musculoskeletal model moves a kilometre

@@ -77,7 +77,7 @@ pub struct ForceSetFiles {
 }
 
 fn parse_document<'i>(text: &'i str, source: &str) -> Result<Document<'i>, Error> {
-    crate::io::xml::parse(text, source)
+    crate::xml::parse(text, source)
 }
 
 /// Reads a model file's text, adding the forces of `force_sets`.

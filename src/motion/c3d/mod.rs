@@ -93,9 +93,9 @@ pub use plates::ForcePlate;
 use super::Motion;
 use crate::error::Error;
 use crate::io::storage::Table;
-use crate::io::text::short_number;
 use crate::io::trc::MAX_MARKER_COORDINATE;
 use crate::spatial::Vec3;
+use crate::text::short_number;
 use binary::{Parameters, error};
 use std::path::Path;
 

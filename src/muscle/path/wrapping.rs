@@ -3,8 +3,8 @@
 
 use super::{Node, NodeKind, PathGeometry, WrapDef, path_length};
 use crate::dynamics::Data;
+use crate::linalg::lu_solve_in_place;
 use crate::model::{Model, WrapShape};
-use crate::solve::qp::linalg::lu_solve_in_place;
 use crate::spatial::{Mat3, Vec3};
 
 /// The outcome of wrapping one segment over one wrap object.

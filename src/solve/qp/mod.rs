@@ -74,8 +74,8 @@ pub(crate) mod linalg;
 #[cfg(test)]
 mod tests;
 
+use crate::linalg::{cholesky_in_place, cholesky_solve_in_place, dot};
 pub use linalg::SparseColumns;
-use linalg::{cholesky_in_place, cholesky_solve_in_place, dot};
 use nalgebra::DMatrixView;
 
 /// The line search accepts t when |φ′(t)| ≤ η φ′(0) (or t = 1 when φ′(1) ≥ −η φ′(0)).

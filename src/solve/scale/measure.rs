@@ -27,10 +27,12 @@
 use super::{MAX_SCALE_FACTOR, MIN_SCALE_FACTOR, ScaleSet};
 use crate::io::scale_setup::{Measurement, ModelScaler, ScalingStep};
 use crate::io::setup::SetupWarning;
-use crate::io::text::short_number;
+use crate::io::trc::Trc;
 use crate::model::Model;
 use crate::motion::Motion;
 use crate::spatial::Vec3;
+use crate::text::short_number;
+use std::path::Path;
 
 /// One marker pair of a measurement.
 #[derive(Clone, Debug, PartialEq)]
@@ -237,4 +239,12 @@ pub fn scale_set(
         }
     }
     Ok((set, measured, warnings))
+}
+
+/// Reads a `.trc` static trial as a [`Motion`] (metres), with the reader's warnings (frames
+/// repeating a time, left out).
+pub fn read_trial(path: &Path) -> crate::Result<(Motion, Vec<SetupWarning>)> {
+    let trc = Trc::read(path)?;
+    let motion = Motion::from_trc(&trc, &path.display().to_string())?;
+    Ok((motion, trc.warnings))
 }

@@ -232,9 +232,9 @@ impl ScaleFactors {
                     format!(
                         "{} {unit} against the model's {} {unit} is a factor of {}, outside \
                          {MIN_SCALE_FACTOR} to {MAX_SCALE_FACTOR}: no subject's",
-                        crate::io::text::short_number(value),
-                        crate::io::text::short_number(of_model),
-                        crate::io::text::short_number(factor)
+                        crate::text::short_number(value),
+                        crate::text::short_number(of_model),
+                        crate::text::short_number(factor)
                     ),
                 ));
             }
@@ -270,10 +270,10 @@ pub fn scale_uniform(
     Ok(scale_osim(xml, source, model, &ScaleSet::uniform(model, s), &options)?.xml)
 }
 
-/// Parses a model file's XML as the `.osim` reader does ([`crate::io::xml::parse`]).
+/// Parses a model file's XML as the `.osim` reader does ([`crate::xml::parse`]).
 pub(crate) fn parse_document<'i>(
     xml: &'i str,
     source: &str,
 ) -> crate::Result<roxmltree::Document<'i>> {
-    crate::io::xml::parse(xml, source)
+    crate::xml::parse(xml, source)
 }

@@ -22,7 +22,7 @@
 
 use super::markers::{keep_markers, marker_frames, set_marker_locations};
 use super::measure::frame_range;
-use super::tool::read_trial;
+use super::measure::read_trial;
 use crate::io::Table;
 use crate::io::scale_setup::{CoordinateValue, IkTask, MarkerPlacer};
 use crate::io::setup::SetupWarning;

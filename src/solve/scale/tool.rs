@@ -3,14 +3,13 @@
 //! model, scale-set file), MarkerPlacer (see [`super::place`]). The library writes no file:
 //! the result lists each output the setup asks for, with its path and text.
 
+pub use super::measure::read_trial;
 use super::measure::{MeasuredFactor, scale_set};
 use super::{ScaleOptions, ScaleSet, ScaledModel, markers, scale_osim};
 use crate::error::Error;
 use crate::io::scale_setup::{ScaleSetup, ScalingStep, read_marker_set};
 use crate::io::setup::SetupWarning;
-use crate::io::trc::Trc;
 use crate::model::{LoadOptions, Model};
-use crate::motion::Motion;
 use std::path::{Path, PathBuf};
 
 /// Choices the setup file does not make.
@@ -80,15 +79,7 @@ impl ScaleToolResult {
 }
 
 fn read(path: &Path) -> crate::Result<String> {
-    crate::io::text::read_text(path)
-}
-
-/// Reads a `.trc` static trial as a [`Motion`] (metres), with the reader's warnings (frames
-/// repeating a time, left out).
-pub fn read_trial(path: &Path) -> crate::Result<(Motion, Vec<SetupWarning>)> {
-    let trc = Trc::read(path)?;
-    let motion = Motion::from_trc(&trc, &path.display().to_string())?;
-    Ok((motion, trc.warnings))
+    crate::text::read_text(path)
 }
 
 /// Runs the Scale tool a setup describes.

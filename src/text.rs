@@ -35,7 +35,7 @@ pub fn text_from_bytes(mut bytes: Vec<u8>, source: &str) -> crate::Result<String
         let offset = e.utf8_error().valid_up_to();
         // The prefix is valid UTF-8, so lines and characters can be counted in it.
         let before = std::str::from_utf8(&bytes[..offset]).unwrap_or("");
-        let (line, column) = super::xml::line_column(before, before.len());
+        let (line, column) = crate::xml::line_column(before, before.len());
         let byte = bytes[offset];
         let hint = if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
             "the file starts with a UTF-16 byte-order mark: save it as UTF-8"
