@@ -472,3 +472,31 @@ fn help_texts_name_the_demo_clips_and_every_model_subcommand() {
         );
     }
 }
+
+/// `musculo train-ae` (and the other learned-module commands) run `musculo-learn` beside the
+/// program or on PATH; where neither has it, the command says how to build it and fails.
+#[test]
+fn learned_module_commands_say_how_to_build_the_module_when_it_is_missing() {
+    let dir = common::ScratchDir::new("learn-missing");
+    let program = dir.join(&format!("musculo{}", std::env::consts::EXE_SUFFIX));
+    std::fs::copy(env!("CARGO_BIN_EXE_musculo"), &program).expect("copy musculo");
+    let empty_path = dir.join("bin");
+    std::fs::create_dir_all(&empty_path).expect("empty PATH folder");
+    for command in ["train-ae", "reconstruct", "train-diffusion", "generate"] {
+        let out = std::process::Command::new(&program)
+            .args([command, "--data", "anywhere"])
+            .env("PATH", &empty_path)
+            .output()
+            .expect("run the copied musculo");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success(),
+            "{command} succeeded without the module"
+        );
+        assert!(
+            err.contains("cargo build --release -p musculo-learn") && err.contains("musculo-learn"),
+            "{command}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{command}: {err}");
+    }
+}
