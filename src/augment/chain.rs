@@ -17,7 +17,7 @@
 //!
 //! The per-frame loop allocates nothing: every workspace is built once per clip.
 
-use super::layout::{JointFrame, JointLayout};
+use super::layout::{JointFrame, JointLayout, LayoutWorkspace};
 use super::perturb::Variant;
 use super::verdict::{self, ClipVerdict};
 use crate::dynamics::{self, Data};
@@ -28,7 +28,7 @@ use crate::motion::Motion;
 use crate::motion::skeleton::SkeletonMap;
 use crate::muscle::activation::ActivationDynamics;
 use crate::solve::contact::{
-    self, ContactFrame, ContactOptions, ContactSet, ContactWorkspace, GroupWrench,
+    self, ContactFrame, ContactOptions, ContactSet, ContactStates, ContactWorkspace, GroupWrench,
 };
 use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::filter::HIGHEST_CUTOFF_FRACTION;
@@ -418,88 +418,122 @@ impl Chain {
         let mut warnings = Vec::new();
         let motion = variant.apply_to_motion(motion)?;
         let (model, scaled_xml, mut identity) = self.clip_model_and_xml(&motion, map, variant)?;
+        let source = motion.source.as_str();
+        let (targets, tasks) = self.ik_targets(&model, &motion, map, &mut warnings)?;
+        let solution = self.inverse_kinematics(&model, source, &targets, &tasks, &mut warnings)?;
+        let kinematics =
+            self.filtered_kinematics(&model, source, &targets, &solution, &mut warnings)?;
+        let loads = measured_loads(&model, source, external_loads, &kinematics, targets.rate_hz)?;
+        let solvers = self.clip_solvers(&model, &kinematics, targets.rate_hz, loads.as_ref())?;
+        let per_frame = self.dynamics_per_frame(&PerFrameInputs {
+            model: &model,
+            source,
+            kinematics: &kinematics,
+            solvers: &solvers,
+            loads: loads.as_ref(),
+        })?;
+        let clip = ClipComputed {
+            model,
+            rate_hz: targets.rate_hz,
+            tasks,
+            solution,
+            kinematics,
+            measured: loads.is_some(),
+            solvers,
+            per_frame,
+        };
+        let (excitation, clamped) = self.excitations(&clip)?;
+        let mut quality = self.clip_quality(&clip, clamped);
+        quality_warnings(&clip, &quality, source, &mut warnings);
+        let (tables, model_xml) = self.opensim_outputs(&clip, variant, scaled_xml)?;
+        let arrays = self.output_arrays(clip, excitation);
+        check_finite(&arrays)?;
+        quality.verdict = Some(verdict::judge(&quality));
+        identity.osim_hash = model_xml.as_deref().map(super::output::fnv1a_hex);
+        Ok(ClipOutput {
+            arrays,
+            quality,
+            tables,
+            model_xml,
+            identity,
+            warnings,
+        })
+    }
+
+    /// The IK targets and tasks of the clip: the skeleton map applied (or the model's markers
+    /// matched by name), trimmed to the frames with data, and without a calibration pose at
+    /// either end unless [`ChainOptions::keep_calibration_frames`].
+    fn ik_targets(
+        &self,
+        model: &Model,
+        motion: &Motion,
+        map: Option<&SkeletonMap>,
+        warnings: &mut Vec<String>,
+    ) -> crate::Result<(Motion, ik::IkTasks)> {
         let (targets, tasks) = match map {
-            Some(map) => map.apply(&model, &motion)?,
+            Some(map) => map.apply(model, motion)?,
             None => {
-                let tasks = ik::tasks_by_name(&model, &motion);
+                let tasks = ik::tasks_by_name(model, motion);
                 if tasks.markers.is_empty() {
-                    return Err(no_common_markers(&model, &motion));
+                    return Err(no_common_markers(model, motion));
                 }
                 (motion.clone(), tasks)
             }
         };
-        let mut targets = trim_to_data(&targets, &mut warnings)?;
+        let mut targets = trim_to_data(&targets, warnings)?;
         if !self.options.keep_calibration_frames {
-            let (kept, warning) = crate::motion::calibration::trim(&targets, &motion)?;
+            let (kept, warning) = crate::motion::calibration::trim(&targets, motion)?;
             targets = kept;
             warnings.extend(warning);
         }
-        // --- inverse kinematics ---
-        let solution = ik::solve_motion(&model, &targets, &tasks, &self.options.ik, &|_| {})?;
-        warnings.extend(ik_robust::warnings(
-            &model,
-            &tasks,
-            &solution,
-            &motion.source,
-        ));
+        Ok((targets, tasks))
+    }
+
+    /// Inverse kinematics of the clip (disagreeing markers down-weighted and named in the
+    /// warnings); a clip of fewer than 4 frames is refused.
+    fn inverse_kinematics(
+        &self,
+        model: &Model,
+        source: &str,
+        targets: &Motion,
+        tasks: &ik::IkTasks,
+        warnings: &mut Vec<String>,
+    ) -> crate::Result<ik::IkSolution> {
+        let solution = ik::solve_motion(model, targets, tasks, &self.options.ik, &|_| {})?;
+        warnings.extend(ik_robust::warnings(model, tasks, &solution, source));
         let frames = solution.n_frames();
         if frames < 4 {
             return Err(Error::invalid(
                 "motion",
-                format!(
-                    "{}: {frames} frames; the chain needs at least 4",
-                    motion.source
-                ),
+                format!("{source}: {frames} frames; the chain needs at least 4"),
             ));
         }
+        Ok(solution)
+    }
+
+    /// Filtering and differentiation: IK's coordinates low-passed and differentiated twice
+    /// by quintic splines, sampled at the clip's times and rounded to float32.
+    fn filtered_kinematics(
+        &self,
+        model: &Model,
+        source: &str,
+        targets: &Motion,
+        solution: &ik::IkSolution,
+        warnings: &mut Vec<String>,
+    ) -> crate::Result<ClipKinematics> {
+        let frames = solution.n_frames();
         let n = model.nq();
-        // --- filtering and differentiation ---
         let names: Vec<String> = model.q_names().iter().map(|s| s.to_string()).collect();
-        // Files store times rounded (OpenSim's subject01_walk1.trc at 60 Hz writes 0.017,
-        // 0.033): times within 5 % of a sample interval of the uniform grid at the motion's
-        // rate are put on it, so the filter accepts them.
-        let dt = 1.0 / targets.rate_hz;
-        let grid: Vec<f64> = (0..frames)
-            .map(|f| targets.time[0] + f as f64 * dt)
-            .collect();
-        let on_grid = grid
-            .iter()
-            .zip(&targets.time)
-            .all(|(g, t)| (g - t).abs() <= 0.05 * dt);
-        let times = if on_grid { grid } else { targets.time.clone() };
-        // One cutoff serves a dataset of several rates (HumanML3D's 20 fps against mocap's
-        // 120): above 0.4 of a clip's rate, where the filter would ring
-        // (`solve::filter::HIGHEST_CUTOFF_FRACTION`), the clip is filtered at that fraction,
-        // and its warnings say so.
-        let lowpass_hz = self.options.lowpass_hz.map(|fc| {
-            let rate = (frames - 1) as f64 / (times[frames - 1] - times[0]);
-            let highest = HIGHEST_CUTOFF_FRACTION * rate;
-            if fc > highest {
-                // rounded down to 1 mHz (after a nudge of 1e-10 against the round-off of
-                // the rate, within the filter's own margin of 1e-9), so its check passes
-                let lowered = (highest * (1.0 + 1e-10) * 1e3).floor() / 1e3;
-                warnings.push(format!(
-                    "{}: the low-pass cutoff {} Hz is above {HIGHEST_CUTOFF_FRACTION} of the \
-                     clip's sampling rate ({} Hz), where the filter rings: its coordinates \
-                     were filtered at {} Hz",
-                    motion.source,
-                    short_number(fc),
-                    short_number(targets.rate_hz),
-                    short_number(lowered)
-                ));
-                lowered
-            } else {
-                fc
-            }
-        });
+        let times = sample_times(targets, frames);
+        let lowpass_hz = self.lowpass_cutoff(source, targets.rate_hz, &times, warnings);
         let table = Table::new("ik", names, times.clone(), solution.q.clone())?;
         let trajectory = CoordinateTrajectory::from_table(
-            &model,
+            model,
             &Table {
                 in_degrees: Some(false),
                 ..table
             },
-            &motion.source,
+            source,
             &KinematicsOptions {
                 lowpass_hz,
                 differentiation: Differentiation::SecondDerivative,
@@ -519,150 +553,201 @@ impl Chain {
         for v in q.iter_mut().chain(qd.iter_mut()).chain(qdd.iter_mut()) {
             *v = *v as f32 as f64;
         }
-        let loads = match external_loads {
-            None => None,
-            Some(MeasuredLoads::ExternalLoads(p)) => {
-                let set = ExternalLoadSet::read(&model, p)?;
-                // Beyond its data a load is extrapolated (linearly, as OpenSim's splines are):
-                // `id` computes such rows with a warning, as OpenSim does; here the loads stand
-                // in for the contact estimate, and a clip beyond them would get invented
-                // reactions (HumanML3D's 8.45 s against gait2392's 2.5 s of plates: −17 kN).
-                let [l0, l1] = set.time_span;
-                let slack = 0.5 * dt;
-                if times[0] < l0 - slack || times[frames - 1] > l1 + slack {
-                    return Err(Error::invalid(
-                        "--external-loads",
-                        format!(
-                            "{}: the measured loads span {} s to {} s, but {} runs from {} s \
-                             to {} s: the loads must cover the clip",
-                            set.data_source,
-                            short_number(l0),
-                            short_number(l1),
-                            motion.source,
-                            short_number(times[0]),
-                            short_number(times[frames - 1])
-                        ),
-                    ));
-                }
-                Some(set)
+        Ok(ClipKinematics {
+            times,
+            q,
+            qd,
+            qdd,
+            frames,
+            n,
+        })
+    }
+
+    /// The low-pass cutoff for a clip sampled at `times`: [`ChainOptions::lowpass_hz`], or,
+    /// above [`HIGHEST_CUTOFF_FRACTION`] of the clip's rate, that fraction (with a warning).
+    fn lowpass_cutoff(
+        &self,
+        source: &str,
+        rate_hz: f64,
+        times: &[f64],
+        warnings: &mut Vec<String>,
+    ) -> Option<f64> {
+        let frames = times.len();
+        // One cutoff serves a dataset of several rates (HumanML3D's 20 fps against mocap's
+        // 120): above 0.4 of a clip's rate, where the filter would ring
+        // (`solve::filter::HIGHEST_CUTOFF_FRACTION`), the clip is filtered at that fraction,
+        // and its warnings say so.
+        self.options.lowpass_hz.map(|fc| {
+            let rate = (frames - 1) as f64 / (times[frames - 1] - times[0]);
+            let highest = HIGHEST_CUTOFF_FRACTION * rate;
+            if fc > highest {
+                // rounded down to 1 mHz (after a nudge of 1e-10 against the round-off of
+                // the rate, within the filter's own margin of 1e-9), so its check passes
+                let lowered = (highest * (1.0 + 1e-10) * 1e3).floor() / 1e3;
+                warnings.push(format!(
+                    "{}: the low-pass cutoff {} Hz is above {HIGHEST_CUTOFF_FRACTION} of the \
+                     clip's sampling rate ({} Hz), where the filter rings: its coordinates \
+                     were filtered at {} Hz",
+                    source,
+                    short_number(fc),
+                    short_number(rate_hz),
+                    short_number(lowered)
+                ));
+                lowered
+            } else {
+                fc
             }
-            Some(MeasuredLoads::ForcePlates(p)) => Some(plate_loads(&model, p, &times, &q)?),
-        };
-        // --- contacts, inverse dynamics, static optimization, per frame ---
-        let set = contact_set(&model)?;
-        let states = contact::detect(
-            &model,
-            &set,
-            &self.options.contact,
-            &q,
-            &qd,
-            &qdd,
-            targets.rate_hz,
-        )?;
+        })
+    }
+
+    /// What stays fixed over the clip's frames: the contact set on the detected floor, the
+    /// contact states, static optimization, the joint layout, and the contact group of each
+    /// measured load.
+    fn clip_solvers(
+        &self,
+        model: &Model,
+        kinematics: &ClipKinematics,
+        rate_hz: f64,
+        loads: Option<&ExternalLoadSet>,
+    ) -> crate::Result<ClipSolvers> {
+        let set = contact_set(model)?;
+        let ClipKinematics { q, qd, qdd, .. } = kinematics;
+        let states = contact::detect(model, &set, &self.options.contact, q, qd, qdd, rate_hz)?;
         let set = set.with_floor(states.floor);
-        let so = StaticOptimization::new(&model, self.options.static_optimization.clone())?;
-        let layout = JointLayout::new(&model, so.muscles.muscles.len());
-        let mut per_frame = FrameArrays::new(&model, &so, &set, &layout, frames);
-        let mut data = Data::new(&model);
-        let mut contact_ws = ContactWorkspace::new(&model, &set);
-        let mut contact_frame = ContactFrame::new(&model, &set);
-        let mut groups = vec![GroupWrench::default(); set.groups().len()];
-        let mut so_ws = SoWorkspace::new(&model, &so);
-        let mut so_frame = SoFrame::new(&so, &model);
-        let mut layout_ws = layout.workspace(&model);
-        let mut joint_frame = JointFrame::new(&layout);
-        let mut tau = vec![0.0; n];
-        let mut external = vec![0.0; n];
+        let so = StaticOptimization::new(model, self.options.static_optimization.clone())?;
+        let layout = JointLayout::new(model, so.muscles.muscles.len());
         let load_group = loads
-            .as_ref()
-            .map(|l| load_groups(&model, &set, l))
+            .map(|l| load_groups(model, &set, l))
             .unwrap_or_default();
-        let mut body_contact = vec![Vec3::zeros(); model.bodies.len()];
-        let p = set.points.len();
-        for f in 0..frames {
-            let r = f * n..(f + 1) * n;
-            // τ_ID = M q̈ + C q̇ + G
-            let tau_id = dynamics::rnea(&model, &mut data, &q[r.clone()], &qd[r.clone()], &qdd[r])?;
-            tau.copy_from_slice(tau_id.as_slice());
-            let demand = vertical_support_demand(&model, &data);
-            external.fill(0.0);
-            body_contact.fill(Vec3::zeros());
-            match &loads {
-                None => {
-                    contact_ws.distribute(
-                        &model,
-                        &data,
-                        &set,
-                        &self.options.contact,
-                        &states.factor[f * p..(f + 1) * p],
-                        &tau,
-                        &mut contact_frame,
-                    )?;
-                    // τ = τ_ID − J_cᵀ λ
-                    for (t, g) in tau.iter_mut().zip(&contact_frame.generalized) {
-                        *t -= g;
-                    }
-                    contact::ground_reaction(&set, &contact_frame, &mut groups)?;
-                    for (point, force) in set.points.iter().zip(&contact_frame.forces) {
-                        body_contact[point.body] += force;
-                    }
-                }
-                Some(loads) => {
-                    // τ = τ_ID − Q, Q = Σ Jᵀ w of the measured forces
-                    let t = times[f];
-                    loads.add_generalized_forces(&model, &data, t, &mut external)?;
-                    for (v, e) in tau.iter_mut().zip(&external) {
-                        *v -= e;
-                    }
-                    contact_frame.forces.fill(Vec3::zeros());
-                    contact_frame.points.fill(Vec3::zeros());
-                    measured_reaction(
-                        &set,
-                        loads,
-                        &load_group,
-                        &data,
-                        t,
-                        &mut groups,
-                        &mut body_contact,
-                    );
-                }
-            }
-            per_frame.record_support(demand, vertical(&model, body_contact.iter().sum()));
-            if self.options.muscles {
-                so.solve_frame(&model, &data, &tau, &mut so_ws, &mut so_frame)
-                    .map_err(|e| at_frame(&motion.source, f, e))?;
-            }
-            // body accelerations without gravity, for the joint accelerations
-            dynamics::forward_kinematics_acceleration(
-                &model,
-                &mut data,
-                &q[f * n..(f + 1) * n],
-                &qd[f * n..(f + 1) * n],
-                &qdd[f * n..(f + 1) * n],
-            )?;
-            layout.frame(
-                &model,
-                &data,
-                &tau,
-                &body_contact,
-                &mut layout_ws,
-                &mut joint_frame,
-            )?;
-            per_frame
-                .external
-                .extend(external.iter().map(|&v| v as f32));
-            per_frame.record(
-                &so,
-                &so_ws,
-                &so_frame,
-                &contact_frame,
-                &groups,
-                &layout,
-                &joint_frame,
-                &tau,
-            );
+        Ok(ClipSolvers {
+            set,
+            states,
+            so,
+            layout,
+            load_group,
+        })
+    }
+
+    /// Contacts, inverse dynamics, static optimization and the joint layout, frame by frame,
+    /// in workspaces built once for the clip.
+    fn dynamics_per_frame(&self, inputs: &PerFrameInputs) -> crate::Result<FrameArrays> {
+        let (model, solvers) = (inputs.model, inputs.solvers);
+        let mut per_frame = FrameArrays::new(
+            model,
+            &solvers.so,
+            &solvers.set,
+            &solvers.layout,
+            inputs.kinematics.frames,
+        );
+        let mut ws = FrameWorkspaces::new(model, solvers);
+        for f in 0..inputs.kinematics.frames {
+            self.dynamics_at_frame(inputs, f, &mut ws, &mut per_frame)?;
         }
-        // --- excitations by inverse activation dynamics ---
+        Ok(per_frame)
+    }
+
+    /// One frame: τ_ID by inverse dynamics, the contact forces (estimated or measured) taken
+    /// off it, static optimization of what remains, the joint layout, and the frame's record.
+    fn dynamics_at_frame(
+        &self,
+        inputs: &PerFrameInputs,
+        f: usize,
+        ws: &mut FrameWorkspaces,
+        per_frame: &mut FrameArrays,
+    ) -> crate::Result<()> {
+        let (model, solvers, k) = (inputs.model, inputs.solvers, inputs.kinematics);
+        let r = f * k.n..(f + 1) * k.n;
+        // τ_ID = M q̈ + C q̇ + G
+        let tau_id = dynamics::rnea(
+            model,
+            &mut ws.data,
+            &k.q[r.clone()],
+            &k.qd[r.clone()],
+            &k.qdd[r.clone()],
+        )?;
+        ws.tau.copy_from_slice(tau_id.as_slice());
+        let demand = vertical_support_demand(model, &ws.data);
+        ws.external.fill(0.0);
+        ws.body_contact.fill(Vec3::zeros());
+        match inputs.loads {
+            None => self.estimated_contact(model, solvers, f, ws)?,
+            Some(loads) => measured_contact(model, solvers, loads, k.times[f], ws)?,
+        }
+        per_frame.record_support(demand, vertical(model, ws.body_contact.iter().sum()));
+        if self.options.muscles {
+            (solvers.so)
+                .solve_frame(model, &ws.data, &ws.tau, &mut ws.so, &mut ws.so_frame)
+                .map_err(|e| at_frame(inputs.source, f, e))?;
+        }
+        // body accelerations without gravity, for the joint accelerations
+        dynamics::forward_kinematics_acceleration(
+            model,
+            &mut ws.data,
+            &k.q[r.clone()],
+            &k.qd[r.clone()],
+            &k.qdd[r],
+        )?;
+        solvers.layout.frame(
+            model,
+            &ws.data,
+            &ws.tau,
+            &ws.body_contact,
+            &mut ws.layout,
+            &mut ws.joint_frame,
+        )?;
+        per_frame
+            .external
+            .extend(ws.external.iter().map(|&v| v as f32));
+        per_frame.record(
+            &solvers.so,
+            &ws.so,
+            &ws.so_frame,
+            &ws.contact_frame,
+            &ws.groups,
+            &solvers.layout,
+            &ws.joint_frame,
+            &ws.tau,
+        );
+        Ok(())
+    }
+
+    /// The contact estimate at frame `f`: the floating-base rows of τ_ID distributed over the
+    /// points in contact, τ = τ_ID − J_cᵀ λ, and the per-group and per-body reactions.
+    fn estimated_contact(
+        &self,
+        model: &Model,
+        solvers: &ClipSolvers,
+        f: usize,
+        ws: &mut FrameWorkspaces,
+    ) -> crate::Result<()> {
+        let set = &solvers.set;
+        let p = set.points.len();
+        ws.contact.distribute(
+            model,
+            &ws.data,
+            set,
+            &self.options.contact,
+            &solvers.states.factor[f * p..(f + 1) * p],
+            &ws.tau,
+            &mut ws.contact_frame,
+        )?;
+        // τ = τ_ID − J_cᵀ λ
+        for (t, g) in ws.tau.iter_mut().zip(&ws.contact_frame.generalized) {
+            *t -= g;
+        }
+        contact::ground_reaction(set, &ws.contact_frame, &mut ws.groups)?;
+        for (point, force) in set.points.iter().zip(&ws.contact_frame.forces) {
+            ws.body_contact[point.body] += force;
+        }
+        Ok(())
+    }
+
+    /// Excitations by inverse activation dynamics from static optimization's activations
+    /// (frames × muscles, empty without muscles), and the samples clamped by more than
+    /// [`CLAMP_REPORTED`].
+    fn excitations(&self, clip: &ClipComputed) -> crate::Result<(Vec<f32>, usize)> {
+        let (model, so) = (&clip.model, &clip.solvers.so);
+        let (frames, times) = (clip.kinematics.frames, &clip.kinematics.times);
         let mut clamped = 0;
         let m = so.muscles.muscles.len();
         let mut excitation = vec![0.0f32; frames * m];
@@ -684,10 +769,10 @@ impl Chain {
             };
             let (lo, hi) = dynamics.range();
             for f in 0..frames {
-                series[f] = per_frame.activation[f * m + k].clamp(lo, hi);
+                series[f] = clip.per_frame.activation[f * m + k].clamp(lo, hi);
             }
             let estimate = dynamics
-                .excitation_from_activation(&times, &series)
+                .excitation_from_activation(times, &series)
                 .map_err(|e| Error::invalid("activation", format!("{}: {e}", muscle.name())))?;
             clamped += estimate
                 .clamped
@@ -698,21 +783,26 @@ impl Chain {
                 excitation[f * m + k] = estimate.excitation[f] as f32;
             }
         }
-        let mut quality = per_frame.quality(
-            &model,
-            &solution,
-            frames,
-            targets.rate_hz,
+        Ok((excitation, clamped))
+    }
+
+    /// The clip's quality figures (without its verdict); those of static optimization zero
+    /// without muscles.
+    fn clip_quality(&self, clip: &ClipComputed, clamped: usize) -> ClipQuality {
+        let model = &clip.model;
+        let mut quality = clip.per_frame.quality(
+            model,
+            &clip.solution,
+            clip.kinematics.frames,
+            clip.rate_hz,
             clamped,
             self.options.reserve_optimal_force,
         );
-        if loads.is_none() {
-            quality.treadmill = states.treadmill;
-            quality.belt_velocity = states.floor_velocity.into();
+        if !clip.measured {
+            quality.treadmill = clip.solvers.states.treadmill;
+            quality.belt_velocity = clip.solvers.states.floor_velocity.into();
         }
-        quality.ik_markers = tasks
-            .markers
-            .iter()
+        quality.ik_markers = (clip.tasks.markers.iter())
             .map(|t| model.markers[t.marker].name.clone())
             .collect();
         if !self.options.muscles {
@@ -725,54 +815,58 @@ impl Chain {
             quality.muscle_samples_at_full_activation = 0;
             quality.full_activation_share = 0.0;
         }
-        if quality.so_unsolved_frames > 0 {
-            warnings.push(format!(
-                "{}: static optimization left {} frame(s) unbalanced",
-                motion.source, quality.so_unsolved_frames
-            ));
+        quality
+    }
+
+    /// With [`ChainOptions::opensim_files`]: the OpenSim tables of the clip, and its model's
+    /// XML (the scaled model's, with a variant's mass properties written in).
+    fn opensim_outputs(
+        &self,
+        clip: &ClipComputed,
+        variant: &Variant,
+        scaled_xml: Option<String>,
+    ) -> crate::Result<(Vec<(&'static str, Table)>, Option<String>)> {
+        if !self.options.opensim_files {
+            return Ok((Vec::new(), None));
         }
-        if quality.ik_error_max > IK_ERROR_WARNED {
-            let nm = tasks.markers.len();
-            let down_weighted = |k: usize| solution.disagreeing.iter().any(|d| d.task == k % nm);
-            let worst = (solution.marker_error.iter().enumerate())
-                .filter(|&(k, e)| e.is_finite() && !down_weighted(k))
-                .max_by(|a, b| a.1.total_cmp(b.1))
-                .map(|(k, _)| k);
-            if let Some(k) = worst {
-                warnings.push(format!(
-                    "{}: IK could not follow the clip: its worst error is {:.0} mm (frame {}, \
-                     {}; median RMSE {:.0} mm), and {} frame(s) ended with a coordinate at its \
-                     bound (check the skeleton map, its axes and the length unit)",
-                    motion.source,
-                    quality.ik_error_max * 1e3,
-                    k / nm,
-                    model.markers[tasks.markers[k % nm].marker].name,
-                    quality.ik_rmse_median * 1e3,
-                    quality.ik_frames_at_bound
-                ));
-            }
-        }
-        let (tables, model_xml) = if self.options.opensim_files {
-            let plain = variant.mass_scale == 1.0 && variant.load_kg == 0.0;
-            let xml = if plain {
-                scaled_xml
-            } else {
-                // the variant's body: the clip's (scaled) model text with its mass properties
-                let base = scaled_xml.as_deref().unwrap_or(&self.xml);
-                Some(crate::solve::scale::inertial::set_inertial_properties(
-                    base,
-                    &self.source,
-                    &model,
-                )?)
-            };
-            (
-                opensim_tables(&model, &so, &set, &times, &q, &per_frame)?,
-                xml,
-            )
+        let model = &clip.model;
+        let plain = variant.mass_scale == 1.0 && variant.load_kg == 0.0;
+        let xml = if plain {
+            scaled_xml
         } else {
-            (Vec::new(), None)
+            // the variant's body: the clip's (scaled) model text with its mass properties
+            let base = scaled_xml.as_deref().unwrap_or(&self.xml);
+            Some(crate::solve::scale::inertial::set_inertial_properties(
+                base,
+                &self.source,
+                model,
+            )?)
         };
-        let mut arrays = per_frame.into_arrays(&layout, &q, &qd, &qdd, frames, n);
+        let tables = opensim_tables(
+            model,
+            &clip.solvers.so,
+            &clip.solvers.set,
+            &clip.kinematics.times,
+            &clip.kinematics.q,
+            &clip.per_frame,
+        )?;
+        Ok((tables, xml))
+    }
+
+    /// The clip's arrays: the per-frame records, kinematics, excitations, times and IK's
+    /// marker errors (the muscle arrays left out without muscles).
+    fn output_arrays(&self, clip: ClipComputed, excitation: Vec<f32>) -> Vec<Array> {
+        let ClipKinematics {
+            times,
+            q,
+            qd,
+            qdd,
+            frames,
+            n,
+        } = clip.kinematics;
+        let m = clip.solvers.so.muscles.muscles.len();
+        let mut arrays =
+            (clip.per_frame).into_arrays(&clip.solvers.layout, &q, &qd, &qdd, frames, n);
         arrays.push(Array {
             name: "excitation",
             shape: vec![frames, m],
@@ -787,8 +881,13 @@ impl Chain {
         // low-pass filter), NaN where the input had no target
         arrays.push(Array {
             name: "ik_marker_error",
-            shape: vec![frames, tasks.markers.len()],
-            values: solution.marker_error.iter().map(|&e| e as f32).collect(),
+            shape: vec![frames, clip.tasks.markers.len()],
+            values: clip
+                .solution
+                .marker_error
+                .iter()
+                .map(|&e| e as f32)
+                .collect(),
         });
         if !self.options.muscles {
             // nothing computed there (and `x` would carry its zeros)
@@ -804,17 +903,216 @@ impl Chain {
                 )
             });
         }
-        check_finite(&arrays)?;
-        quality.verdict = Some(verdict::judge(&quality));
-        identity.osim_hash = model_xml.as_deref().map(super::output::fnv1a_hex);
-        Ok(ClipOutput {
-            arrays,
-            quality,
-            tables,
-            model_xml,
-            identity,
-            warnings,
-        })
+        arrays
+    }
+}
+
+/// The clip's coordinates after filtering, and their first and second derivatives, frame by
+/// frame (frames × nq, float32 values held as f64), at the clip's sample times.
+struct ClipKinematics {
+    times: Vec<f64>,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    frames: usize,
+    /// Coordinates per frame (nq).
+    n: usize,
+}
+
+/// What stays fixed over a clip's frames ([`Chain::clip_solvers`]).
+struct ClipSolvers {
+    /// The contact set, on the floor the contact detection found.
+    set: ContactSet,
+    states: ContactStates,
+    so: StaticOptimization,
+    layout: JointLayout,
+    /// The contact group of each measured load (empty without measured loads).
+    load_group: Vec<Option<usize>>,
+}
+
+/// The inputs of the per-frame loop ([`Chain::dynamics_per_frame`]).
+struct PerFrameInputs<'a> {
+    model: &'a Model,
+    /// The clip's name in messages.
+    source: &'a str,
+    kinematics: &'a ClipKinematics,
+    solvers: &'a ClipSolvers,
+    /// Measured loads used instead of the contact estimate.
+    loads: Option<&'a ExternalLoadSet>,
+}
+
+/// The workspaces of the per-frame loop, built once per clip (the loop allocates nothing).
+struct FrameWorkspaces {
+    data: Data,
+    contact: ContactWorkspace,
+    contact_frame: ContactFrame,
+    groups: Vec<GroupWrench>,
+    so: SoWorkspace,
+    so_frame: SoFrame,
+    layout: LayoutWorkspace,
+    joint_frame: JointFrame,
+    /// τ of the frame: τ_ID less the contact (or measured) forces.
+    tau: Vec<f64>,
+    /// Q = Σ Jᵀ w of the measured loads (zero without them).
+    external: Vec<f64>,
+    /// The contact force on each body (ground frame).
+    body_contact: Vec<Vec3>,
+}
+
+impl FrameWorkspaces {
+    fn new(model: &Model, solvers: &ClipSolvers) -> FrameWorkspaces {
+        let n = model.nq();
+        FrameWorkspaces {
+            data: Data::new(model),
+            contact: ContactWorkspace::new(model, &solvers.set),
+            contact_frame: ContactFrame::new(model, &solvers.set),
+            groups: vec![GroupWrench::default(); solvers.set.groups().len()],
+            so: SoWorkspace::new(model, &solvers.so),
+            so_frame: SoFrame::new(&solvers.so, model),
+            layout: solvers.layout.workspace(model),
+            joint_frame: JointFrame::new(&solvers.layout),
+            tau: vec![0.0; n],
+            external: vec![0.0; n],
+            body_contact: vec![Vec3::zeros(); model.bodies.len()],
+        }
+    }
+}
+
+/// Everything computed for a clip before its outputs are assembled.
+struct ClipComputed {
+    model: Model,
+    /// The targets' sampling rate (Hz).
+    rate_hz: f64,
+    tasks: ik::IkTasks,
+    solution: ik::IkSolution,
+    kinematics: ClipKinematics,
+    /// Whether measured loads stood in for the contact estimate.
+    measured: bool,
+    solvers: ClipSolvers,
+    per_frame: FrameArrays,
+}
+
+/// The sample times of the clip's `frames` frames. Files store times rounded (OpenSim's
+/// subject01_walk1.trc at 60 Hz writes 0.017, 0.033): times within 5 % of a sample interval
+/// of the uniform grid at the motion's rate are put on it, so the filter accepts them.
+fn sample_times(targets: &Motion, frames: usize) -> Vec<f64> {
+    let dt = 1.0 / targets.rate_hz;
+    let grid: Vec<f64> = (0..frames)
+        .map(|f| targets.time[0] + f as f64 * dt)
+        .collect();
+    let on_grid = grid
+        .iter()
+        .zip(&targets.time)
+        .all(|(g, t)| (g - t).abs() <= 0.05 * dt);
+    if on_grid { grid } else { targets.time.clone() }
+}
+
+/// The measured loads of the clip, if given: an ExternalLoads file (which must cover the
+/// clip) or the force plates of a C3D file.
+fn measured_loads(
+    model: &Model,
+    source: &str,
+    external_loads: Option<&MeasuredLoads>,
+    kinematics: &ClipKinematics,
+    rate_hz: f64,
+) -> crate::Result<Option<ExternalLoadSet>> {
+    let (times, frames) = (&kinematics.times, kinematics.frames);
+    match external_loads {
+        None => Ok(None),
+        Some(MeasuredLoads::ExternalLoads(p)) => {
+            let set = ExternalLoadSet::read(model, p)?;
+            // Beyond its data a load is extrapolated (linearly, as OpenSim's splines are):
+            // `id` computes such rows with a warning, as OpenSim does; here the loads stand
+            // in for the contact estimate, and a clip beyond them would get invented
+            // reactions (HumanML3D's 8.45 s against gait2392's 2.5 s of plates: −17 kN).
+            let [l0, l1] = set.time_span;
+            let slack = 0.5 * (1.0 / rate_hz);
+            if times[0] < l0 - slack || times[frames - 1] > l1 + slack {
+                return Err(Error::invalid(
+                    "--external-loads",
+                    format!(
+                        "{}: the measured loads span {} s to {} s, but {} runs from {} s \
+                         to {} s: the loads must cover the clip",
+                        set.data_source,
+                        short_number(l0),
+                        short_number(l1),
+                        source,
+                        short_number(times[0]),
+                        short_number(times[frames - 1])
+                    ),
+                ));
+            }
+            Ok(Some(set))
+        }
+        Some(MeasuredLoads::ForcePlates(p)) => {
+            Ok(Some(plate_loads(model, p, times, &kinematics.q)?))
+        }
+    }
+}
+
+/// The measured loads at time `t` in place of the contact estimate: τ = τ_ID − Q with
+/// Q = Σ Jᵀ w, and the per-group and per-body reactions they make.
+fn measured_contact(
+    model: &Model,
+    solvers: &ClipSolvers,
+    loads: &ExternalLoadSet,
+    t: f64,
+    ws: &mut FrameWorkspaces,
+) -> crate::Result<()> {
+    // τ = τ_ID − Q, Q = Σ Jᵀ w of the measured forces
+    loads.add_generalized_forces(model, &ws.data, t, &mut ws.external)?;
+    for (v, e) in ws.tau.iter_mut().zip(&ws.external) {
+        *v -= e;
+    }
+    ws.contact_frame.forces.fill(Vec3::zeros());
+    ws.contact_frame.points.fill(Vec3::zeros());
+    measured_reaction(
+        &solvers.set,
+        loads,
+        &solvers.load_group,
+        &ws.data,
+        t,
+        &mut ws.groups,
+        &mut ws.body_contact,
+    );
+    Ok(())
+}
+
+/// The clip's warnings from its quality: frames static optimization left unbalanced, and an
+/// IK that could not follow the clip (its worst marker error that was not down-weighted).
+fn quality_warnings(
+    clip: &ClipComputed,
+    quality: &ClipQuality,
+    source: &str,
+    warnings: &mut Vec<String>,
+) {
+    if quality.so_unsolved_frames > 0 {
+        warnings.push(format!(
+            "{}: static optimization left {} frame(s) unbalanced",
+            source, quality.so_unsolved_frames
+        ));
+    }
+    if quality.ik_error_max > IK_ERROR_WARNED {
+        let (model, tasks, solution) = (&clip.model, &clip.tasks, &clip.solution);
+        let nm = tasks.markers.len();
+        let down_weighted = |k: usize| solution.disagreeing.iter().any(|d| d.task == k % nm);
+        let worst = (solution.marker_error.iter().enumerate())
+            .filter(|&(k, e)| e.is_finite() && !down_weighted(k))
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(k, _)| k);
+        if let Some(k) = worst {
+            warnings.push(format!(
+                "{}: IK could not follow the clip: its worst error is {:.0} mm (frame {}, \
+                 {}; median RMSE {:.0} mm), and {} frame(s) ended with a coordinate at its \
+                 bound (check the skeleton map, its axes and the length unit)",
+                source,
+                quality.ik_error_max * 1e3,
+                k / nm,
+                model.markers[tasks.markers[k % nm].marker].name,
+                quality.ik_rmse_median * 1e3,
+                quality.ik_frames_at_bound
+            ));
+        }
     }
 }
 

@@ -86,7 +86,31 @@ pub fn coordinates_from_layout(
     layout: &JointLayout,
     clip: &LayoutClip,
 ) -> crate::Result<LayoutCoordinates> {
-    let (n, nj, t) = (model.nq(), layout.n_joints(), clip.frames);
+    check_layout_clip(model, layout, clip)?;
+    let (n, t) = (model.nq(), clip.frames);
+    let fit = LayoutFit::new(model, layout, clip);
+    let mut ws = Solver::new(model, fit.rows);
+    let mut out = LayoutCoordinates {
+        q: vec![0.0; t * n],
+        qd: vec![0.0; t * n],
+        qdd: vec![0.0; t * n],
+        tau: vec![0.0; t * n],
+        rotation_error: vec![0.0; t],
+    };
+    let mut q = model.default_q();
+    for f in 0..t {
+        fit.positions(f, &mut ws, &mut q, &mut out)?;
+        let qd = fit.velocities(f, &mut ws, &mut out)?;
+        fit.accelerations(f, &mut ws, &q, &qd, &mut out)?;
+        fit.torques(f, &ws, &mut out);
+    }
+    Ok(out)
+}
+
+/// The clip's arrays checked against the model and layout: the joint count, every array's
+/// size (T × joints × 3) and finiteness, and a positive frame rate.
+fn check_layout_clip(model: &Model, layout: &JointLayout, clip: &LayoutClip) -> crate::Result<()> {
+    let (nj, t) = (layout.n_joints(), clip.frames);
     if nj != model.joints.len() {
         return Err(crate::Error::invalid(
             "layout",
@@ -127,36 +151,71 @@ pub fn coordinates_from_layout(
             format!("{} (must be positive)", clip.rate_hz),
         ));
     }
-    let vec3 = |a: &[f64], f: usize, j: usize| {
-        let i = (f * nj + j) * 3;
+    Ok(())
+}
+
+/// What every frame of the fit reads: the model, layout and clip, the root joints, and the
+/// sizes of the fitted rows.
+struct LayoutFit<'a> {
+    model: &'a Model,
+    layout: &'a JointLayout,
+    clip: &'a LayoutClip<'a>,
+    /// The joints attached to ground, whose centres are fitted too.
+    roots: Vec<usize>,
+    n: usize,
+    nj: usize,
+    /// Rows of the fit: 3 per joint rotation, 3 per root centre.
+    rows: usize,
+    /// Sample interval (s).
+    dt: f64,
+}
+
+impl<'a> LayoutFit<'a> {
+    fn new(model: &'a Model, layout: &'a JointLayout, clip: &'a LayoutClip<'a>) -> LayoutFit<'a> {
+        let nj = layout.n_joints();
+        let roots: Vec<usize> = (0..nj)
+            .filter(|&j| model.joints[j].parent_body == 0)
+            .collect();
+        LayoutFit {
+            model,
+            layout,
+            clip,
+            n: model.nq(),
+            nj,
+            rows: 3 * nj + 3 * roots.len(),
+            roots,
+            dt: 1.0 / clip.rate_hz,
+        }
+    }
+
+    /// Joint `j`'s vector at frame `f` of a T × joints × 3 array.
+    fn vec3(&self, a: &[f64], f: usize, j: usize) -> Vec3 {
+        let i = (f * self.nj + j) * 3;
         Vec3::new(a[i], a[i + 1], a[i + 2])
-    };
-    let roots: Vec<usize> = (0..nj)
-        .filter(|&j| model.joints[j].parent_body == 0)
-        .collect();
-    let rows = 3 * nj + 3 * roots.len();
-    let mut ws = Solver::new(model, rows);
-    let mut out = LayoutCoordinates {
-        q: vec![0.0; t * n],
-        qd: vec![0.0; t * n],
-        qdd: vec![0.0; t * n],
-        tau: vec![0.0; t * n],
-        rotation_error: vec![0.0; t],
-    };
-    let dt = 1.0 / clip.rate_hz;
-    // root centres' first and second differences over frames (see `root_stencil`)
-    let root_rates = |f: usize, r: usize| -> (Vec3, Vec3) {
-        let [first, second] = root_stencil(f, t, dt);
-        let p = |(g, c): (usize, f64)| vec3(clip.joint_pos, g, roots[r]) * c;
+    }
+
+    /// Root `r`'s centre's first and second differences over frames at frame `f` (see
+    /// `root_stencil`).
+    fn root_rates(&self, f: usize, r: usize) -> (Vec3, Vec3) {
+        let [first, second] = root_stencil(f, self.clip.frames, self.dt);
+        let p = |(g, c): (usize, f64)| self.vec3(self.clip.joint_pos, g, self.roots[r]) * c;
         (
             first.into_iter().map(p).sum(),
             second.into_iter().map(p).sum(),
         )
-    };
-    let mut q = model.default_q();
-    for f in 0..t {
-        // ---- q: Gauss–Newton on the joint rotations and root centres ----
-        let mut error = 0.0;
+    }
+
+    /// q at frame `f`: Gauss–Newton on the joint rotations and root centres from the
+    /// previous frame's motion extrapolated by its rates, each coordinate's turn of 2π
+    /// chosen, then the kinematics and Jacobians left at the fitted q for the rates.
+    fn positions(
+        &self,
+        f: usize,
+        ws: &mut Solver,
+        q: &mut [f64],
+        out: &mut LayoutCoordinates,
+    ) -> crate::Result<()> {
+        let (model, n, dt) = (self.model, self.n, self.dt);
         // start from the previous frame's motion extrapolated by its rates
         if f > 0 {
             for j in 0..n {
@@ -164,12 +223,26 @@ pub fn coordinates_from_layout(
                 q[j] = out.q[p] + dt * out.qd[p] + 0.5 * dt * dt * out.qdd[p];
             }
         }
-        let prev = q.clone();
+        let prev = q.to_vec();
+        let error = self.gauss_newton(f, ws, q)?;
+        let error = self.nearest_turns(f, ws, q, &prev, error)?;
+        dynamics::forward_kinematics(model, &mut ws.data, q)?;
+        ws.jacobians(model, self.layout, &self.roots)?;
+        out.rotation_error[f] = error;
+        out.q[f * n..(f + 1) * n].copy_from_slice(q);
+        Ok(())
+    }
+
+    /// Gauss–Newton steps on the fit's errors at frame `f` from `q`; returns the largest
+    /// rotation error of the last linearization.
+    fn gauss_newton(&self, f: usize, ws: &mut Solver, q: &mut [f64]) -> crate::Result<f64> {
+        let model = self.model;
+        let mut error = 0.0;
         for _ in 0..MAX_ITERATIONS {
-            dynamics::forward_kinematics(model, &mut ws.data, &q)?;
-            ws.jacobians(model, layout, &roots)?;
-            error = ws.errors(model, clip, f, &roots);
-            let step = ws.solve(n, rows)?;
+            dynamics::forward_kinematics(model, &mut ws.data, q)?;
+            ws.jacobians(model, self.layout, &self.roots)?;
+            error = ws.errors(model, self.clip, f, &self.roots);
+            let step = ws.solve(self.n, self.rows)?;
             // steps of at most MAX_STEP, so that the fit follows the motion from the
             // previous frame's q rather than jumping to another set of angles with the same
             // rotations
@@ -185,10 +258,22 @@ pub fn coordinates_from_layout(
                 break;
             }
         }
-        // A turn of 2π of a coordinate gives the same rotations when it only turns hinges by
-        // itself (a shoulder's axial rotation): take the turn nearest to the extrapolated
-        // start brought into the range (the middle of the range for the first frame), kept
-        // only where the fit's error does not grow.
+        Ok(error)
+    }
+
+    /// A turn of 2π of a coordinate gives the same rotations when it only turns hinges by
+    /// itself (a shoulder's axial rotation): take the turn nearest to the extrapolated
+    /// start `prev` brought into the range (the middle of the range for the first frame),
+    /// kept only where the fit's error does not grow. Returns the error.
+    fn nearest_turns(
+        &self,
+        f: usize,
+        ws: &mut Solver,
+        q: &mut [f64],
+        prev: &[f64],
+        mut error: f64,
+    ) -> crate::Result<f64> {
+        let model = self.model;
         for (j, &c) in model.reduction.independent.iter().enumerate() {
             let coordinate = &model.coordinates[c];
             if coordinate.motion_type == crate::model::MotionType::Translational {
@@ -206,37 +291,55 @@ pub fn coordinates_from_layout(
             }
             let before = q[j];
             q[j] += turns * std::f64::consts::TAU;
-            dynamics::forward_kinematics(model, &mut ws.data, &q)?;
-            let e = ws.errors(model, clip, f, &roots);
+            dynamics::forward_kinematics(model, &mut ws.data, q)?;
+            let e = ws.errors(model, self.clip, f, &self.roots);
             if e <= error + 1e-9 {
                 error = error.max(e);
             } else {
                 q[j] = before;
             }
         }
-        dynamics::forward_kinematics(model, &mut ws.data, &q)?;
-        ws.jacobians(model, layout, &roots)?;
-        out.rotation_error[f] = error;
-        out.q[f * n..(f + 1) * n].copy_from_slice(&q);
-        // ---- q̇: A q̇ = w, J_p q̇ = ṗ ----
+        Ok(error)
+    }
+
+    /// q̇ at frame `f`: A q̇ = w, J_p q̇ = ṗ (with `ws` linearized at the frame's q).
+    fn velocities(
+        &self,
+        f: usize,
+        ws: &mut Solver,
+        out: &mut LayoutCoordinates,
+    ) -> crate::Result<Vec<f64>> {
+        let (n, nj) = (self.n, self.nj);
         for j in 0..nj {
-            ws.e[3 * j..3 * j + 3].copy_from_slice(vec3(clip.joint_vel, f, j).as_slice());
+            ws.e[3 * j..3 * j + 3].copy_from_slice(self.vec3(self.clip.joint_vel, f, j).as_slice());
         }
-        for r in 0..roots.len() {
-            let v = root_rates(f, r).0 * POSITION_WEIGHT;
+        for r in 0..self.roots.len() {
+            let v = self.root_rates(f, r).0 * POSITION_WEIGHT;
             ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(v.as_slice());
         }
-        ws.solve(n, rows)?;
+        ws.solve(n, self.rows)?;
         let qd = ws.rhs.clone();
         out.qd[f * n..(f + 1) * n].copy_from_slice(&qd);
-        // ---- q̈: A q̈ = ẇ − b, J_p q̈ = p̈ − J̇_p q̇ ----
-        dynamics::forward_kinematics_velocity(model, &mut ws.data, &q, &qd)?;
+        Ok(qd)
+    }
+
+    /// q̈ at frame `f`: A q̈ = ẇ − b, J_p q̈ = p̈ − J̇_p q̇.
+    fn accelerations(
+        &self,
+        f: usize,
+        ws: &mut Solver,
+        q: &[f64],
+        qd: &[f64],
+        out: &mut LayoutCoordinates,
+    ) -> crate::Result<()> {
+        let (model, n, nj) = (self.model, self.n, self.nj);
+        dynamics::forward_kinematics_velocity(model, &mut ws.data, q, qd)?;
         for (j, joint) in model.joints.iter().enumerate() {
             let b = bias_joint_acceleration(model, &mut ws.data, joint, &ws.frame_rot[j])?;
-            let e = vec3(clip.joint_acc, f, j) - b;
+            let e = self.vec3(self.clip.joint_acc, f, j) - b;
             ws.e[3 * j..3 * j + 3].copy_from_slice(e.as_slice());
         }
-        for (r, &j) in roots.iter().enumerate() {
+        for (r, &j) in self.roots.iter().enumerate() {
             let joint = &model.joints[j];
             let bias = dynamics::point_jacobian_dot_qd(
                 model,
@@ -244,16 +347,21 @@ pub fn coordinates_from_layout(
                 joint.child_body,
                 &joint.child_offset.pos,
             )?;
-            let e = (root_rates(f, r).1 - bias) * POSITION_WEIGHT;
+            let e = (self.root_rates(f, r).1 - bias) * POSITION_WEIGHT;
             ws.e[3 * nj + 3 * r..3 * nj + 3 * r + 3].copy_from_slice(e.as_slice());
         }
-        ws.solve(n, rows)?;
+        ws.solve(n, self.rows)?;
         out.qdd[f * n..(f + 1) * n].copy_from_slice(&ws.rhs);
-        // ---- τ_K = Σ_j A_jᵀ m_j ----
-        for c in layout.angular_coordinates() {
+        Ok(())
+    }
+
+    /// τ_K = Σ_j A_jᵀ m_j at frame `f`, on the layout's angular coordinates.
+    fn torques(&self, f: usize, ws: &Solver, out: &mut LayoutCoordinates) {
+        let n = self.n;
+        for c in self.layout.angular_coordinates() {
             let mut s = 0.0;
-            for j in 0..nj {
-                let m = vec3(clip.joint_torque, f, j);
+            for j in 0..self.nj {
+                let m = self.vec3(self.clip.joint_torque, f, j);
                 for k in 0..3 {
                     s += ws.a[(3 * j + k) * n + c] * m[k];
                 }
@@ -261,7 +369,6 @@ pub fn coordinates_from_layout(
             out.tau[f * n + c] = s;
         }
     }
-    Ok(out)
 }
 
 /// The root centres' first and second differences at frame `f` of `t` (step `dt`), as

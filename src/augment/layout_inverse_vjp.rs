@@ -232,7 +232,8 @@ impl Frames<'_> {
     }
 
     /// The reverse pass of frame `f` into its `block` of the buffer (see
-    /// [`coordinates_from_layout_vjp`]).
+    /// [`coordinates_from_layout_vjp`]): the fit linearized at the frame's q, the adjoints of
+    /// q̈ = N⁻¹Aᵀy₂, q̇ = N⁻¹Aᵀy₁ and τ_K, then that of q through the fit's stationarity.
     fn frame(
         &self,
         f: usize,
@@ -241,89 +242,84 @@ impl Frames<'_> {
         scratch: &mut Scratch,
         block: &mut [f64],
     ) -> crate::Result<()> {
-        let (model, layout, clip, coords) = (self.model, self.layout, self.clip, self.coords);
-        let (q_bar, qd_bar, qdd_bar, tau_bar) =
-            (self.q_bar, self.qd_bar, self.qdd_bar, self.tau_bar);
-        let (n, nj, nr) = (model.nq(), model.joints.len(), self.roots.len());
-        let roots = self.roots;
-        let angular = self.angular;
-        let rows = 3 * nj + 3 * nr;
-        let vec3 = |a: &[f64], f: usize, j: usize| self.vec3(a, f, j);
-        let (acc_bar, rest) = block.split_at_mut(3 * nj);
-        let (vel_bar, rest) = rest.split_at_mut(3 * nj);
-        let (torque_bar, rest) = rest.split_at_mut(3 * nj);
-        let (rot_bar, rest) = rest.split_at_mut(3 * nj);
-        let (pos_bar, rest) = rest.split_at_mut(3 * nj);
-        let (pd_bar, pdd_bar) = rest.split_at_mut(3 * nr);
+        let n = self.model.nq();
         let frame = f * n..(f + 1) * n;
-        let (q, qd, qdd) = (
-            &coords.q[frame.clone()],
-            &coords.qd[frame.clone()],
-            &coords.qdd[frame.clone()],
-        );
-        dynamics::forward_kinematics(model, &mut ws.data, q)?;
-        ws.jacobians(model, layout, roots)?;
-        ws.errors(model, clip, f, roots);
+        let state = FrameState {
+            f,
+            q: &self.coords.q[frame.clone()],
+            qd: &self.coords.qd[frame.clone()],
+            qdd: &self.coords.qdd[frame.clone()],
+        };
+        let mut bars = BlockBars::split(block, self.model.joints.len(), self.roots.len());
+        self.linearize(&state, ws, kin, scratch)?;
+        self.residuals(&state, ws, kin, scratch);
+        scratch.q_bar.copy_from_slice(&self.q_bar[frame.clone()]);
+        scratch.qd_bar.copy_from_slice(&self.qd_bar[frame]);
+        self.acceleration_adjoint(&state, ws, kin, scratch, &mut bars);
+        self.velocity_adjoint(&state, ws, kin, scratch, &mut bars);
+        self.torque_adjoint(&state, ws, kin, scratch, &mut bars);
+        self.position_adjoint(&state, ws, kin, scratch, &mut bars)
+    }
+
+    /// The fit at the frame's q: kinematics, the rows' Jacobian A, the errors e, the normal
+    /// matrix N factored, and each joint's table over its coordinates l, k:
+    /// ∂(A e_l)·e_k and ∂²(A e_l)[e_k, q̇].
+    fn linearize(
+        &self,
+        s: &FrameState,
+        ws: &mut Solver,
+        kin: &JointKinematics,
+        scratch: &mut Scratch,
+    ) -> crate::Result<()> {
+        let model = self.model;
+        let (n, nj) = (model.nq(), model.joints.len());
+        let rows = 3 * nj + 3 * self.roots.len();
+        dynamics::forward_kinematics(model, &mut ws.data, s.q)?;
+        ws.jacobians(model, self.layout, self.roots)?;
+        ws.errors(model, self.clip, s.f, self.roots);
         ws.factor(n, rows)?;
-        let Scratch {
-            e,
-            rho1,
-            rho2,
-            az,
-            m,
-            q_bar: qb,
-            qd_bar: qdb,
-            z,
-            table,
-            ht,
-        } = scratch;
-        e.copy_from_slice(&ws.e);
-        // each joint's table over its coordinates l, k: ∂(A e_l)·e_k and ∂²(A e_l)[e_k, q̇]
+        scratch.e.copy_from_slice(&ws.e);
         for j in 0..nj {
             let deps = &kin.deps[j];
             for (li, &l) in deps.iter().enumerate() {
                 for (ki, &k) in deps.iter().enumerate() {
-                    let g = kin.eval(model, j, q, Dir::Unit(l), Dir::Unit(k), Dir::Vec(qd));
-                    table[kin.offset[j] + li * deps.len() + ki] = [g.part(1), g.part(3)];
+                    let g = kin.eval(model, j, s.q, Dir::Unit(l), Dir::Unit(k), Dir::Vec(s.qd));
+                    scratch.table[kin.offset[j] + li * deps.len() + ki] = [g.part(1), g.part(3)];
                 }
             }
         }
-        let table = &*table;
-        // Σ_l u_l T[l][k] (part 0: ∂(A u)·e_k; part 1: ∂²(A u)[e_k, q̇])
-        let contract_l = |j: usize, ki: usize, u: &[f64], part: usize| {
-            let deps = &kin.deps[j];
-            let mut s = (Vec3::zeros(), Vec3::zeros());
-            for (li, &l) in deps.iter().enumerate() {
-                let t = &table[kin.offset[j] + li * deps.len() + ki][part];
-                s.0 += t.0 * u[l];
-                s.1 += t.1 * u[l];
-            }
-            s
+        Ok(())
+    }
+
+    /// The right-hand sides less the fit: ρ₁ = y₁ − A q̇ and ρ₂ = y₂ − A q̈ with
+    /// y₂ = joint accelerations − B, B = ∂(A q̇)·q̇; and the joint torques m.
+    fn residuals(&self, s: &FrameState, ws: &Solver, kin: &JointKinematics, scratch: &mut Scratch) {
+        let (clip, f) = (self.clip, s.f);
+        let (n, nj) = (self.model.nq(), self.model.joints.len());
+        let rows = 3 * nj + 3 * self.roots.len();
+        let Scratch {
+            rho1,
+            rho2,
+            m,
+            table,
+            ..
+        } = scratch;
+        let t = JointTables {
+            kin,
+            table: table.as_slice(),
         };
-        // Σ_k v_k T[l][k] (part 0): ∂(A e_l)·v
-        let contract_k = |j: usize, li: usize, v: &[f64]| {
-            let deps = &kin.deps[j];
-            let mut s = (Vec3::zeros(), Vec3::zeros());
-            for (ki, &k) in deps.iter().enumerate() {
-                let t = &table[kin.offset[j] + li * deps.len() + ki][0];
-                s.0 += t.0 * v[k];
-                s.1 += t.1 * v[k];
-            }
-            s
-        };
-        // y₁ − A q̇ and y₂ − A q̈, with B = ∂(A q̇)·q̇
         for j in 0..nj {
             let mut b = (Vec3::zeros(), Vec3::zeros());
             for (li, &l) in kin.deps[j].iter().enumerate() {
-                let r = contract_k(j, li, qd);
-                b.0 += r.0 * qd[l];
-                b.1 += r.1 * qd[l];
+                let r = t.contract_k(j, li, s.qd);
+                b.0 += r.0 * s.qd[l];
+                b.1 += r.1 * s.qd[l];
             }
-            let w = vec3(clip.joint_vel, f, j);
-            let acc = vec3(clip.joint_acc, f, j) - b.0;
+            let w = self.vec3(clip.joint_vel, f, j);
+            let acc = self.vec3(clip.joint_acc, f, j) - b.0;
             rho1[3 * j..3 * j + 3].copy_from_slice(w.as_slice());
             rho2[3 * j..3 * j + 3].copy_from_slice(acc.as_slice());
-            m[3 * j..3 * j + 3].copy_from_slice(vec3(clip.joint_torque, f, j).as_slice());
+            m[3 * j..3 * j + 3].copy_from_slice(self.vec3(clip.joint_torque, f, j).as_slice());
             if let Some(r) = kin.root_of[j] {
                 let (v, a) = self.root_rates(f, r);
                 let i = 3 * nj + 3 * r;
@@ -333,56 +329,157 @@ impl Frames<'_> {
         }
         for row in 0..rows {
             let a = &ws.a[row * n..(row + 1) * n];
-            rho1[row] -= dot(a, qd);
-            rho2[row] -= dot(a, qdd);
+            rho1[row] -= dot(a, s.qd);
+            rho2[row] -= dot(a, s.qdd);
         }
-        qb.copy_from_slice(&q_bar[frame.clone()]);
-        qdb.copy_from_slice(&qd_bar[frame.clone()]);
-        // ---- q̈ = N⁻¹Aᵀy₂ ----
-        z.copy_from_slice(&qdd_bar[frame.clone()]);
+    }
+
+    /// The adjoint of q̈ = N⁻¹Aᵀy₂: the joint and root accelerations' gradients, and what
+    /// q̈'s dependence on q and q̇ adds to theirs.
+    fn acceleration_adjoint(
+        &self,
+        s: &FrameState,
+        ws: &mut Solver,
+        kin: &JointKinematics,
+        scratch: &mut Scratch,
+        bars: &mut BlockBars,
+    ) {
+        let (n, nj) = (self.model.nq(), self.model.joints.len());
+        let Scratch {
+            rho2,
+            az,
+            q_bar: qb,
+            qd_bar: qdb,
+            z,
+            table,
+            ..
+        } = scratch;
+        let t = JointTables {
+            kin,
+            table: table.as_slice(),
+        };
+        let qd = s.qd;
+        z.copy_from_slice(&self.qdd_bar[s.f * n..(s.f + 1) * n]);
         ws.solve_normal(z);
         multiply(&ws.a, n, z, az);
-        acc_bar.copy_from_slice(&az[..3 * nj]);
-        for (d, a) in pdd_bar.iter_mut().zip(&az[3 * nj..]) {
+        bars.acc.copy_from_slice(&az[..3 * nj]);
+        for (d, a) in bars.pdd.iter_mut().zip(&az[3 * nj..]) {
             *d = a * POSITION_WEIGHT;
         }
         for j in 0..nj {
             for (ki, &k) in kin.deps[j].iter().enumerate() {
                 // ∂_k B = ∂²(A q̇)[q̇, e_k];  ∂B/∂q̇_k = ∂_k(A q̇) + ∂(A e_k)·q̇
-                qb[k] -= kin.dot_rows(j, az, &contract_l(j, ki, qd, 1));
-                qdb[k] -= kin.dot_rows(j, az, &contract_l(j, ki, qd, 0));
-                qdb[k] -= kin.dot_rows(j, az, &contract_k(j, ki, qd));
-                qb[k] += kin.dot_rows(j, rho2, &contract_l(j, ki, z, 0));
-                qb[k] -= kin.dot_rows(j, az, &contract_l(j, ki, qdd, 0));
+                qb[k] -= kin.dot_rows(j, az, &t.contract_l(j, ki, qd, 1));
+                qdb[k] -= kin.dot_rows(j, az, &t.contract_l(j, ki, qd, 0));
+                qdb[k] -= kin.dot_rows(j, az, &t.contract_k(j, ki, qd));
+                qb[k] += kin.dot_rows(j, rho2, &t.contract_l(j, ki, z, 0));
+                qb[k] -= kin.dot_rows(j, az, &t.contract_l(j, ki, s.qdd, 0));
             }
         }
-        // ---- q̇ = N⁻¹Aᵀy₁ ----
+    }
+
+    /// The adjoint of q̇ = N⁻¹Aᵀy₁: the joint and root velocities' gradients, and what q̇'s
+    /// dependence on q adds to its.
+    fn velocity_adjoint(
+        &self,
+        s: &FrameState,
+        ws: &mut Solver,
+        kin: &JointKinematics,
+        scratch: &mut Scratch,
+        bars: &mut BlockBars,
+    ) {
+        let (n, nj) = (self.model.nq(), self.model.joints.len());
+        let Scratch {
+            rho1,
+            az,
+            q_bar: qb,
+            qd_bar: qdb,
+            z,
+            table,
+            ..
+        } = scratch;
+        let t = JointTables {
+            kin,
+            table: table.as_slice(),
+        };
         z.copy_from_slice(qdb);
         ws.solve_normal(z);
         multiply(&ws.a, n, z, az);
-        vel_bar.copy_from_slice(&az[..3 * nj]);
-        for (d, a) in pd_bar.iter_mut().zip(&az[3 * nj..]) {
+        bars.vel.copy_from_slice(&az[..3 * nj]);
+        for (d, a) in bars.pd.iter_mut().zip(&az[3 * nj..]) {
             *d = a * POSITION_WEIGHT;
         }
         for j in 0..nj {
             for (ki, &k) in kin.deps[j].iter().enumerate() {
-                qb[k] += kin.dot_rows(j, rho1, &contract_l(j, ki, z, 0));
-                qb[k] -= kin.dot_rows(j, az, &contract_l(j, ki, qd, 0));
+                qb[k] += kin.dot_rows(j, rho1, &t.contract_l(j, ki, z, 0));
+                qb[k] -= kin.dot_rows(j, az, &t.contract_l(j, ki, s.qd, 0));
             }
         }
-        // ---- τ_K = Σ_j A_j,Kᵀ m_j ----
+    }
+
+    /// The adjoint of τ_K = Σ_j A_j,Kᵀ m_j: the joint torques' gradients, and what τ_K's
+    /// dependence on q adds to its.
+    fn torque_adjoint(
+        &self,
+        s: &FrameState,
+        ws: &Solver,
+        kin: &JointKinematics,
+        scratch: &mut Scratch,
+        bars: &mut BlockBars,
+    ) {
+        let (n, nj) = (self.model.nq(), self.model.joints.len());
+        let Scratch {
+            az,
+            m,
+            q_bar: qb,
+            z,
+            table,
+            ..
+        } = scratch;
+        let t = JointTables {
+            kin,
+            table: table.as_slice(),
+        };
         for (c, zc) in z.iter_mut().enumerate() {
-            *zc = if angular[c] { tau_bar[f * n + c] } else { 0.0 };
+            *zc = if self.angular[c] {
+                self.tau_bar[s.f * n + c]
+            } else {
+                0.0
+            };
         }
         multiply(&ws.a, n, z, az);
-        torque_bar.copy_from_slice(&az[..3 * nj]);
+        bars.torque.copy_from_slice(&az[..3 * nj]);
         for j in 0..nj {
             for (ki, &k) in kin.deps[j].iter().enumerate() {
                 qb[k] +=
-                    Vec3::from_column_slice(&m[3 * j..3 * j + 3]).dot(&contract_l(j, ki, z, 0).0);
+                    Vec3::from_column_slice(&m[3 * j..3 * j + 3]).dot(&t.contract_l(j, ki, z, 0).0);
             }
         }
-        // ---- q: the fit's stationarity, by the implicit-function theorem ----
+    }
+
+    /// The adjoint of q, by the implicit-function theorem on the fit's stationarity:
+    /// λ = H⁻ᵀ ∂L/∂q, and from it the joint rotations' and root positions' gradients.
+    fn position_adjoint(
+        &self,
+        s: &FrameState,
+        ws: &Solver,
+        kin: &JointKinematics,
+        scratch: &mut Scratch,
+        bars: &mut BlockBars,
+    ) -> crate::Result<()> {
+        let (n, nj) = (self.model.nq(), self.model.joints.len());
+        let Scratch {
+            e,
+            az,
+            q_bar: qb,
+            table,
+            ht,
+            ..
+        } = scratch;
+        let t = JointTables {
+            kin,
+            table: table.as_slice(),
+        };
         // Hᵀ, row-major (ht[k·n + l] = H_lk), solved in place for λ = H⁻ᵀ ∂L/∂q
         ht.fill(0.0);
         for j in 0..nj {
@@ -408,33 +505,113 @@ impl Frames<'_> {
             // − S: S_lk = eᵀ ∂_k A e_l
             for (li, &l) in deps.iter().enumerate() {
                 for (ki, &k) in deps.iter().enumerate() {
-                    let t = &table[kin.offset[j] + li * deps.len() + ki][0];
-                    ht[k * n + l] -= kin.dot_rows(j, e, t);
+                    ht[k * n + l] -= kin.dot_rows(j, e, &t.at(j, li, ki)[0]);
                 }
             }
         }
         if !lu_solve_in_place(ht, n, qb) {
             return Err(crate::Error::invalid(
                 "layout",
-                format!("frame {f}: the fit's Hessian is singular (its q is not determined)"),
+                format!(
+                    "frame {}: the fit's Hessian is singular (its q is not determined)",
+                    s.f
+                ),
             ));
         }
         let lambda = &*qb;
         multiply(&ws.a, n, lambda, az);
         for j in 0..nj {
             let ej = Vec3::from_column_slice(&e[3 * j..3 * j + 3]);
-            let rj = vec3(clip.joint_rot, f, j);
+            let rj = self.vec3(self.clip.joint_rot, s.f, j);
             let de = left_jacobian_inverse(&ej) * left_jacobian(&rj);
             let g = de.transpose() * Vec3::from_column_slice(&az[3 * j..3 * j + 3]);
-            rot_bar[3 * j..3 * j + 3].copy_from_slice(g.as_slice());
+            bars.rot[3 * j..3 * j + 3].copy_from_slice(g.as_slice());
             if let Some(r) = kin.root_of[j] {
                 let k = 3 * nj + 3 * r;
                 for i in 0..3 {
-                    pos_bar[3 * j + i] = az[k + i] * POSITION_WEIGHT;
+                    bars.pos[3 * j + i] = az[k + i] * POSITION_WEIGHT;
                 }
             }
         }
         Ok(())
+    }
+}
+
+/// One frame's coordinates, as the reverse pass reads them.
+struct FrameState<'a> {
+    f: usize,
+    q: &'a [f64],
+    qd: &'a [f64],
+    qdd: &'a [f64],
+}
+
+/// A frame's block of the gradient buffer, by layout array: per joint (3 each) the
+/// accelerations, velocities, torques, rotations and positions; per root (3 each) the
+/// first and second differences of its centre.
+struct BlockBars<'a> {
+    acc: &'a mut [f64],
+    vel: &'a mut [f64],
+    torque: &'a mut [f64],
+    rot: &'a mut [f64],
+    pos: &'a mut [f64],
+    pd: &'a mut [f64],
+    pdd: &'a mut [f64],
+}
+
+impl<'a> BlockBars<'a> {
+    /// `block` split for `nj` joints and `nr` roots.
+    fn split(block: &'a mut [f64], nj: usize, nr: usize) -> BlockBars<'a> {
+        let (acc, rest) = block.split_at_mut(3 * nj);
+        let (vel, rest) = rest.split_at_mut(3 * nj);
+        let (torque, rest) = rest.split_at_mut(3 * nj);
+        let (rot, rest) = rest.split_at_mut(3 * nj);
+        let (pos, rest) = rest.split_at_mut(3 * nj);
+        let (pd, pdd) = rest.split_at_mut(3 * nr);
+        BlockBars {
+            acc,
+            vel,
+            torque,
+            rot,
+            pos,
+            pd,
+            pdd,
+        }
+    }
+}
+
+/// A frame's per-joint tables ([`Scratch::table`]) and the contractions the reverse pass
+/// takes of them.
+struct JointTables<'a> {
+    kin: &'a JointKinematics,
+    table: &'a [[(Vec3, Vec3); 2]],
+}
+
+impl JointTables<'_> {
+    /// Joint `j`'s entry for its coordinates `li`, `ki` (in `deps` order).
+    fn at(&self, j: usize, li: usize, ki: usize) -> &[(Vec3, Vec3); 2] {
+        &self.table[self.kin.offset[j] + li * self.kin.deps[j].len() + ki]
+    }
+
+    /// Σ_l u_l T[l][k] (part 0: ∂(A u)·e_k; part 1: ∂²(A u)[e_k, q̇])
+    fn contract_l(&self, j: usize, ki: usize, u: &[f64], part: usize) -> (Vec3, Vec3) {
+        let mut s = (Vec3::zeros(), Vec3::zeros());
+        for (li, &l) in self.kin.deps[j].iter().enumerate() {
+            let t = &self.at(j, li, ki)[part];
+            s.0 += t.0 * u[l];
+            s.1 += t.1 * u[l];
+        }
+        s
+    }
+
+    /// Σ_k v_k T[l][k] (part 0): ∂(A e_l)·v
+    fn contract_k(&self, j: usize, li: usize, v: &[f64]) -> (Vec3, Vec3) {
+        let mut s = (Vec3::zeros(), Vec3::zeros());
+        for (ki, &k) in self.kin.deps[j].iter().enumerate() {
+            let t = &self.at(j, li, ki)[0];
+            s.0 += t.0 * v[k];
+            s.1 += t.1 * v[k];
+        }
+        s
     }
 }
 

@@ -285,13 +285,13 @@ pub fn shard_clips(clips: &[ClipInput], shard: Option<(usize, usize)>) -> Vec<&C
         .collect()
 }
 
-/// Runs `chain` on `clips` (the whole dataset's list: the shard is taken from it), in
-/// parallel on the current rayon pool. Unsharded, writes the manifest and statistics at the
-/// end; sharded, writes the shard's list for `musculo merge`.
 /// The most variants per clip: every variant is a full run of the chain and a set of output
 /// files, and the list of work items is allocated up front.
 pub const MAX_VARIANTS: usize = 100_000;
 
+/// Runs `chain` on `clips` (the whole dataset's list: the shard is taken from it), in
+/// parallel on the current rayon pool. Unsharded, writes the manifest and statistics at the
+/// end; sharded, writes the shard's list for `musculo merge`.
 pub fn run(
     chain: &Chain,
     layout: &LayoutDescription,
@@ -299,6 +299,49 @@ pub fn run(
     options: &RunOptions,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> crate::Result<RunReport> {
+    check_run_options(clips, options)?;
+    std::fs::create_dir_all(&options.out).map_err(|source| Error::Io {
+        path: options.out.clone(),
+        source,
+    })?;
+    let mine = shard_clips(clips, options.shard);
+    let items: Vec<(&ClipInput, usize)> = mine
+        .iter()
+        .flat_map(|c| (0..options.variants).map(move |v| (*c, v)))
+        .collect();
+    let temporaries_removed = remove_own_temporaries(options, &items)?;
+    if !options.resume {
+        refuse_earlier_results(options, &items)?;
+    }
+    let settings = run_settings(chain, options);
+    output::claim_settings(&options.out, &settings)?;
+    let tally = Tally::new(items.len(), progress);
+    let results = compute_and_write(chain, options, &items, &tally)?;
+    let mut records = Vec::with_capacity(results.len());
+    let (mut computed, mut resumed) = (0, 0);
+    for r in results {
+        let (record, was_resumed) = r?;
+        if was_resumed {
+            resumed += 1;
+        } else {
+            computed += 1;
+        }
+        records.push(record);
+    }
+    let manifest = write_run_index(clips, options, &settings, layout, &records)?;
+    Ok(RunReport {
+        records,
+        manifest,
+        computed,
+        resumed,
+        temporaries_removed,
+    })
+}
+
+/// The run's options checked before anything is written: variants, shard, perturbation
+/// ranges, clip and output names, measured loads (one trial, no variants, the file
+/// present) and an output path that is not a file.
+fn check_run_options(clips: &[ClipInput], options: &RunOptions) -> crate::Result<()> {
     if !(1..=MAX_VARIANTS).contains(&options.variants) {
         return Err(Error::invalid(
             "--variants",
@@ -352,16 +395,15 @@ pub fn run(
             ),
         ));
     }
-    std::fs::create_dir_all(&options.out).map_err(|source| Error::Io {
-        path: options.out.clone(),
-        source,
-    })?;
-    let mine = shard_clips(clips, options.shard);
-    let items: Vec<(&ClipInput, usize)> = mine
-        .iter()
-        .flat_map(|c| (0..options.variants).map(move |v| (*c, v)))
-        .collect();
-    // Stale temporaries of this run's own files only: other shards write beside it.
+    Ok(())
+}
+
+/// Removes stale temporaries of this run's own files only (other shards write beside it);
+/// returns how many were removed.
+fn remove_own_temporaries(
+    options: &RunOptions,
+    items: &[(&ClipInput, usize)],
+) -> crate::Result<usize> {
     let mut own: std::collections::HashSet<String> = items
         .iter()
         .flat_map(|(c, v)| output::clip_files(&variant_name(&c.name, *v), &OPENSIM_SUFFIXES))
@@ -377,153 +419,99 @@ pub fn run(
             own.insert(format!("{SHARDS}/{k}-of-{n}.json"));
         }
     }
-    let temporaries_removed = output::remove_temporaries(&options.out, |f| own.contains(f))?;
-    if !options.resume {
-        if let Some((c, v)) = items
-            .iter()
-            .find(|(c, v)| output::record_path(&options.out, &variant_name(&c.name, *v)).exists())
-        {
-            return Err(Error::invalid(
-                "--out",
-                format!(
-                    "{} already holds results (e.g. {}); use --resume to finish that run, or \
-                     another folder",
-                    options.out.display(),
-                    variant_name(&c.name, *v)
-                ),
-            ));
+    output::remove_temporaries(&options.out, |f| own.contains(f))
+}
+
+/// Without --resume, a folder that already holds a record of one of the run's clips is
+/// refused.
+fn refuse_earlier_results(
+    options: &RunOptions,
+    items: &[(&ClipInput, usize)],
+) -> crate::Result<()> {
+    if let Some((c, v)) = items
+        .iter()
+        .find(|(c, v)| output::record_path(&options.out, &variant_name(&c.name, *v)).exists())
+    {
+        return Err(Error::invalid(
+            "--out",
+            format!(
+                "{} already holds results (e.g. {}); use --resume to finish that run, or \
+                 another folder",
+                options.out.display(),
+                variant_name(&c.name, *v)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The run's progress, counted by workers and writers alike and reported after each clip.
+struct Tally<'a> {
+    total: usize,
+    done: AtomicUsize,
+    failed: AtomicUsize,
+    skipped: AtomicUsize,
+    frames: AtomicUsize,
+    progress: &'a (dyn Fn(Progress) + Sync),
+}
+
+impl<'a> Tally<'a> {
+    fn new(total: usize, progress: &'a (dyn Fn(Progress) + Sync)) -> Tally<'a> {
+        Tally {
+            total,
+            done: AtomicUsize::new(0),
+            failed: AtomicUsize::new(0),
+            skipped: AtomicUsize::new(0),
+            frames: AtomicUsize::new(0),
+            progress,
         }
     }
-    let settings = run_settings(chain, options);
-    output::claim_settings(&options.out, &settings)?;
-    let total = items.len();
-    let (done, failed, skipped, frames) = (
-        AtomicUsize::new(0),
-        AtomicUsize::new(0),
-        AtomicUsize::new(0),
-        AtomicUsize::new(0),
-    );
-    let report = |f: usize, fail: bool, skip: bool| {
-        frames.fetch_add(f, Ordering::Relaxed);
+
+    /// One clip finished: `f` frames, failed or skipped (resumed).
+    fn report(&self, f: usize, fail: bool, skip: bool) {
+        self.frames.fetch_add(f, Ordering::Relaxed);
         if fail {
-            failed.fetch_add(1, Ordering::Relaxed);
+            self.failed.fetch_add(1, Ordering::Relaxed);
         }
         if skip {
-            skipped.fetch_add(1, Ordering::Relaxed);
+            self.skipped.fetch_add(1, Ordering::Relaxed);
         }
-        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-        progress(Progress {
+        let d = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+        (self.progress)(Progress {
             done: d,
-            total,
-            failed: failed.load(Ordering::Relaxed),
-            skipped: skipped.load(Ordering::Relaxed),
-            frames: frames.load(Ordering::Relaxed),
+            total: self.total,
+            failed: self.failed.load(Ordering::Relaxed),
+            skipped: self.skipped.load(Ordering::Relaxed),
+            frames: self.frames.load(Ordering::Relaxed),
         });
-    };
-    // Writing a clip (its `.npz`, OpenSim files and record, each synced to disk before it is
-    // renamed into place) waits mostly on the disk: it is handed to writer threads, one per
-    // worker, so the workers go on computing. A bounded queue (one clip per worker) keeps
-    // memory independent of the dataset; a clip's files, record included, are named
-    // together, so a run killed before that recomputes the clip on --resume.
+    }
+}
+
+/// Computes the work items in parallel and writes each clip's files on writer threads;
+/// returns each item's summary record and whether it was resumed.
+///
+/// Writing a clip (its `.npz`, OpenSim files and record, each synced to disk before it is
+/// renamed into place) waits mostly on the disk: it is handed to writer threads, one per
+/// worker, so the workers go on computing. A bounded queue (one clip per worker) keeps
+/// memory independent of the dataset; a clip's files, record included, are named
+/// together, so a run killed before that recomputes the clip on --resume.
+fn compute_and_write(
+    chain: &Chain,
+    options: &RunOptions,
+    items: &[(&ClipInput, usize)],
+    tally: &Tally,
+) -> crate::Result<Vec<crate::Result<(ClipRecord, bool)>>> {
     let writers = rayon::current_num_threads().max(1);
     let (queue, jobs) = std::sync::mpsc::sync_channel::<WriteJob>(writers);
     let jobs = std::sync::Mutex::new(jobs);
     let write_error: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
-    let write = |job: WriteJob| -> crate::Result<()> {
-        output::write_clip_files(
-            &options.out,
-            &job.record,
-            job.output.as_ref(),
-            job.text.as_deref(),
-        )?;
-        let f = job.record.quality.as_ref().map_or(0, |q| q.frames);
-        report(f, job.record.status == ClipStatus::Failed, false);
-        Ok(())
-    };
     let results: Vec<crate::Result<(ClipRecord, bool)>> = std::thread::scope(|scope| {
         for _ in 0..writers {
-            scope.spawn(|| {
-                loop {
-                    // a poisoned lock still holds the receiver (nothing panics while held)
-                    let job = match jobs.lock().unwrap_or_else(|e| e.into_inner()).recv() {
-                        Ok(job) => job,
-                        Err(_) => break, // queue closed: every clip handed over
-                    };
-                    // A panic here (none is expected) must not leave the workers blocked on
-                    // a full queue: it ends this clip's write as an error and the loop goes on.
-                    let written =
-                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| write(job)))
-                            .unwrap_or_else(|_| {
-                                Err(Error::invalid("augment", "writing a clip's files panicked"))
-                            });
-                    if let Err(e) = written {
-                        let mut first = write_error.lock().unwrap_or_else(|e| e.into_inner());
-                        first.get_or_insert(e);
-                    }
-                }
-            });
+            scope.spawn(|| write_queued(&jobs, &write_error, &options.out, tally));
         }
         let results = items
             .par_iter()
-            .map(|(clip, v)| {
-                let name = variant_name(&clip.name, *v);
-                if options.resume
-                    && let Some(record) = output::read_record(&options.out, &name)?
-                    && record.status == ClipStatus::Ok
-                {
-                    let f = record.quality.as_ref().map_or(0, |q| q.frames);
-                    report(f, false, true);
-                    return Ok((without_sums(record), true));
-                }
-                let variant = Variant::draw(options.seed, &clip.name, *v, &options.perturbation);
-                let source = dataset_of(options, clip);
-                let split = source.as_ref().and_then(|(d, id)| d.split_of(id));
-                let text = source.as_ref().and_then(|(d, id)| d.text_of(id));
-                let (record, output) = match process(chain, clip, &variant, options) {
-                    Ok(mut out) => {
-                        let (x_sum, x_sum_sq) = output::feature_sums(&out.arrays);
-                        let record = ClipRecord {
-                            clip: name,
-                            input: clip.input.clone(),
-                            status: ClipStatus::Ok,
-                            reason: None,
-                            variant,
-                            quality: Some(out.quality.clone()),
-                            warnings: std::mem::take(&mut out.warnings),
-                            x_sum,
-                            x_sum_sq,
-                            split,
-                        };
-                        (record, Some(out))
-                    }
-                    Err(e) => (
-                        ClipRecord {
-                            clip: name,
-                            input: clip.input.clone(),
-                            status: ClipStatus::Failed,
-                            reason: Some(e.to_string()),
-                            variant,
-                            quality: None,
-                            warnings: Vec::new(),
-                            x_sum: Vec::new(),
-                            x_sum_sq: Vec::new(),
-                            split,
-                        },
-                        None,
-                    ),
-                };
-                let summary = without_sums(record.clone());
-                queue
-                    .send(WriteJob {
-                        record,
-                        output,
-                        text,
-                    })
-                    .map_err(|_| {
-                        Error::invalid("augment", "the writer threads stopped before the run ended")
-                    })?;
-                Ok((summary, false))
-            })
+            .map(|(clip, v)| compute_item(chain, options, tally, &queue, clip, *v))
             .collect();
         // closing the queue ends the writers once it is empty; the scope waits for them
         drop(queue);
@@ -532,26 +520,128 @@ pub fn run(
     if let Some(e) = write_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
         return Err(e);
     }
-    let mut records = Vec::with_capacity(results.len());
-    let (mut computed, mut resumed) = (0, 0);
-    for r in results {
-        let (record, was_resumed) = r?;
-        if was_resumed {
-            resumed += 1;
-        } else {
-            computed += 1;
+    Ok(results)
+}
+
+/// A writer thread: writes the queued clips until the queue closes, keeping the first
+/// error in `write_error`.
+fn write_queued(
+    jobs: &std::sync::Mutex<std::sync::mpsc::Receiver<WriteJob>>,
+    write_error: &std::sync::Mutex<Option<Error>>,
+    out: &Path,
+    tally: &Tally,
+) {
+    let write = |job: WriteJob| -> crate::Result<()> {
+        output::write_clip_files(out, &job.record, job.output.as_ref(), job.text.as_deref())?;
+        let f = job.record.quality.as_ref().map_or(0, |q| q.frames);
+        tally.report(f, job.record.status == ClipStatus::Failed, false);
+        Ok(())
+    };
+    loop {
+        // a poisoned lock still holds the receiver (nothing panics while held)
+        let job = match jobs.lock().unwrap_or_else(|e| e.into_inner()).recv() {
+            Ok(job) => job,
+            Err(_) => break, // queue closed: every clip handed over
+        };
+        // A panic here (none is expected) must not leave the workers blocked on
+        // a full queue: it ends this clip's write as an error and the loop goes on.
+        let written = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| write(job)))
+            .unwrap_or_else(|_| Err(Error::invalid("augment", "writing a clip's files panicked")));
+        if let Err(e) = written {
+            let mut first = write_error.lock().unwrap_or_else(|e| e.into_inner());
+            first.get_or_insert(e);
         }
-        records.push(record);
     }
-    let manifest = match options.shard {
+}
+
+/// One work item (clip, variant): its record read back on --resume when it succeeded
+/// before, otherwise the chain run on it and its files queued for the writers. Returns the
+/// record without its sums, and whether it was resumed.
+fn compute_item(
+    chain: &Chain,
+    options: &RunOptions,
+    tally: &Tally,
+    queue: &std::sync::mpsc::SyncSender<WriteJob>,
+    clip: &ClipInput,
+    v: usize,
+) -> crate::Result<(ClipRecord, bool)> {
+    let name = variant_name(&clip.name, v);
+    if options.resume
+        && let Some(record) = output::read_record(&options.out, &name)?
+        && record.status == ClipStatus::Ok
+    {
+        let f = record.quality.as_ref().map_or(0, |q| q.frames);
+        tally.report(f, false, true);
+        return Ok((without_sums(record), true));
+    }
+    let variant = Variant::draw(options.seed, &clip.name, v, &options.perturbation);
+    let source = dataset_of(options, clip);
+    let split = source.as_ref().and_then(|(d, id)| d.split_of(id));
+    let text = source.as_ref().and_then(|(d, id)| d.text_of(id));
+    let (record, output) = match process(chain, clip, &variant, options) {
+        Ok(mut out) => {
+            let (x_sum, x_sum_sq) = output::feature_sums(&out.arrays);
+            let record = ClipRecord {
+                clip: name,
+                input: clip.input.clone(),
+                status: ClipStatus::Ok,
+                reason: None,
+                variant,
+                quality: Some(out.quality.clone()),
+                warnings: std::mem::take(&mut out.warnings),
+                x_sum,
+                x_sum_sq,
+                split,
+            };
+            (record, Some(out))
+        }
+        Err(e) => (
+            ClipRecord {
+                clip: name,
+                input: clip.input.clone(),
+                status: ClipStatus::Failed,
+                reason: Some(e.to_string()),
+                variant,
+                quality: None,
+                warnings: Vec::new(),
+                x_sum: Vec::new(),
+                x_sum_sq: Vec::new(),
+                split,
+            },
+            None,
+        ),
+    };
+    let summary = without_sums(record.clone());
+    queue
+        .send(WriteJob {
+            record,
+            output,
+            text,
+        })
+        .map_err(|_| {
+            Error::invalid("augment", "the writer threads stopped before the run ended")
+        })?;
+    Ok((summary, false))
+}
+
+/// The run's index: unsharded, the manifest and statistics; sharded, the shard's list for
+/// `musculo merge` (and no manifest).
+fn write_run_index(
+    clips: &[ClipInput],
+    options: &RunOptions,
+    settings: &output::RunSettings,
+    layout: &LayoutDescription,
+    records: &[ClipRecord],
+) -> crate::Result<Option<Manifest>> {
+    match options.shard {
         None => {
             let names: Vec<String> = records.iter().map(|r| r.clip.clone()).collect();
-            Some(output::write_manifest(
+            Ok(Some(output::write_manifest(
                 &options.out,
                 &settings.run,
                 Some(layout),
                 &names,
-            )?)
+            )?))
         }
         Some((k, n)) => {
             write_shard_list(
@@ -559,20 +649,13 @@ pub fn run(
                 k,
                 n,
                 clips,
-                &settings,
+                settings,
                 layout,
                 options.variants,
             )?;
-            None
+            Ok(None)
         }
-    };
-    Ok(RunReport {
-        records,
-        manifest,
-        computed,
-        resumed,
-        temporaries_removed,
-    })
+    }
 }
 
 /// A computed clip for the writer threads: its record and, when it succeeded, its outputs.

@@ -172,32 +172,8 @@ impl LayoutEulerLagrange {
         gradients: bool,
         out: &mut LayoutEulerLagrangeOutput,
     ) -> crate::Result<()> {
-        let (n, t, nj, nb) = (
-            model.nq(),
-            batch.frames,
-            self.joints,
-            self.couple_bodies.len(),
-        );
-        if nj != model.joints.len() {
-            return Err(crate::Error::invalid(
-                "layout loss",
-                format!(
-                    "built for {nj} joints, the model \"{}\" has {}",
-                    model.name,
-                    model.joints.len()
-                ),
-            ));
-        }
-        if batch.contact_force.len() != t * nj * 3 {
-            return Err(crate::Error::invalid(
-                "contact_force",
-                format!(
-                    "expected {t} frames × {nj} joints × 3 = {}, got {}",
-                    t * nj * 3,
-                    batch.contact_force.len()
-                ),
-            ));
-        }
+        self.check_batch(model, batch)?;
+        let (t, nj, nb) = (batch.frames, self.joints, self.couple_bodies.len());
         // λ per frame: the joint forces, then the couple bodies' points (zero in the first pass)
         let width = 3 * (nj + 4 * nb);
         let mut lambda = vec![0.0; t * width];
@@ -207,96 +183,12 @@ impl LayoutEulerLagrange {
         {
             row[..3 * nj].copy_from_slice(f);
         }
-        fn el_batch<'a>(
-            batch: &LayoutEulerLagrangeBatch<'a>,
-            lambda: &'a [f64],
-        ) -> EulerLagrangeBatch<'a> {
-            EulerLagrangeBatch {
-                frames: batch.frames,
-                q: batch.q,
-                qd: batch.qd,
-                qdd: batch.qdd,
-                tau: batch.tau,
-                lambda,
-            }
-        }
         let mut first = EulerLagrangeOutput::default();
         self.inner
             .evaluate(model, &el_batch(batch, &lambda), false, &mut first)?;
         out.couple = vec![0.0; t * 3 * nb];
         if nb > 0 {
-            // μ* per frame from r(0), then its point forces
-            let weights = &self.inner.weights;
-            lambda
-                .par_chunks_mut(width)
-                .zip(out.couple.par_chunks_mut(3 * nb))
-                .enumerate()
-                .try_for_each_init(
-                    || {
-                        (
-                            Data::new(model),
-                            DMatrix::zeros(6, n),
-                            vec![0.0; 9 * nb * nb],
-                            vec![0.0; n * 3 * nb],
-                        )
-                    },
-                    |(data, jac, normal, c), (f, (row, mu))| {
-                        dynamics::forward_kinematics(model, data, &batch.q[f * n..(f + 1) * n])?;
-                        // C = [J_ω,bᵀ] (n × 3B), stored as its rows per coordinate
-                        for (i, &b) in self.couple_bodies.iter().enumerate() {
-                            dynamics::body_jacobian(model, data, b, jac)?;
-                            for j in 0..n {
-                                for k in 0..3 {
-                                    c[j * 3 * nb + 3 * i + k] = jac[(k, j)];
-                                }
-                            }
-                        }
-                        let m = 3 * nb;
-                        normal.fill(0.0);
-                        mu.fill(0.0);
-                        let r = &first.residual[f * n..(f + 1) * n];
-                        for j in 0..n {
-                            let w = weights.get(j).copied().unwrap_or(1.0);
-                            let cj = &c[j * m..(j + 1) * m];
-                            for a in 0..m {
-                                mu[a] += w * cj[a] * r[j];
-                                for b in a..m {
-                                    normal[a * m + b] += w * cj[a] * cj[b];
-                                }
-                            }
-                        }
-                        let trace: f64 = (0..m).map(|a| normal[a * m + a]).sum();
-                        if trace > 0.0 {
-                            for a in 0..m {
-                                normal[a * m + a] += 1e-12 * trace;
-                            }
-                            if !cholesky_in_place(normal, m) {
-                                return Err(crate::Error::invalid(
-                                    "layout loss",
-                                    format!("frame {f}: the couples' normal equations fail"),
-                                ));
-                            }
-                            cholesky_solve_in_place(normal, m, mu);
-                        } else {
-                            mu.fill(0.0);
-                        }
-                        // four point forces per body: −Σ f_k at the centre, f_k at + d e_k
-                        for i in 0..nb {
-                            let couple = Vec3::new(mu[3 * i], mu[3 * i + 1], mu[3 * i + 2]);
-                            let points = &mut row[3 * nj + 12 * i..3 * nj + 12 * (i + 1)];
-                            let mut sum = Vec3::zeros();
-                            for k in 0..3 {
-                                let mut e = Vec3::zeros();
-                                e[k] = 1.0;
-                                let fk = couple.cross(&e) / (2.0 * COUPLE_ARM);
-                                sum += fk;
-                                points[3 * (k + 1)..3 * (k + 2)].copy_from_slice(fk.as_slice());
-                            }
-                            points[..3].copy_from_slice((-sum).as_slice());
-                        }
-                        Ok::<(), crate::Error>(())
-                    },
-                )?;
+            self.fit_couples(model, batch, &first.residual, &mut lambda, &mut out.couple)?;
         }
         let mut second = EulerLagrangeOutput::default();
         self.inner
@@ -320,6 +212,174 @@ impl LayoutEulerLagrange {
             Vec::new()
         };
         Ok(())
+    }
+
+    /// The batch checked against the loss: the model's joint count and the size of
+    /// `contact_force` (T × joints × 3).
+    fn check_batch(&self, model: &Model, batch: &LayoutEulerLagrangeBatch) -> crate::Result<()> {
+        let (t, nj) = (batch.frames, self.joints);
+        if nj != model.joints.len() {
+            return Err(crate::Error::invalid(
+                "layout loss",
+                format!(
+                    "built for {nj} joints, the model \"{}\" has {}",
+                    model.name,
+                    model.joints.len()
+                ),
+            ));
+        }
+        if batch.contact_force.len() != t * nj * 3 {
+            return Err(crate::Error::invalid(
+                "contact_force",
+                format!(
+                    "expected {t} frames × {nj} joints × 3 = {}, got {}",
+                    t * nj * 3,
+                    batch.contact_force.len()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// μ* per frame from the first pass's residual r(0) (into `couple`, 3 per couple body),
+    /// and its point forces into each frame's row of `lambda`.
+    fn fit_couples(
+        &self,
+        model: &Model,
+        batch: &LayoutEulerLagrangeBatch,
+        residual: &[f64],
+        lambda: &mut [f64],
+        couple: &mut [f64],
+    ) -> crate::Result<()> {
+        let nb = self.couple_bodies.len();
+        let width = 3 * (self.joints + 4 * nb);
+        lambda
+            .par_chunks_mut(width)
+            .zip(couple.par_chunks_mut(3 * nb))
+            .enumerate()
+            .try_for_each_init(
+                || CoupleWorkspace::new(model, nb),
+                |ws, (f, (row, mu))| {
+                    self.couple_moments(model, batch, residual, f, ws, mu)?;
+                    self.couple_point_forces(mu, row);
+                    Ok::<(), crate::Error>(())
+                },
+            )
+    }
+
+    /// μ* at frame `f`: the least-squares couples, min Σ_j w_j (r_j − (C μ)_j)² with
+    /// C = [J_ω,bᵀ] (n × 3B), by the normal equations (regularized by 10⁻¹² of their trace;
+    /// zero where no coordinate feels a couple).
+    fn couple_moments(
+        &self,
+        model: &Model,
+        batch: &LayoutEulerLagrangeBatch,
+        residual: &[f64],
+        f: usize,
+        ws: &mut CoupleWorkspace,
+        mu: &mut [f64],
+    ) -> crate::Result<()> {
+        let (n, nb) = (model.nq(), self.couple_bodies.len());
+        let CoupleWorkspace {
+            data,
+            jac,
+            normal,
+            c,
+        } = ws;
+        dynamics::forward_kinematics(model, data, &batch.q[f * n..(f + 1) * n])?;
+        // C = [J_ω,bᵀ] (n × 3B), stored as its rows per coordinate
+        for (i, &b) in self.couple_bodies.iter().enumerate() {
+            dynamics::body_jacobian(model, data, b, jac)?;
+            for j in 0..n {
+                for k in 0..3 {
+                    c[j * 3 * nb + 3 * i + k] = jac[(k, j)];
+                }
+            }
+        }
+        let m = 3 * nb;
+        normal.fill(0.0);
+        mu.fill(0.0);
+        let r = &residual[f * n..(f + 1) * n];
+        for j in 0..n {
+            let w = self.inner.weights.get(j).copied().unwrap_or(1.0);
+            let cj = &c[j * m..(j + 1) * m];
+            for a in 0..m {
+                mu[a] += w * cj[a] * r[j];
+                for b in a..m {
+                    normal[a * m + b] += w * cj[a] * cj[b];
+                }
+            }
+        }
+        let trace: f64 = (0..m).map(|a| normal[a * m + a]).sum();
+        if trace > 0.0 {
+            for a in 0..m {
+                normal[a * m + a] += 1e-12 * trace;
+            }
+            if !cholesky_in_place(normal, m) {
+                return Err(crate::Error::invalid(
+                    "layout loss",
+                    format!("frame {f}: the couples' normal equations fail"),
+                ));
+            }
+            cholesky_solve_in_place(normal, m, mu);
+        } else {
+            mu.fill(0.0);
+        }
+        Ok(())
+    }
+
+    /// The couples `mu` as four point forces per body into a frame's `row` of λ: −Σ f_k at
+    /// the centre, f_k = μ × e_k / 2d at + d e_k.
+    fn couple_point_forces(&self, mu: &[f64], row: &mut [f64]) {
+        let nj = self.joints;
+        for i in 0..self.couple_bodies.len() {
+            let couple = Vec3::new(mu[3 * i], mu[3 * i + 1], mu[3 * i + 2]);
+            let points = &mut row[3 * nj + 12 * i..3 * nj + 12 * (i + 1)];
+            let mut sum = Vec3::zeros();
+            for k in 0..3 {
+                let mut e = Vec3::zeros();
+                e[k] = 1.0;
+                let fk = couple.cross(&e) / (2.0 * COUPLE_ARM);
+                sum += fk;
+                points[3 * (k + 1)..3 * (k + 2)].copy_from_slice(fk.as_slice());
+            }
+            points[..3].copy_from_slice((-sum).as_slice());
+        }
+    }
+}
+
+/// The batch of the joint-space loss for `batch` with contact forces `lambda`.
+fn el_batch<'a>(batch: &LayoutEulerLagrangeBatch<'a>, lambda: &'a [f64]) -> EulerLagrangeBatch<'a> {
+    EulerLagrangeBatch {
+        frames: batch.frames,
+        q: batch.q,
+        qd: batch.qd,
+        qdd: batch.qdd,
+        tau: batch.tau,
+        lambda,
+    }
+}
+
+/// Per-thread workspace of the couples' fit.
+struct CoupleWorkspace {
+    data: Data,
+    /// A body's Jacobian (6 × n).
+    jac: DMatrix<f64>,
+    /// The normal equations (3B × 3B), factored in place.
+    normal: Vec<f64>,
+    /// C = [J_ω,bᵀ] (n × 3B), by rows.
+    c: Vec<f64>,
+}
+
+impl CoupleWorkspace {
+    fn new(model: &Model, nb: usize) -> CoupleWorkspace {
+        let n = model.nq();
+        CoupleWorkspace {
+            data: Data::new(model),
+            jac: DMatrix::zeros(6, n),
+            normal: vec![0.0; 9 * nb * nb],
+            c: vec![0.0; n * 3 * nb],
+        }
     }
 }
 

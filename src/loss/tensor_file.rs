@@ -94,76 +94,25 @@ impl TensorFrames {
         source: &str,
     ) -> crate::Result<TensorFrames> {
         let n = model.nq();
-        let find = |name: &str| arrays.iter().find(|(k, _)| k == name).map(|(_, a)| a);
-        let bad = |msg: String| crate::Error::invalid("tensor file", format!("{source}: {msg}"));
-        let mut frames: Option<usize> = None;
-        let mut coordinate_array = |name: &str| -> crate::Result<Vec<f64>> {
-            let a = find(name).ok_or_else(|| bad(format!("has no array `{name}`")))?;
-            if a.ndim() != 2 || a.shape()[1] != n {
-                return Err(bad(format!(
-                    "`{name}` has shape {:?}; the model \"{}\" needs T × {n}",
-                    a.shape(),
-                    model.name
-                )));
-            }
-            let t = a.shape()[0];
-            // `q` is read first and sets the frame count the others must have
-            let first = *frames.get_or_insert(t);
-            if first != t {
-                return Err(bad(format!("`{name}` has {t} frames, `q` has {first}")));
-            }
-            Ok(a.iter().copied().collect())
-        };
-        let layout_only = find("q").is_none() && find("joint_rot").is_some();
-        let mut layout_error = None;
-        let (q, qd, qdd, tau) = if layout_only {
-            let c = from_layout(model, arrays, &bad)?;
-            frames = Some(c.rotation_error.len());
-            layout_error = Some(c.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v)));
-            (c.q, c.qd, c.qdd, c.tau)
-        } else {
-            (
-                coordinate_array("q")?,
-                coordinate_array("qd")?,
-                coordinate_array("qdd")?,
-                coordinate_array("tau")?,
-            )
-        };
-        let frames = frames.unwrap_or(0);
+        let file = NamedArrays { arrays, source };
+        let layout_only = file.find("q").is_none() && file.find("joint_rot").is_some();
+        let FileCoordinates {
+            q,
+            qd,
+            qdd,
+            tau,
+            frames,
+            layout_error,
+        } = file.coordinates(model, layout_only)?;
         // Every reader (loss, evaluate, report) gets its frames here: a file without any
         // has no residual to speak of, and a sum over no frames would read as a perfect 0.
         if frames == 0 {
-            return Err(bad(
+            return Err(file.bad(
                 "has 0 frames (`q`, `qd`, `qdd` and `tau` have no rows): nothing to evaluate"
                     .to_string(),
             ));
         }
-        // an optional array of shape T × dims (None: any size), and its second dimension
-        let optional = |name: &str, dims: &[Option<usize>]| -> crate::Result<(Vec<f64>, usize)> {
-            let Some(a) = find(name) else {
-                return Ok((Vec::new(), 0));
-            };
-            let shape = a.shape();
-            let fits = shape.len() == dims.len() + 1
-                && shape[0] == frames
-                && dims
-                    .iter()
-                    .zip(&shape[1..])
-                    .all(|(d, s)| d.is_none_or(|d| d == *s));
-            if !fits {
-                let expected: Vec<String> = std::iter::once(frames.to_string())
-                    .chain(dims.iter().map(|d| d.map_or("*".into(), |d| d.to_string())))
-                    .collect();
-                return Err(bad(format!(
-                    "`{name}` has shape {shape:?}; expected {}",
-                    expected.join(" × ")
-                )));
-            }
-            Ok((
-                a.iter().copied().collect(),
-                shape.get(1).copied().unwrap_or(0),
-            ))
-        };
+        let optional = |name: &str, dims: &[Option<usize>]| file.optional(name, dims, frames);
         let (lambda, contacts) = optional("contact_point_force", &[None, Some(3)])?;
         let contact_force = if layout_only {
             optional("contact_force", &[Some(model.joints.len()), Some(3)])?.0
@@ -175,51 +124,23 @@ impl TensorFrames {
         let (grf, groups) = optional("grf", &[None, Some(3)])?;
         let (muscle_force, _) = optional("muscle_force", &[None])?;
         let (time, _) = optional("time", &[])?;
-        // (a layout-only file's q … tau are fitted from its layout arrays, which are named)
-        let coordinates = if layout_only { "fitted " } else { "" };
-        for (name, values) in [
-            ("q", &q),
-            ("qd", &qd),
-            ("qdd", &qdd),
-            ("tau", &tau),
-            ("contact_point_force", &lambda),
-            ("muscle_act", &muscle_act),
-            ("muscle_force", &muscle_force),
-            ("time", &time),
-            ("external", &external),
-            ("grf", &grf),
-            ("contact_force", &contact_force),
-        ] {
-            // Beyond ±MAX_TENSOR_MAGNITUDE (or not finite) a value is a scaling or unit error,
-            // not a motion; the metrics of such a file would be finite nonsense.
-            if let Some((i, v)) = values
-                .iter()
-                .enumerate()
-                .find(|(_, v)| !(v.abs() <= MAX_TENSOR_MAGNITUDE))
-            {
-                // the arrays are frame-major: T rows of `width` values
-                let width = values.len() / frames;
-                let what = if matches!(name, "q" | "qd" | "qdd" | "tau") {
-                    coordinates
-                } else {
-                    ""
-                };
-                let beyond = if v.is_finite() {
-                    format!(
-                        ", beyond ±{MAX_TENSOR_MAGNITUDE:e}, which no motion reaches: a \
-                         scaling or unit error"
-                    )
-                } else {
-                    String::new()
-                };
-                return Err(bad(format!(
-                    "{what}`{name}` is {} at frame {} (value {} of the frame's {width}){beyond}",
-                    short_number(*v),
-                    i / width,
-                    i % width
-                )));
-            }
-        }
+        file.check_magnitudes(
+            frames,
+            layout_only,
+            &[
+                ("q", &q),
+                ("qd", &qd),
+                ("qdd", &qdd),
+                ("tau", &tau),
+                ("contact_point_force", &lambda),
+                ("muscle_act", &muscle_act),
+                ("muscle_force", &muscle_force),
+                ("time", &time),
+                ("external", &external),
+                ("grf", &grf),
+                ("contact_force", &contact_force),
+            ],
+        )?;
         Ok(TensorFrames {
             frames,
             q,
@@ -271,6 +192,161 @@ impl TensorFrames {
             tau: &self.tau,
             lambda: &self.lambda,
         }
+    }
+}
+
+/// A tensor file's named arrays, and its name for errors.
+struct NamedArrays<'a> {
+    arrays: &'a [(String, ndarray::ArrayD<f64>)],
+    source: &'a str,
+}
+
+/// The coordinate arrays of a tensor file (T × n each, frame-major), read or fitted.
+struct FileCoordinates {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    tau: Vec<f64>,
+    frames: usize,
+    /// A layout-only file's largest rotation error left by the fit (rad).
+    layout_error: Option<f64>,
+}
+
+impl NamedArrays<'_> {
+    /// The array named `name`, if the file has one.
+    fn find(&self, name: &str) -> Option<&ndarray::ArrayD<f64>> {
+        self.arrays.iter().find(|(k, _)| k == name).map(|(_, a)| a)
+    }
+
+    /// An error about the file.
+    fn bad(&self, msg: String) -> crate::Error {
+        crate::Error::invalid("tensor file", format!("{}: {msg}", self.source))
+    }
+
+    /// q, qd, qdd and tau: read (each T × n, with the frame count of `q`), or for a
+    /// layout-only file fitted from its layout arrays
+    /// ([`crate::augment::layout_inverse::coordinates_from_layout`]).
+    fn coordinates(&self, model: &Model, layout_only: bool) -> crate::Result<FileCoordinates> {
+        let n = model.nq();
+        let bad = |msg: String| self.bad(msg);
+        let mut frames: Option<usize> = None;
+        let mut coordinate_array = |name: &str| -> crate::Result<Vec<f64>> {
+            let a = self
+                .find(name)
+                .ok_or_else(|| bad(format!("has no array `{name}`")))?;
+            if a.ndim() != 2 || a.shape()[1] != n {
+                return Err(bad(format!(
+                    "`{name}` has shape {:?}; the model \"{}\" needs T × {n}",
+                    a.shape(),
+                    model.name
+                )));
+            }
+            let t = a.shape()[0];
+            // `q` is read first and sets the frame count the others must have
+            let first = *frames.get_or_insert(t);
+            if first != t {
+                return Err(bad(format!("`{name}` has {t} frames, `q` has {first}")));
+            }
+            Ok(a.iter().copied().collect())
+        };
+        let mut layout_error = None;
+        let (q, qd, qdd, tau) = if layout_only {
+            let c = from_layout(model, self.arrays, &bad)?;
+            frames = Some(c.rotation_error.len());
+            layout_error = Some(c.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v)));
+            (c.q, c.qd, c.qdd, c.tau)
+        } else {
+            (
+                coordinate_array("q")?,
+                coordinate_array("qd")?,
+                coordinate_array("qdd")?,
+                coordinate_array("tau")?,
+            )
+        };
+        Ok(FileCoordinates {
+            q,
+            qd,
+            qdd,
+            tau,
+            frames: frames.unwrap_or(0),
+            layout_error,
+        })
+    }
+
+    /// An optional array of shape `frames` × dims (None: any size), and its second
+    /// dimension; empty (and 0) when the file has none.
+    fn optional(
+        &self,
+        name: &str,
+        dims: &[Option<usize>],
+        frames: usize,
+    ) -> crate::Result<(Vec<f64>, usize)> {
+        let Some(a) = self.find(name) else {
+            return Ok((Vec::new(), 0));
+        };
+        let shape = a.shape();
+        let fits = shape.len() == dims.len() + 1
+            && shape[0] == frames
+            && dims
+                .iter()
+                .zip(&shape[1..])
+                .all(|(d, s)| d.is_none_or(|d| d == *s));
+        if !fits {
+            let expected: Vec<String> = std::iter::once(frames.to_string())
+                .chain(dims.iter().map(|d| d.map_or("*".into(), |d| d.to_string())))
+                .collect();
+            return Err(self.bad(format!(
+                "`{name}` has shape {shape:?}; expected {}",
+                expected.join(" × ")
+            )));
+        }
+        Ok((
+            a.iter().copied().collect(),
+            shape.get(1).copied().unwrap_or(0),
+        ))
+    }
+
+    /// Every value of the `named` arrays (frame-major, `frames` rows) within
+    /// ±[`MAX_TENSOR_MAGNITUDE`]: beyond it (or not finite) a value is a scaling or unit
+    /// error, not a motion, and the metrics of such a file would be finite nonsense.
+    fn check_magnitudes(
+        &self,
+        frames: usize,
+        layout_only: bool,
+        named: &[(&str, &Vec<f64>)],
+    ) -> crate::Result<()> {
+        // (a layout-only file's q … tau are fitted from its layout arrays, which are named)
+        let coordinates = if layout_only { "fitted " } else { "" };
+        for &(name, values) in named {
+            if let Some((i, v)) = values
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.abs() <= MAX_TENSOR_MAGNITUDE))
+            {
+                // the arrays are frame-major: T rows of `width` values
+                let width = values.len() / frames;
+                let what = if matches!(name, "q" | "qd" | "qdd" | "tau") {
+                    coordinates
+                } else {
+                    ""
+                };
+                let beyond = if v.is_finite() {
+                    format!(
+                        ", beyond ±{MAX_TENSOR_MAGNITUDE:e}, which no motion reaches: a \
+                         scaling or unit error"
+                    )
+                } else {
+                    String::new()
+                };
+                return Err(self.bad(format!(
+                    "{what}`{name}` is {} at frame {} (value {} of the frame's {width}){beyond}",
+                    short_number(*v),
+                    i / width,
+                    i % width
+                )));
+            }
+        }
+        Ok(())
     }
 }
 

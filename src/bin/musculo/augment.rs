@@ -195,6 +195,50 @@ fn variants(text: &str) -> Result<usize, String> {
 }
 
 pub fn run(args: &Args) -> Result<bool, musculo::Error> {
+    check_factors(args)?;
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    let (xml, source) = model_text(args.model.as_deref())?;
+    let options = chain_options(args)?;
+    // Read once here for `--strict` and the model's warnings; the chain reads the same text.
+    args.strict.load_str(&xml, &source)?;
+    let chain = Chain::new(xml, source, options)?;
+    let layout = describe(&chain)?;
+    let (clips, datasets): (Vec<ClipInput>, _) = if args.demo {
+        (demo::inputs(&chain.model)?, Vec::new())
+    } else {
+        runner::list_dataset(&args.input, args.format)?
+    };
+    for d in &datasets {
+        print_dataset(d);
+    }
+    let run_options = run_options(args, shard, datasets)?;
+    let (report, seconds, pool) = run_with_progress(args, &chain, &layout, &clips, &run_options)?;
+    let failed = report.records.iter().filter(|r| r.reason.is_some()).count();
+    print_run_summary(args, &report, seconds);
+    print_worst_clips(args, &report);
+    let mut verdicts = VerdictSummary::default();
+    for r in &report.records {
+        let v = output::clip_verdict(r.status, r.reason.as_deref(), r.quality.as_ref());
+        verdicts.add(&r.clip, v.as_ref());
+    }
+    print_verdicts(&verdicts, &args.out);
+    match shard {
+        Some((k, n)) => eprintln!(
+            "shard {k}/{n} done; when every shard has finished: musculo merge {}{}",
+            if args.report { "--report " } else { "" },
+            args.out.display()
+        ),
+        None => eprintln!("wrote {}", args.out.join("manifest.json").display()),
+    }
+    if args.report && shard.is_none() && report.records.len() > failed {
+        let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
+        eprintln!("wrote {}", page.display());
+    }
+    Ok(failed == 0 && !fails_on(&verdicts, args.fail_on))
+}
+
+/// `--lowpass` (≥ 0) and `--muscle-strength` (within the scaling's limits) checked.
+fn check_factors(args: &Args) -> Result<(), musculo::Error> {
     if !(args.lowpass >= 0.0 && args.lowpass.is_finite()) {
         return Err(invalid(
             "--lowpass",
@@ -211,9 +255,12 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             ),
         ));
     }
-    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
-    let (xml, source) = model_text(args.model.as_deref())?;
-    let options = ChainOptions {
+    Ok(())
+}
+
+/// The chain's options from the command line (the floor: `--treadmill`, `--overground`).
+fn chain_options(args: &Args) -> Result<ChainOptions, musculo::Error> {
+    let mut options = ChainOptions {
         lowpass_hz: (args.lowpass > 0.0).then_some(args.lowpass),
         scale_to_clip: !args.no_scale,
         opensim_files: args.opensim_files || args.report,
@@ -221,7 +268,6 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         keep_calibration_frames: args.keep_calibration_frames,
         ..ChainOptions::default()
     };
-    let mut options = options;
     if let Some(speed) = args.treadmill {
         if let Some(v) = speed
             && !(v >= 0.0 && v.is_finite())
@@ -236,25 +282,23 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     if args.overground {
         options.contact.floor_velocity = Some(musculo::spatial::Vec3::zeros());
     }
-    // Read once here for `--strict` and the model's warnings; the chain reads the same text.
-    args.strict.load_str(&xml, &source)?;
-    let chain = Chain::new(xml, source, options)?;
-    let layout = describe(&chain)?;
-    let (clips, datasets): (Vec<ClipInput>, _) = if args.demo {
-        (demo::inputs(&chain.model)?, Vec::new())
-    } else {
-        runner::list_dataset(&args.input, args.format)?
-    };
-    for d in &datasets {
-        print_dataset(d);
-    }
+    Ok(options)
+}
+
+/// The run's options from the command line: output, variants, shard, resume, skeleton map,
+/// reading options, measured loads and the datasets found.
+fn run_options(
+    args: &Args,
+    shard: Option<(usize, usize)>,
+    datasets: Vec<musculo::augment::dataset::DatasetRoot>,
+) -> Result<RunOptions, musculo::Error> {
     let map = match (&args.map, args.format) {
         (Some(m), Some(f)) => skeleton_map(Some(m), f)?,
         (Some(m), None) => skeleton_map(Some(m), Format::Trc)?,
         (None, _) => None,
     };
     let read = read_options(args.length_unit.as_deref())?;
-    let run_options = RunOptions {
+    Ok(RunOptions {
         out: args.out.clone(),
         variants: args.variants,
         seed: args.seed,
@@ -266,8 +310,19 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         external_loads: args.external_loads.clone(),
         force_plates: args.force_plates,
         datasets,
-    };
-    let mine = runner::shard_clips(&clips, shard).len() * args.variants.max(1);
+    })
+}
+
+/// Runs the chain on the clips in a pool of `--jobs` threads behind a progress bar; returns
+/// the run's report, its duration (s) and the pool (for the report pages).
+fn run_with_progress(
+    args: &Args,
+    chain: &Chain,
+    layout: &output::LayoutDescription,
+    clips: &[ClipInput],
+    run_options: &RunOptions,
+) -> Result<(runner::RunReport, f64, rayon::ThreadPool), musculo::Error> {
+    let mine = runner::shard_clips(clips, run_options.shard).len() * args.variants.max(1);
     let bar = ProgressBar::new(mine as u64).with_style(
         ProgressStyle::with_template("augment [{bar:30}] {pos}/{len} clips  {msg}  ETA {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -287,10 +342,16 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         .num_threads(args.jobs.unwrap_or(0))
         .build()
         .map_err(|e| invalid("--jobs", e.to_string()))?;
-    let report = pool.install(|| runner::run(&chain, &layout, &clips, &run_options, &progress));
+    let report = pool.install(|| runner::run(chain, layout, clips, run_options, &progress));
     bar.finish_and_clear();
     let report = report?;
     let seconds = start.elapsed().as_secs_f64();
+    Ok((report, seconds, pool))
+}
+
+/// What the run did: partial files removed, the failed clips, the first warnings, and the
+/// counts of clips and frames with the speed.
+fn print_run_summary(args: &Args, report: &runner::RunReport, seconds: f64) {
     let failed: Vec<_> = report
         .records
         .iter()
@@ -334,6 +395,11 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
         frames as f64 / seconds.max(1e-9),
         args.out.display()
     );
+}
+
+/// The three clips with the largest residual force, with their quality figures, and how
+/// many clips leave more than 5 % of the joint moments to the reserves.
+fn print_worst_clips(args: &Args, report: &runner::RunReport) {
     let mut worst: Vec<_> = report
         .records
         .iter()
@@ -375,25 +441,6 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
             args.muscle_strength
         );
     }
-    let mut verdicts = VerdictSummary::default();
-    for r in &report.records {
-        let v = output::clip_verdict(r.status, r.reason.as_deref(), r.quality.as_ref());
-        verdicts.add(&r.clip, v.as_ref());
-    }
-    print_verdicts(&verdicts, &args.out);
-    match shard {
-        Some((k, n)) => eprintln!(
-            "shard {k}/{n} done; when every shard has finished: musculo merge {}{}",
-            if args.report { "--report " } else { "" },
-            args.out.display()
-        ),
-        None => eprintln!("wrote {}", args.out.join("manifest.json").display()),
-    }
-    if args.report && shard.is_none() && report.records.len() > failed.len() {
-        let page = crate::report::dataset_report(&args.out, &args.out.join("report"), &pool)?;
-        eprintln!("wrote {}", page.display());
-    }
-    Ok(failed.is_empty() && !fails_on(&verdicts, args.fail_on))
 }
 
 /// Whether `--fail-on` makes the exit status non-zero: a clip at its verdict or worse.

@@ -5,11 +5,12 @@
 use crate::tool::{FrameProgress, missing, read_coordinates};
 use crate::warnings::{FrameWarning, frame_warnings};
 use musculo::io::output::{OutputSet, name_in_folder, with_suffix};
-use musculo::io::setup::AnalyzeSetup;
+use musculo::io::setup::{AnalyzeSetup, StaticOptimizationSetup};
 use musculo::model::Model;
 use musculo::solve::external_loads::ExternalLoadSet;
 use musculo::solve::static_optimization::{
-    SoRunOptions, SoStatus, StaticOptimization, StaticOptimizationOptions, run_static_optimization,
+    SoRun, SoRunOptions, SoStatus, StaticOptimization, StaticOptimizationOptions,
+    run_static_optimization,
 };
 use std::path::PathBuf;
 use std::time::Instant;
@@ -94,116 +95,36 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
             path.display()
         );
     }
-    let model_path = args
-        .model
-        .clone()
-        .or_else(|| setup.as_ref()?.model_file.clone())
-        .ok_or_else(|| missing("--model", "model file"))?;
-    let coordinates_path = args
-        .coordinates
-        .clone()
-        .or_else(|| setup.as_ref()?.coordinates_file.clone())
-        .ok_or_else(|| missing("--coordinates", "coordinates file"))?;
-    let loads_path = args
-        .external_loads
-        .clone()
-        .or_else(|| setup.as_ref()?.external_loads_file.clone());
-    let (force_sets, replace) = if args.actuators.is_empty() {
-        setup
-            .as_ref()
-            .map(|s| (s.force_set_files.clone(), s.replace_force_set))
-            .unwrap_or_default()
-    } else {
-        (args.actuators.clone(), false)
-    };
-    // OpenSim names the files <tool name>_<analysis name>_activation.sto.
-    let setup_stem = setup.as_ref().map(|s| {
-        let analysis = so_setup.as_ref().map_or("StaticOptimization", |a| &a.name);
-        format!("{}_{analysis}", s.name)
-    });
-    let prefix = match (&args.output, setup.as_ref()) {
-        (Some(o), _) => name_in_folder(
-            o,
-            &setup_stem
-                .clone()
-                .unwrap_or_else(|| crate::tool::stem(&coordinates_path)),
-        ),
-        (None, Some(s)) => s
-            .results_directory
-            .as_ref()
-            .zip(setup_stem.as_ref())
-            .map(|(dir, stem)| dir.join(stem))
-            .ok_or_else(|| missing("--output", "output prefix"))?,
-        (None, None) => return Err(missing("--output", "output prefix")),
-    };
-
-    let defaults = so_setup.clone().unwrap_or_default();
-    let options = StaticOptimizationOptions {
-        activation_exponent: args
-            .activation_exponent
-            .unwrap_or(defaults.activation_exponent),
-        use_muscle_physiology: defaults.use_muscle_physiology && !args.no_muscle_physiology,
-        passive_fiber_force: args.passive_fiber_force,
-        ..Default::default()
-    };
-    let mut run_options = SoRunOptions {
-        lowpass_hz: setup.as_ref().and_then(|s| s.lowpass_cutoff_hz),
-        time_range: setup
-            .as_ref()
-            .and_then(|s| match (s.initial_time, s.final_time) {
-                (Some(a), Some(b)) => Some([a, b]),
-                _ => None,
-            }),
-        step_interval: args.step_interval.unwrap_or(defaults.step_interval),
-    };
-    if let Some(hz) = args.lowpass {
-        run_options.lowpass_hz = (hz > 0.0).then_some(hz);
-    }
-    if let Some(r) = &args.time_range {
-        run_options.time_range = Some([r[0], r[1]]);
-    }
-
+    let paths = SoPaths::resolve(args, setup.as_ref(), so_setup.as_ref())?;
+    let (options, run_options) = so_options(args, setup.as_ref(), so_setup);
     let model = Model::from_osim_file_with_force_sets(
-        &model_path,
+        &paths.model,
         &args.strict.load_options(),
-        &force_sets,
-        replace,
+        &paths.force_sets,
+        paths.replace,
     )?;
     crate::warnings::print_model(&model);
     crate::warnings::require_movable(&model)?;
     let so = StaticOptimization::new(&model, options)?;
     let coordinates = read_coordinates(
         &model,
-        &coordinates_path,
+        &paths.coordinates,
         args.missing_coordinates_at_default,
     )?;
-    let loads = loads_path
-        .as_deref()
+    let loads = (paths.loads.as_deref())
         .map(|p| ExternalLoadSet::read(&model, p))
         .transpose()?;
     if let Some(l) = &loads {
         crate::warnings::print(&l.warnings);
     }
-    let data_path = loads.as_ref().map(|l| PathBuf::from(&l.data_source));
-    let inputs = [&model_path, &coordinates_path]
-        .into_iter()
-        .chain(&loads_path)
-        .chain(&data_path)
-        .chain(&force_sets)
-        .chain(&args.setup);
-    let mut outputs = OutputSet::new(inputs.map(PathBuf::as_path));
-    let activation_path = with_suffix(&prefix, "_activation.sto");
-    let force_path = with_suffix(&prefix, "_force.sto");
-    outputs.check(&activation_path)?;
-    outputs.check(&force_path)?;
-
+    let (mut outputs, activation_path, force_path) = checked_outputs(args, &paths, loads.as_ref())?;
     let progress = FrameProgress::new("static optimization");
     let start = Instant::now();
     let result = run_static_optimization(
         &model,
         &so,
         &coordinates,
-        &coordinates_path.display().to_string(),
+        &paths.coordinates.display().to_string(),
         loads.as_ref(),
         &run_options,
         &mut |done, total| progress.update(done, total),
@@ -214,7 +135,162 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    let problems: Vec<FrameWarning> = (out.problems.iter())
+    let frames = out.activation.n_rows();
+    for line in frame_warnings("frame(s) not solved exactly", frames, &frame_problems(&out)) {
+        eprintln!("warning: {line}");
+    }
+    outputs.add(
+        &activation_path,
+        out.activation.to_file_string()?.as_bytes(),
+    )?;
+    outputs.add(&force_path, out.force.to_file_string()?.as_bytes())?;
+    crate::tool::commit(outputs)?;
+    let rows = out.activation.n_rows();
+    eprintln!(
+        "wrote {} and {}: {} frames ({:.6} – {:.6} s) × {} actuators ({} muscles); {} frame(s) \
+         not solved exactly; {:.3} s ({:.0} frames/s)",
+        activation_path.display(),
+        force_path.display(),
+        rows,
+        out.activation.time[0],
+        out.activation.time[rows - 1],
+        so.actuators.len(),
+        so.muscles.len(),
+        out.problems.len(),
+        seconds,
+        rows as f64 / seconds
+    );
+    Ok(())
+}
+
+/// The files of a run, from the command line or else the setup: model, coordinates,
+/// external loads, force sets (and whether they replace the model's) and output prefix.
+struct SoPaths {
+    model: PathBuf,
+    coordinates: PathBuf,
+    loads: Option<PathBuf>,
+    force_sets: Vec<PathBuf>,
+    replace: bool,
+    prefix: PathBuf,
+}
+
+impl SoPaths {
+    fn resolve(
+        args: &Args,
+        setup: Option<&AnalyzeSetup>,
+        so_setup: Option<&StaticOptimizationSetup>,
+    ) -> Result<SoPaths, musculo::Error> {
+        let model = args
+            .model
+            .clone()
+            .or_else(|| setup?.model_file.clone())
+            .ok_or_else(|| missing("--model", "model file"))?;
+        let coordinates = args
+            .coordinates
+            .clone()
+            .or_else(|| setup?.coordinates_file.clone())
+            .ok_or_else(|| missing("--coordinates", "coordinates file"))?;
+        let loads = args
+            .external_loads
+            .clone()
+            .or_else(|| setup?.external_loads_file.clone());
+        let (force_sets, replace) = if args.actuators.is_empty() {
+            setup
+                .map(|s| (s.force_set_files.clone(), s.replace_force_set))
+                .unwrap_or_default()
+        } else {
+            (args.actuators.clone(), false)
+        };
+        // OpenSim names the files <tool name>_<analysis name>_activation.sto.
+        let setup_stem = setup.map(|s| {
+            let analysis = so_setup.map_or("StaticOptimization", |a| &a.name);
+            format!("{}_{analysis}", s.name)
+        });
+        let prefix = match (&args.output, setup) {
+            (Some(o), _) => name_in_folder(
+                o,
+                &setup_stem
+                    .clone()
+                    .unwrap_or_else(|| crate::tool::stem(&coordinates)),
+            ),
+            (None, Some(s)) => s
+                .results_directory
+                .as_ref()
+                .zip(setup_stem.as_ref())
+                .map(|(dir, stem)| dir.join(stem))
+                .ok_or_else(|| missing("--output", "output prefix"))?,
+            (None, None) => return Err(missing("--output", "output prefix")),
+        };
+        Ok(SoPaths {
+            model,
+            coordinates,
+            loads,
+            force_sets,
+            replace,
+            prefix,
+        })
+    }
+}
+
+/// Static optimization's options and the run's (filter, time range, step), from the
+/// command line over the setup over OpenSim's defaults.
+fn so_options(
+    args: &Args,
+    setup: Option<&AnalyzeSetup>,
+    so_setup: Option<StaticOptimizationSetup>,
+) -> (StaticOptimizationOptions, SoRunOptions) {
+    let defaults = so_setup.unwrap_or_default();
+    let options = StaticOptimizationOptions {
+        activation_exponent: args
+            .activation_exponent
+            .unwrap_or(defaults.activation_exponent),
+        use_muscle_physiology: defaults.use_muscle_physiology && !args.no_muscle_physiology,
+        passive_fiber_force: args.passive_fiber_force,
+        ..Default::default()
+    };
+    let mut run_options = SoRunOptions {
+        lowpass_hz: setup.and_then(|s| s.lowpass_cutoff_hz),
+        time_range: setup.and_then(|s| match (s.initial_time, s.final_time) {
+            (Some(a), Some(b)) => Some([a, b]),
+            _ => None,
+        }),
+        step_interval: args.step_interval.unwrap_or(defaults.step_interval),
+    };
+    if let Some(hz) = args.lowpass {
+        run_options.lowpass_hz = (hz > 0.0).then_some(hz);
+    }
+    if let Some(r) = &args.time_range {
+        run_options.time_range = Some([r[0], r[1]]);
+    }
+    (options, run_options)
+}
+
+/// The output set (which refuses to overwrite an input) with the activation and force
+/// files checked before the run.
+fn checked_outputs(
+    args: &Args,
+    paths: &SoPaths,
+    loads: Option<&ExternalLoadSet>,
+) -> Result<(OutputSet, PathBuf, PathBuf), musculo::Error> {
+    let data_path = loads.map(|l| PathBuf::from(&l.data_source));
+    let inputs = [&paths.model, &paths.coordinates]
+        .into_iter()
+        .chain(&paths.loads)
+        .chain(&data_path)
+        .chain(&paths.force_sets)
+        .chain(&args.setup);
+    let outputs = OutputSet::new(inputs.map(PathBuf::as_path));
+    let activation_path = with_suffix(&paths.prefix, "_activation.sto");
+    let force_path = with_suffix(&paths.prefix, "_force.sto");
+    outputs.check(&activation_path)?;
+    outputs.check(&force_path)?;
+    Ok((outputs, activation_path, force_path))
+}
+
+/// The frames static optimization did not solve exactly, as warnings: the status and the
+/// coordinates left unbalanced (τ − Σ r F x) above tolerance.
+fn frame_problems(out: &SoRun) -> Vec<FrameWarning> {
+    (out.problems.iter())
         .map(|p| {
             let what = match p.status {
                 SoStatus::Infeasible => "infeasible (the actuators cannot produce τ)",
@@ -242,31 +318,5 @@ pub fn run(args: &Args) -> Result<(), musculo::Error> {
                 ),
             }
         })
-        .collect();
-    let frames = out.activation.n_rows();
-    for line in frame_warnings("frame(s) not solved exactly", frames, &problems) {
-        eprintln!("warning: {line}");
-    }
-    outputs.add(
-        &activation_path,
-        out.activation.to_file_string()?.as_bytes(),
-    )?;
-    outputs.add(&force_path, out.force.to_file_string()?.as_bytes())?;
-    crate::tool::commit(outputs)?;
-    let rows = out.activation.n_rows();
-    eprintln!(
-        "wrote {} and {}: {} frames ({:.6} – {:.6} s) × {} actuators ({} muscles); {} frame(s) \
-         not solved exactly; {:.3} s ({:.0} frames/s)",
-        activation_path.display(),
-        force_path.display(),
-        rows,
-        out.activation.time[0],
-        out.activation.time[rows - 1],
-        so.actuators.len(),
-        so.muscles.len(),
-        out.problems.len(),
-        seconds,
-        rows as f64 / seconds
-    );
-    Ok(())
+        .collect()
 }
