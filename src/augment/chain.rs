@@ -19,7 +19,8 @@
 
 use super::layout::{JointFrame, JointLayout, LayoutWorkspace};
 use super::perturb::Variant;
-use super::verdict::{self, ClipVerdict};
+use super::verdict;
+pub use super::verdict::{ClipQuality, IK_ERROR_WARNED};
 use crate::dynamics::{self, Data};
 use crate::error::Error;
 use crate::io::Table;
@@ -122,110 +123,6 @@ pub struct Array {
     pub name: &'static str,
     pub shape: Vec<usize>,
     pub values: Vec<f32>,
-}
-
-/// Quality figures of one clip (the manifest's per-clip entry).
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize, PartialEq)]
-pub struct ClipQuality {
-    pub frames: usize,
-    pub rate_hz: f64,
-    /// Median over frames of the per-frame marker/joint RMSE of IK (m).
-    pub ik_rmse_median: f64,
-    /// Largest single marker/joint error of IK (m).
-    pub ik_error_max: f64,
-    /// Frames with a coordinate at its bound after IK.
-    pub ik_frames_at_bound: usize,
-    /// The model markers (or joint-centre markers) IK fitted, in the column order of the array
-    /// `ik_marker_error`.
-    #[serde(default)]
-    pub ik_markers: Vec<String>,
-    /// Share of the frames (of [`ClipQuality::frames`]) that ended IK with a coordinate at its
-    /// bound.
-    #[serde(default)]
-    pub ik_frames_at_bound_share: f64,
-    /// Peak residual force: the largest |τ| over the floating base's translational rows and
-    /// the frames (what no contact explained, carried by the residual actuators), relative
-    /// to body weight m·g.
-    pub residual_force_max_bw: f64,
-    /// RMS residual force: the largest over the translational floating-base rows of the RMS
-    /// over frames of that row's τ, relative to body weight (as OpenSim reports the RMS of
-    /// each residual actuator).
-    #[serde(default)]
-    pub residual_force_rms_bw: f64,
-    /// Largest residual moment (N·m) about the pelvis coordinates.
-    pub residual_moment_max: f64,
-    /// [`ClipQuality::residual_moment_max`] relative to body weight × 1 m (m·g · 1 m).
-    #[serde(default)]
-    pub residual_moment_max_bwm: f64,
-    /// RMS residual moment: the largest over the rotational floating-base rows of the RMS
-    /// over frames, relative to body weight × 1 m.
-    #[serde(default)]
-    pub residual_moment_rms_bwm: f64,
-    /// Σ|reserve moments| / Σ|joint moments| over the joint coordinates and frames.
-    pub reserve_share: f64,
-    /// The largest, over the joint coordinates, of the coordinate's peak |reserve| over its
-    /// peak |joint moment| (OpenSim's "peak reserve torque / peak joint torque"); 0 without
-    /// muscles. Coordinates whose peak joint moment stays below the reserve's optimal force
-    /// ([`ChainOptions::reserve_optimal_force`], 1 N·m) are left out: there the reserve's
-    /// control stays below 1, where static optimization's cost x² prices it like a muscle's
-    /// activation, and a share of a few hundredths of a N·m (the default model's forearm
-    /// rotation: 0.04 of 0.008 N·m) says nothing about the muscles' strength.
-    #[serde(default)]
-    pub reserve_peak_share: f64,
-    /// The coordinate of [`ClipQuality::reserve_peak_share`].
-    #[serde(default)]
-    pub reserve_peak_coordinate: String,
-    /// The coordinates whose reserves carry most, with their share of the same total
-    /// (Σ|reserve_c| / Σ|joint moments|), largest first (at most 5).
-    pub reserve_by_coordinate: Vec<(String, f64)>,
-    /// Frames static optimization could not solve exactly.
-    pub so_unsolved_frames: usize,
-    /// Muscle samples of the clip: frames × muscles (0 without muscles); the "of how many"
-    /// of [`ClipQuality::clamped_excitations`] and
-    /// [`ClipQuality::muscle_samples_at_full_activation`].
-    #[serde(default)]
-    pub muscle_samples: usize,
-    /// Muscle samples whose activation static optimization left on its upper bound (1): the
-    /// muscle gives all it has, and any more is carried by the coordinate's reserve. The QP
-    /// projects its iterates onto the bounds, so a saturated activation sits on the bound to
-    /// round-off (counted within 10⁻⁹ of it).
-    #[serde(default)]
-    pub muscle_samples_at_full_activation: usize,
-    /// [`ClipQuality::muscle_samples_at_full_activation`] / [`ClipQuality::muscle_samples`]
-    /// (0 without muscles).
-    #[serde(default)]
-    pub full_activation_share: f64,
-    /// Excitation samples that inverse activation dynamics had to clamp to the excitation
-    /// range by more than [`CLAMP_REPORTED`]: where static optimization's activations change
-    /// faster than activation dynamics allow.
-    pub clamped_excitations: usize,
-    /// Fraction of frames with at least one contact.
-    pub contact_fraction: f64,
-    /// Share of the clip's vertical support demand that the contact forces carry:
-    /// Σ_t min(G_t⁺, D_t⁺) / Σ_t D_t⁺, with D_t = up·(Σ_i m_i (a_i − g)) the vertical
-    /// external force the body's motion needs at frame t (the force the root joint transmits
-    /// in inverse dynamics) and G_t the vertical component of all contact forces at t
-    /// (estimated, or measured with `--external-loads`/`--force-plates`); x⁺ = max(x, 0).
-    /// 1: the contacts carry all the support; what they miss is carried by the residual
-    /// actuators. None when the clip needs no support (no gravity, or all in flight).
-    #[serde(default)]
-    pub contact_consistency: Option<f64>,
-    /// Body mass (kg) and height scale of the model used.
-    pub body_mass: f64,
-    /// Whether the contact estimate took the floor as a treadmill (given, or detected from
-    /// the stance feet), and the belt's velocity in ground (m/s; zeros for a floor at rest or
-    /// measured loads).
-    #[serde(default)]
-    pub treadmill: bool,
-    #[serde(default)]
-    pub belt_velocity: [f64; 3],
-    /// Body weight m·g (N) of the model used: the unit of the residual figures.
-    #[serde(default)]
-    pub body_weight: f64,
-    /// The verdict on the clip ([`super::verdict`]); None in records written before verdicts
-    /// existed.
-    #[serde(default)]
-    pub verdict: Option<ClipVerdict>,
 }
 
 /// Everything the chain computed for one clip.
@@ -369,7 +266,7 @@ impl Chain {
                 } else {
                     None
                 };
-                scale = Some((s.scales, super::output::fnv1a_hex(&s.scaled_xml)));
+                scale = Some((s.scales, super::identity::fnv1a_hex(&s.scaled_xml)));
                 (s.model, xml)
             }
             _ => (self.model.clone(), None),
@@ -449,7 +346,7 @@ impl Chain {
         let arrays = self.output_arrays(clip, excitation);
         check_finite(&arrays)?;
         quality.verdict = Some(verdict::judge(&quality));
-        identity.osim_hash = model_xml.as_deref().map(super::output::fnv1a_hex);
+        identity.osim_hash = model_xml.as_deref().map(super::identity::fnv1a_hex);
         Ok(ClipOutput {
             arrays,
             quality,
@@ -1147,11 +1044,6 @@ fn vertical_support_demand(model: &Model, data: &Data) -> f64 {
         .sum();
     vertical(model, needed)
 }
-
-/// IK's worst single error (m) above which a clip's warnings say that IK could not follow
-/// it: a fitting map leaves tens of millimetres (HumanML3D's sample 176 mm at most, with its
-/// arms overhead beyond the model's ranges); metres mean a wrong map, axes or unit.
-pub const IK_ERROR_WARNED: f64 = 0.3;
 
 /// Every emitted value finite (NaN only in `ik_marker_error`, where a target was missing):
 /// a value beyond float32's range (a model of 10³⁰⁰ kg, a muscle strength of 10³⁰⁰, a

@@ -31,7 +31,6 @@
 //! the earlier rule — `--model`, else `<clip>.osim` beside it, else the built-in model — with
 //! a warning saying so.
 
-use super::output::fnv1a_hex;
 use super::perturb::{LoadSite, Variant};
 use crate::error::Error;
 use crate::model::Model;
@@ -439,4 +438,13 @@ impl Bodies {
             ),
         ))
     }
+}
+
+/// FNV-1a 64-bit hash of `text`, as 16 hex digits.
+pub fn fnv1a_hex(text: &str) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in text.bytes() {
+        h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+    }
+    format!("{h:016x}")
 }

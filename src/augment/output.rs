@@ -21,10 +21,11 @@
 //! (`.<name>.tmp-…`), which a later run removes once their writer has certainly ended
 //! ([`remove_temporaries`]).
 
-use super::chain::{Array, ClipOutput, ClipQuality};
+use super::chain::{Array, ClipOutput};
+pub use super::identity::fnv1a_hex;
 use super::layout::BlockRange;
 use super::perturb::{PerturbationRanges, Variant};
-use super::verdict::{ClipVerdict, Verdict};
+use super::verdict::{ClipQuality, ClipVerdict, Verdict};
 use crate::error::Error;
 use crate::motion::npy;
 use ndarray::{ArrayD, IxDyn};
@@ -755,13 +756,4 @@ pub fn write_manifest(
         .map_err(|e| Error::invalid("manifest", e.to_string()))?;
     npy::write_file_atomic(&out.join("manifest.json"), text.as_bytes())?;
     Ok(manifest)
-}
-
-/// FNV-1a 64-bit hash of `text`, as 16 hex digits.
-pub fn fnv1a_hex(text: &str) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in text.bytes() {
-        h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-    }
-    format!("{h:016x}")
 }
