@@ -241,44 +241,22 @@ impl ReductionTangents {
 
     /// The tangents at the state of the last [`evaluate_position`] and [`evaluate_velocity`]
     /// in `data`, with accelerations q̈.
+    ///
+    /// Steps: n̈ of every node; Φ; g‴ of the one-argument functions; then per direction k the
+    /// forward-mode tangents along q_k (giving ∂θ̇/∂q, ∂θ̈/∂q and ∂Φ/∂q_k) and along q̇_k
+    /// (giving ∂θ̈/∂q̇), over only the nodes that depend on q_k.
     pub fn compute(&mut self, model: &Model, data: &Data, qdd: &[f64]) {
         let r = &model.reduction;
         let nc = r.n_coordinates;
         let ne = r.dep_index.len();
-        let Data {
-            node_value,
-            node_vel,
-            node_acc_bias,
-            node_grad,
-            node_g1,
-            node_g2,
-            ..
-        } = data;
-        // n̈ of every node: (∂n/∂q) q̈ + (Φ̇q̇)_n
-        for i in 0..r.nodes.len() {
-            let mut a = node_acc_bias[i];
-            for e in r.dep_start[i]..r.dep_start[i + 1] {
-                a += node_grad[e] * qdd[r.dep_index[e]];
-            }
-            self.node_acc[i] = a;
-        }
+        node_accelerations(model, data, qdd, &mut self.node_acc);
         // Φ's sparsity is fixed: only its non-zero pattern is written.
         for d in 0..model.n_full() {
             for e in r.phi_row(d) {
-                self.phi[(d, r.dep_index[e])] = node_grad[e];
+                self.phi[(d, r.dep_index[e])] = data.node_grad[e];
             }
         }
-        for (i, node) in r.nodes.iter().enumerate() {
-            if let NodeKind::Function {
-                function,
-                args,
-                scale,
-            } = node
-                && args.len() == 1
-            {
-                self.node_g3[i] = scale * function.third_derivative1(node_value[args[0]]);
-            }
-        }
+        third_derivatives(model, data, &mut self.node_g3);
         let ReductionTangents {
             theta_dot_q,
             theta_ddot_q,
@@ -295,117 +273,222 @@ impl ReductionTangents {
             k_full,
             ..
         } = self;
+        let nd = NodeDerivatives {
+            vel: &data.node_vel,
+            acc: node_acc,
+            grad: &data.node_grad,
+            g1: &data.node_g1,
+            g2: &data.node_g2,
+            g3: node_g3,
+        };
+        let mut t = Tangent {
+            val: t_val,
+            vel: t_vel,
+            acc: t_acc,
+        };
         for k in 0..model.nq() {
             let t_grad = &mut grad_q[k * ne..(k + 1) * ne];
             let nodes_k = &k_nodes[k_nodes_start[k]..k_nodes_start[k + 1]];
             let full_k = &k_full[k_full_start[k]..k_full_start[k + 1]];
             // --- direction q_k (tangents of nodes that do not depend on q_k stay 0) ---
-            for &i in nodes_k {
-                let g = r.dep_start[i]..r.dep_start[i + 1];
-                match &r.nodes[i] {
-                    NodeKind::Independent(j) => {
-                        t_val[i] = if *j == k { 1.0 } else { 0.0 };
-                        t_vel[i] = 0.0;
-                        t_acc[i] = 0.0;
-                        t_grad[g].fill(0.0);
-                    }
-                    NodeKind::Constant(_) => {
-                        t_val[i] = 0.0;
-                        t_vel[i] = 0.0;
-                        t_acc[i] = 0.0;
-                    }
-                    NodeKind::Affine { arg, slope, .. } => {
-                        t_val[i] = slope * t_val[*arg];
-                        t_vel[i] = slope * t_vel[*arg];
-                        t_acc[i] = slope * t_acc[*arg];
-                        let src = r.dep_start[*arg];
-                        for (t, e) in g.enumerate() {
-                            t_grad[e] = slope * t_grad[src + t];
-                        }
-                    }
-                    NodeKind::Function { args, .. } => {
-                        let nargs = args.len();
-                        let g1 = &node_g1[r.arg_start[i]..r.arg_start[i] + nargs];
-                        let g2 = &node_g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
-                        let (mut tv, mut tvel, mut tacc) = (0.0, 0.0, 0.0);
-                        for (ai, &a) in args.iter().enumerate() {
-                            tv += g1[ai] * t_val[a];
-                            tvel += g1[ai] * t_vel[a];
-                            tacc += g1[ai] * t_acc[a];
-                            for (bi, &b) in args.iter().enumerate() {
-                                let gab = g2[ai * nargs + bi];
-                                tvel += gab * t_val[b] * node_vel[a];
-                                tacc += gab
-                                    * (t_val[b] * node_acc[a]
-                                        + t_vel[a] * node_vel[b]
-                                        + node_vel[a] * t_vel[b]);
-                            }
-                        }
-                        if nargs == 1 {
-                            let c = args[0];
-                            tacc += node_g3[i] * t_val[c] * node_vel[c] * node_vel[c];
-                        }
-                        t_val[i] = tv;
-                        t_vel[i] = tvel;
-                        t_acc[i] = tacc;
-                        for e in g {
-                            t_grad[e] = 0.0;
-                        }
-                        for s in &r.scatter[r.scatter_start[i]..r.scatter_start[i + 1]] {
-                            let mut w = 0.0;
-                            for (bi, &b) in args.iter().enumerate() {
-                                w += g2[s.arg * nargs + bi] * t_val[b];
-                            }
-                            t_grad[s.dst] += g1[s.arg] * t_grad[s.src] + w * node_grad[s.src];
-                        }
-                    }
-                }
-            }
+            tangents_along_q(model, &nd, k, nodes_k, &mut t, t_grad);
             for &d in full_k {
-                theta_dot_q[(d, k)] = t_vel[nc + d];
-                theta_ddot_q[(d, k)] = t_acc[nc + d];
+                theta_dot_q[(d, k)] = t.vel[nc + d];
+                theta_ddot_q[(d, k)] = t.acc[nc + d];
             }
             for &i in nodes_k {
-                t_val[i] = 0.0;
+                t.val[i] = 0.0;
             }
             // --- direction q̇_k ---
+            tangents_along_qd(model, &nd, k, nodes_k, &mut t);
+            for &d in full_k {
+                theta_ddot_qd[(d, k)] = t.acc[nc + d];
+            }
             for &i in nodes_k {
-                match &r.nodes[i] {
-                    NodeKind::Independent(j) => {
-                        t_vel[i] = if *j == k { 1.0 } else { 0.0 };
-                        t_acc[i] = 0.0;
-                    }
-                    NodeKind::Constant(_) => {
-                        t_vel[i] = 0.0;
-                        t_acc[i] = 0.0;
-                    }
-                    NodeKind::Affine { arg, slope, .. } => {
-                        t_vel[i] = slope * t_vel[*arg];
-                        t_acc[i] = slope * t_acc[*arg];
-                    }
-                    NodeKind::Function { args, .. } => {
-                        let nargs = args.len();
-                        let g1 = &node_g1[r.arg_start[i]..r.arg_start[i] + nargs];
-                        let g2 = &node_g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
-                        let (mut tvel, mut tacc) = (0.0, 0.0);
-                        for (ai, &a) in args.iter().enumerate() {
-                            tvel += g1[ai] * t_vel[a];
-                            tacc += g1[ai] * t_acc[a];
-                            for (bi, &b) in args.iter().enumerate() {
-                                tacc += 2.0 * g2[ai * nargs + bi] * t_vel[a] * node_vel[b];
-                            }
-                        }
-                        t_vel[i] = tvel;
-                        t_acc[i] = tacc;
-                    }
+                t.vel[i] = 0.0;
+                t.acc[i] = 0.0;
+            }
+        }
+    }
+}
+
+/// n̈ of every node: (∂n/∂q) q̈ + (Φ̇q̇)_n.
+#[inline]
+fn node_accelerations(model: &Model, data: &Data, qdd: &[f64], node_acc: &mut [f64]) {
+    let r = &model.reduction;
+    for i in 0..r.nodes.len() {
+        let mut a = data.node_acc_bias[i];
+        for e in r.dep_start[i]..r.dep_start[i + 1] {
+            a += data.node_grad[e] * qdd[r.dep_index[e]];
+        }
+        node_acc[i] = a;
+    }
+}
+
+/// g‴ = s f‴ of each one-argument function node at the current state.
+#[inline]
+fn third_derivatives(model: &Model, data: &Data, node_g3: &mut [f64]) {
+    for (i, node) in model.reduction.nodes.iter().enumerate() {
+        if let NodeKind::Function {
+            function,
+            args,
+            scale,
+        } = node
+            && args.len() == 1
+        {
+            node_g3[i] = scale * function.third_derivative1(data.node_value[args[0]]);
+        }
+    }
+}
+
+/// Every node's ṅ, n̈, ∂n/∂q and its function's derivatives g_a, g_ab, g‴ at the current state.
+struct NodeDerivatives<'a> {
+    vel: &'a [f64],
+    acc: &'a [f64],
+    grad: &'a [f64],
+    g1: &'a [f64],
+    g2: &'a [f64],
+    g3: &'a [f64],
+}
+
+/// Tangents t(n), t(ṅ), t(n̈) of every node along one direction (zero off the direction's
+/// nodes between directions).
+struct Tangent<'a> {
+    val: &'a mut [f64],
+    vel: &'a mut [f64],
+    acc: &'a mut [f64],
+}
+
+/// Direction q_k: t(n), t(ṅ), t(n̈) and t(∂n/∂q) (into `t_grad`) of the nodes that depend on
+/// q_k, in evaluation order.
+#[inline]
+fn tangents_along_q(
+    model: &Model,
+    nd: &NodeDerivatives,
+    k: usize,
+    nodes_k: &[usize],
+    t: &mut Tangent,
+    t_grad: &mut [f64],
+) {
+    let r = &model.reduction;
+    for &i in nodes_k {
+        let g = r.dep_start[i]..r.dep_start[i + 1];
+        match &r.nodes[i] {
+            NodeKind::Independent(j) => {
+                t.val[i] = if *j == k { 1.0 } else { 0.0 };
+                t.vel[i] = 0.0;
+                t.acc[i] = 0.0;
+                t_grad[g].fill(0.0);
+            }
+            NodeKind::Constant(_) => {
+                t.val[i] = 0.0;
+                t.vel[i] = 0.0;
+                t.acc[i] = 0.0;
+            }
+            NodeKind::Affine { arg, slope, .. } => {
+                t.val[i] = slope * t.val[*arg];
+                t.vel[i] = slope * t.vel[*arg];
+                t.acc[i] = slope * t.acc[*arg];
+                let src = r.dep_start[*arg];
+                for (s, e) in g.enumerate() {
+                    t_grad[e] = slope * t_grad[src + s];
                 }
             }
-            for &d in full_k {
-                theta_ddot_qd[(d, k)] = t_acc[nc + d];
+            NodeKind::Function { args, .. } => {
+                function_tangent_along_q(model, nd, i, args, t, t_grad);
             }
-            for &i in nodes_k {
-                t_vel[i] = 0.0;
-                t_acc[i] = 0.0;
+        }
+    }
+}
+
+/// Direction q_k at function node i (type-level formulas above [`ReductionTangents`]):
+/// t(n) = Σ_a g_a t(c_a), t(ṅ) = Σ_a g_a t(ċ_a) + Σ_ab g_ab t(c_b) ċ_a,
+/// t(n̈) = Σ_a g_a t(c̈_a) + Σ_ab g_ab (t(c_b) c̈_a + t(ċ_a) ċ_b + ċ_a t(ċ_b)) + g‴ t(c) ċ²,
+/// t(∂n/∂q) = Σ_a (g_a t(∂c_a/∂q) + Σ_b g_ab t(c_b) ∂c_a/∂q) through the scatter plan.
+#[inline]
+fn function_tangent_along_q(
+    model: &Model,
+    nd: &NodeDerivatives,
+    i: usize,
+    args: &[usize],
+    t: &mut Tangent,
+    t_grad: &mut [f64],
+) {
+    let r = &model.reduction;
+    let (node_vel, node_acc) = (nd.vel, nd.acc);
+    let nargs = args.len();
+    let g1 = &nd.g1[r.arg_start[i]..r.arg_start[i] + nargs];
+    let g2 = &nd.g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
+    let (mut tv, mut tvel, mut tacc) = (0.0, 0.0, 0.0);
+    for (ai, &a) in args.iter().enumerate() {
+        tv += g1[ai] * t.val[a];
+        tvel += g1[ai] * t.vel[a];
+        tacc += g1[ai] * t.acc[a];
+        for (bi, &b) in args.iter().enumerate() {
+            let gab = g2[ai * nargs + bi];
+            tvel += gab * t.val[b] * node_vel[a];
+            tacc +=
+                gab * (t.val[b] * node_acc[a] + t.vel[a] * node_vel[b] + node_vel[a] * t.vel[b]);
+        }
+    }
+    if nargs == 1 {
+        let c = args[0];
+        tacc += nd.g3[i] * t.val[c] * node_vel[c] * node_vel[c];
+    }
+    t.val[i] = tv;
+    t.vel[i] = tvel;
+    t.acc[i] = tacc;
+    for e in r.dep_start[i]..r.dep_start[i + 1] {
+        t_grad[e] = 0.0;
+    }
+    for s in &r.scatter[r.scatter_start[i]..r.scatter_start[i + 1]] {
+        let mut w = 0.0;
+        for (bi, &b) in args.iter().enumerate() {
+            w += g2[s.arg * nargs + bi] * t.val[b];
+        }
+        t_grad[s.dst] += g1[s.arg] * t_grad[s.src] + w * nd.grad[s.src];
+    }
+}
+
+/// Direction q̇_k: u(ṅ) = ∂n/∂q_k and u(n̈) = Σ_a g_a u(c̈_a) + 2 Σ_ab g_ab u(ċ_a) ċ_b of the
+/// nodes that depend on q_k, in evaluation order.
+#[inline]
+fn tangents_along_qd(
+    model: &Model,
+    nd: &NodeDerivatives,
+    k: usize,
+    nodes_k: &[usize],
+    t: &mut Tangent,
+) {
+    let r = &model.reduction;
+    for &i in nodes_k {
+        match &r.nodes[i] {
+            NodeKind::Independent(j) => {
+                t.vel[i] = if *j == k { 1.0 } else { 0.0 };
+                t.acc[i] = 0.0;
+            }
+            NodeKind::Constant(_) => {
+                t.vel[i] = 0.0;
+                t.acc[i] = 0.0;
+            }
+            NodeKind::Affine { arg, slope, .. } => {
+                t.vel[i] = slope * t.vel[*arg];
+                t.acc[i] = slope * t.acc[*arg];
+            }
+            NodeKind::Function { args, .. } => {
+                let nargs = args.len();
+                let g1 = &nd.g1[r.arg_start[i]..r.arg_start[i] + nargs];
+                let g2 = &nd.g2[r.hess_start[i]..r.hess_start[i] + nargs * nargs];
+                let (mut tvel, mut tacc) = (0.0, 0.0);
+                for (ai, &a) in args.iter().enumerate() {
+                    tvel += g1[ai] * t.vel[a];
+                    tacc += g1[ai] * t.acc[a];
+                    for (bi, &b) in args.iter().enumerate() {
+                        tacc += 2.0 * g2[ai * nargs + bi] * t.vel[a] * nd.vel[b];
+                    }
+                }
+                t.vel[i] = tvel;
+                t.acc[i] = tacc;
             }
         }
     }

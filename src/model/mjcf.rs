@@ -16,7 +16,10 @@
 //! muscle curves replace the Hill-type ones (optimal fibre and tendon slack lengths and the
 //! maximum force and velocity are kept).
 
-use super::{ContactShape, DofKind, JointStep, Model, PathPointKind, WrapShape};
+use super::{
+    ContactShape, DofKind, ForceElement, GeometryPath, JointStep, Model, PathPointKind, WrapObject,
+    WrapShape,
+};
 use crate::dynamics::{self, Data};
 use crate::spatial::{Mat3, Transform, Vec3};
 use nalgebra::{DMatrix, DVector, UnitQuaternion};
@@ -92,21 +95,84 @@ fn fit_quartic(x: &[f64], y: &[f64]) -> Option<([f64; 5], f64)> {
 }
 
 /// Exports `model` to MJCF.
+///
+/// The stages, in the order their notes are listed: per-body sites and geoms (markers,
+/// contact geometry, wrap objects), tendons and muscles, couplings, then the document:
+/// header, body tree, equalities, keyframe, tendons and actuators.
 pub fn to_mjcf(model: &Model) -> MjcfExport {
     let mut notes = Vec::new();
+    let children = joints_by_parent_body(model);
+    let pose = DefaultPose::new(model);
+
+    let mut body_extra: Vec<String> = vec![String::new(); model.bodies.len()];
+    write_markers(model, &mut body_extra);
+    write_contact_geoms(model, &mut body_extra);
+    let wrap_ok = write_wrap_geoms(model, &mut body_extra, &mut notes);
+    let paths = PathExport {
+        model,
+        pose: &pose,
+        wrap_ok: &wrap_ok,
+    };
+    let (tendons, actuators) = write_tendons_and_muscles(&paths, &mut body_extra, &mut notes);
+
+    // Couplings: every full coordinate that is a function of an independent coordinate other
+    // than the reference axis of that coordinate becomes a joint equality constraint.
+    let (equalities, limits) = couplings(model, &mut notes);
+
     let mut out = String::new();
-    let nb = model.bodies.len();
-    let mut children: Vec<Vec<usize>> = vec![Vec::new(); nb];
+    write_header(model, &mut out, &mut notes);
+    let tree = BodyTree {
+        model,
+        children: &children,
+        body_extra: &body_extra,
+        limits: &limits,
+    };
+    write_worldbody(&tree, &mut out, &mut notes);
+    if !equalities.is_empty() {
+        let _ = writeln!(out, "<equality>\n{equalities}</equality>");
+    }
+    write_default_keyframe(model, &pose, &children, &mut out);
+    if !tendons.is_empty() {
+        let _ = writeln!(out, "<tendon>\n{tendons}</tendon>");
+    }
+    if !actuators.is_empty() {
+        let _ = writeln!(out, "<actuator>\n{actuators}</actuator>");
+    }
+    out += "</mujoco>\n";
+    for w in &model.warnings {
+        if w.message.contains("NOT enforced") {
+            notes.push(format!("{}: {}", w.element, w.message));
+        }
+    }
+    MjcfExport { xml: out, notes }
+}
+
+/// The joints whose parent is each body, in model order.
+fn joints_by_parent_body(model: &Model) -> Vec<Vec<usize>> {
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); model.bodies.len()];
     for (j, joint) in model.joints.iter().enumerate() {
         children[joint.parent_body].push(j);
     }
-    // The default pose, for choosing the path segment each wrap object belongs to.
-    let mut data = Data::new(model);
-    let q0 = model.default_q();
-    let fk_ok = dynamics::forward_kinematics(model, &mut data, &q0).is_ok();
+    children
+}
 
-    // Sites, geoms and inertia per body.
-    let mut body_extra: Vec<String> = vec![String::new(); nb];
+/// Kinematics at the model's default pose; `fk_ok` is false when they could not be computed.
+struct DefaultPose {
+    data: Data,
+    fk_ok: bool,
+}
+
+impl DefaultPose {
+    fn new(model: &Model) -> Self {
+        let mut data = Data::new(model);
+        let q0 = model.default_q();
+        let fk_ok = dynamics::forward_kinematics(model, &mut data, &q0).is_ok();
+        Self { data, fk_ok }
+    }
+}
+
+/// A `<site>` per marker, in its body.
+fn write_markers(model: &Model, body_extra: &mut [String]) {
     for m in &model.markers {
         let _ = writeln!(
             body_extra[m.body],
@@ -115,6 +181,10 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             v3(&m.location_in_body)
         );
     }
+}
+
+/// A `<geom>` per contact sphere or half-space, in its body.
+fn write_contact_geoms(model: &Model, body_extra: &mut [String]) {
     for g in &model.contact_geometry {
         match g.shape {
             ContactShape::Sphere { radius } => {
@@ -140,6 +210,15 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             }
         }
     }
+}
+
+/// A `<geom>` (and a side site) per sphere or cylinder wrap object, in its body; ellipsoids
+/// and tori are noted and left out. Returns, per wrap object, whether it was written.
+fn write_wrap_geoms(
+    model: &Model,
+    body_extra: &mut [String],
+    notes: &mut Vec<String>,
+) -> Vec<bool> {
     let mut wrap_ok = vec![false; model.wrap_objects.len()];
     for (w, obj) in model.wrap_objects.iter().enumerate() {
         let p = &obj.pose_in_body;
@@ -167,21 +246,12 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             quat(&p.rot)
         );
         // A side site on the quadrant's side selects which side the tendon wraps around.
-        let q = obj.quadrant.trim().to_ascii_lowercase();
-        let dir = match q.as_str() {
-            "+x" | "x" => Some(Vec3::x()),
-            "-x" => Some(-Vec3::x()),
-            "+y" | "y" => Some(Vec3::y()),
-            "-y" => Some(-Vec3::y()),
-            "+z" | "z" => Some(Vec3::z()),
-            "-z" => Some(-Vec3::z()),
-            _ => None,
-        };
-        if let Some(dir) = dir {
+        if let Some(dir) = quadrant_direction(&obj.quadrant) {
             let r = match obj.shape {
                 WrapShape::Sphere { radius } | WrapShape::Cylinder { radius, .. } => radius,
                 _ => 0.0,
             };
+            // side site at centre + R·(2r·dir)
             let _ = writeln!(
                 body_extra[obj.body],
                 "<site name=\"side:{}\" pos=\"{}\" size=\"0.002\" group=\"3\"/>",
@@ -190,144 +260,58 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             );
         }
     }
+    wrap_ok
+}
 
-    // Tendons and muscles.
+/// The unit axis a wrap quadrant (`+x`, `-y`, …) names, or None (`all`, or unknown).
+fn quadrant_direction(quadrant: &str) -> Option<Vec3> {
+    let q = quadrant.trim().to_ascii_lowercase();
+    match q.as_str() {
+        "+x" | "x" => Some(Vec3::x()),
+        "-x" => Some(-Vec3::x()),
+        "+y" | "y" => Some(Vec3::y()),
+        "-y" => Some(-Vec3::y()),
+        "+z" | "z" => Some(Vec3::z()),
+        "-z" => Some(-Vec3::z()),
+        _ => None,
+    }
+}
+
+/// What the tendon stage reads: the model, its default pose and which wraps were written.
+struct PathExport<'a> {
+    model: &'a Model,
+    pose: &'a DefaultPose,
+    wrap_ok: &'a [bool],
+}
+
+/// A `<spatial>` tendon per force with a path (its sites go into `body_extra`) and a
+/// `<muscle>` actuator per muscle with its parameters. Returns (tendons, actuators).
+fn write_tendons_and_muscles(
+    px: &PathExport,
+    body_extra: &mut [String],
+    notes: &mut Vec<String>,
+) -> (String, String) {
+    let model = px.model;
     let mut tendons = String::new();
     let mut actuators = String::new();
     let mut pennated = 0;
     for f in &model.forces {
         let Some(path) = &f.path else { continue };
-        let mut entries: Vec<String> = Vec::new();
-        let mut site_names = Vec::new();
-        for (i, p) in path.points.iter().enumerate() {
-            let name = format!("path:{}:{i}", f.name);
-            let loc = p.frame_in_body.apply_point(&p.location);
-            let _ = writeln!(
-                body_extra[p.body],
-                "<site name=\"{}\" pos=\"{}\" size=\"0.004\"/>",
-                esc(&name),
-                v3(&loc)
-            );
-            match p.kind {
-                PathPointKind::Fixed => {}
-                PathPointKind::Conditional { .. } => notes.push(format!(
-                    "`{}`: conditional path point `{}` exported as a fixed site (MJCF has no conditional points)",
-                    f.name, p.name
-                )),
-                PathPointKind::Moving { .. } => notes.push(format!(
-                    "`{}`: moving path point `{}` exported as a fixed site at its default-pose location",
-                    f.name, p.name
-                )),
-            }
-            site_names.push(name);
-        }
-        // Each representable wrap goes between the two sites of the segment (within its
-        // range) closest to the wrap centre at the default pose.
-        let mut wrap_after: Vec<Option<usize>> = vec![None; path.points.len()];
-        for pw in &path.wraps {
-            if !wrap_ok[pw.wrap_object] {
-                continue;
-            }
-            let n = path.points.len();
-            let (lo, hi) = if pw.range[0] < 1 || pw.range[1] < 1 {
-                (0, n - 1)
-            } else {
-                (
-                    (pw.range[0] as usize - 1).min(n - 1),
-                    (pw.range[1] as usize - 1).min(n - 1),
-                )
-            };
-            let obj = &model.wrap_objects[pw.wrap_object];
-            let best = (lo..hi.max(lo + 1).min(n - 1)).min_by(|&a, &b| {
-                let d = |i: usize| {
-                    if !fk_ok {
-                        return 0.0;
-                    }
-                    let pa = data.point_position(
-                        path.points[i].body,
-                        &path.points[i]
-                            .frame_in_body
-                            .apply_point(&path.points[i].location),
-                    );
-                    let pb = data.point_position(
-                        path.points[i + 1].body,
-                        &path.points[i + 1]
-                            .frame_in_body
-                            .apply_point(&path.points[i + 1].location),
-                    );
-                    let c = data.point_position(obj.body, &obj.pose_in_body.pos);
-                    let ab = pb - pa;
-                    let t = ((c - pa).dot(&ab) / ab.norm_squared().max(1e-300)).clamp(0.0, 1.0);
-                    (pa + ab * t - c).norm()
-                };
-                d(a).total_cmp(&d(b))
-            });
-            match best {
-                Some(i) if wrap_after[i].is_none() => wrap_after[i] = Some(pw.wrap_object),
-                _ => notes.push(format!(
-                    "`{}`: wrap object `{}` shares a path segment with another wrap; left out (MJCF allows one per segment)",
-                    f.name, obj.name
-                )),
-            }
-        }
-        if path.wraps.len() > 1 {
-            notes.push(format!(
-                "`{}`: {} wrap objects are each fixed to one path segment; OpenSim chooses the wrapping segment as the path moves",
-                f.name,
-                path.wraps.len()
-            ));
-        }
-        for (i, s) in site_names.iter().enumerate() {
-            entries.push(format!("<site site=\"{}\"/>", esc(s)));
-            if let Some(w) = wrap_after[i] {
-                let obj = &model.wrap_objects[w];
-                let side = if obj.quadrant.trim().eq_ignore_ascii_case("all")
-                    || obj.quadrant.trim().is_empty()
-                {
-                    String::new()
-                } else {
-                    format!(" sidesite=\"side:{}\"", esc(&obj.name))
-                };
-                entries.push(format!("<geom geom=\"wrap:{}\"{side}/>", esc(&obj.name)));
-            }
-        }
+        let site_names = write_path_sites(f, path, body_extra, notes);
+        let wrap_after = assign_wraps_to_segments(px, f, path, notes);
         let _ = writeln!(
             tendons,
             "<spatial name=\"{}\" width=\"0.003\">\n  {}\n</spatial>",
             esc(&f.name),
-            entries.join("\n  ")
+            tendon_entries(model, &site_names, &wrap_after).join("\n  ")
         );
         if f.is_muscle() {
-            let num = |tag: &str| f.raw.number(tag);
-            let (Some(fmax), Some(l0), Some(lt)) = (
-                num("max_isometric_force"),
-                num("optimal_fiber_length"),
-                num("tendon_slack_length"),
-            ) else {
-                notes.push(format!(
+            match write_muscle_actuator(f, &mut actuators) {
+                Some(is_pennated) => pennated += usize::from(is_pennated),
+                None => notes.push(format!(
                     "muscle `{}` lacks force or length parameters: no actuator",
                     f.name
-                ));
-                continue;
-            };
-            // MuJoCo's muscle: L0 = (lr₁ − lr₀)/(r₁ − r₀), tendon length lr₀ − r₀ L0; choose
-            // the length range that gives OpenSim's optimal fibre and tendon slack lengths.
-            let lr = [lt + MUSCLE_RANGE[0] * l0, lt + MUSCLE_RANGE[1] * l0];
-            let vmax = num("max_contraction_velocity").unwrap_or(10.0);
-            let tact = num("activation_time_constant").unwrap_or(0.01);
-            let tdeact = num("deactivation_time_constant").unwrap_or(0.04);
-            let _ = writeln!(
-                actuators,
-                "<muscle name=\"{}\" tendon=\"{}\" force=\"{fmax}\" lengthrange=\"{} {}\" range=\"{} {}\" vmax=\"{vmax}\" timeconst=\"{tact} {tdeact}\"/>",
-                esc(&f.name),
-                esc(&f.name),
-                lr[0],
-                lr[1],
-                MUSCLE_RANGE[0],
-                MUSCLE_RANGE[1]
-            );
-            if num("pennation_angle_at_optimal").is_some_and(|a| a != 0.0) {
-                pennated += 1;
+                )),
             }
         }
     }
@@ -342,12 +326,172 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             model.muscle_count()
         ));
     }
+    (tendons, actuators)
+}
 
-    // Couplings: every full coordinate that is a function of an independent coordinate other
-    // than the reference axis of that coordinate becomes a joint equality constraint.
-    let (equalities, limits) = couplings(model, &mut notes);
+/// A site per path point (`path:<force>:<i>`) in its body, noting conditional and moving
+/// points; returns the site names in path order.
+fn write_path_sites(
+    f: &ForceElement,
+    path: &GeometryPath,
+    body_extra: &mut [String],
+    notes: &mut Vec<String>,
+) -> Vec<String> {
+    let mut site_names = Vec::new();
+    for (i, p) in path.points.iter().enumerate() {
+        let name = format!("path:{}:{i}", f.name);
+        let loc = p.frame_in_body.apply_point(&p.location);
+        let _ = writeln!(
+            body_extra[p.body],
+            "<site name=\"{}\" pos=\"{}\" size=\"0.004\"/>",
+            esc(&name),
+            v3(&loc)
+        );
+        match p.kind {
+            PathPointKind::Fixed => {}
+            PathPointKind::Conditional { .. } => notes.push(format!(
+                "`{}`: conditional path point `{}` exported as a fixed site (MJCF has no conditional points)",
+                f.name, p.name
+            )),
+            PathPointKind::Moving { .. } => notes.push(format!(
+                "`{}`: moving path point `{}` exported as a fixed site at its default-pose location",
+                f.name, p.name
+            )),
+        }
+        site_names.push(name);
+    }
+    site_names
+}
 
-    // Bodies.
+/// Per path point, the wrap object (if any) that follows it: each representable wrap goes
+/// between the two sites of the segment (within its range) closest to the wrap centre at
+/// the default pose; a segment takes one wrap, the others are noted and left out.
+fn assign_wraps_to_segments(
+    px: &PathExport,
+    f: &ForceElement,
+    path: &GeometryPath,
+    notes: &mut Vec<String>,
+) -> Vec<Option<usize>> {
+    let model = px.model;
+    let mut wrap_after: Vec<Option<usize>> = vec![None; path.points.len()];
+    for pw in &path.wraps {
+        if !px.wrap_ok[pw.wrap_object] {
+            continue;
+        }
+        let n = path.points.len();
+        let (lo, hi) = if pw.range[0] < 1 || pw.range[1] < 1 {
+            (0, n - 1)
+        } else {
+            (
+                (pw.range[0] as usize - 1).min(n - 1),
+                (pw.range[1] as usize - 1).min(n - 1),
+            )
+        };
+        let obj = &model.wrap_objects[pw.wrap_object];
+        let best = (lo..hi.max(lo + 1).min(n - 1)).min_by(|&a, &b| {
+            let d = |i: usize| segment_distance_to_wrap(px.pose, path, i, obj);
+            d(a).total_cmp(&d(b))
+        });
+        match best {
+            Some(i) if wrap_after[i].is_none() => wrap_after[i] = Some(pw.wrap_object),
+            _ => notes.push(format!(
+                "`{}`: wrap object `{}` shares a path segment with another wrap; left out (MJCF allows one per segment)",
+                f.name, obj.name
+            )),
+        }
+    }
+    if path.wraps.len() > 1 {
+        notes.push(format!(
+            "`{}`: {} wrap objects are each fixed to one path segment; OpenSim chooses the wrapping segment as the path moves",
+            f.name,
+            path.wraps.len()
+        ));
+    }
+    wrap_after
+}
+
+/// Distance, at the default pose, from the wrap object's centre to the segment between path
+/// points i and i + 1 (0 when the default pose could not be computed).
+fn segment_distance_to_wrap(
+    pose: &DefaultPose,
+    path: &GeometryPath,
+    i: usize,
+    obj: &WrapObject,
+) -> f64 {
+    if !pose.fk_ok {
+        return 0.0;
+    }
+    let data = &pose.data;
+    let point = |k: usize| {
+        let p = &path.points[k];
+        data.point_position(p.body, &p.frame_in_body.apply_point(&p.location))
+    };
+    let pa = point(i);
+    let pb = point(i + 1);
+    let c = data.point_position(obj.body, &obj.pose_in_body.pos);
+    // t* = clamp((c − a)·(b − a) / |b − a|², 0, 1); distance |a + t*(b − a) − c|
+    let ab = pb - pa;
+    let t = ((c - pa).dot(&ab) / ab.norm_squared().max(1e-300)).clamp(0.0, 1.0);
+    (pa + ab * t - c).norm()
+}
+
+/// The tendon's `<site>` and `<geom>` entries in path order.
+fn tendon_entries(
+    model: &Model,
+    site_names: &[String],
+    wrap_after: &[Option<usize>],
+) -> Vec<String> {
+    let mut entries: Vec<String> = Vec::new();
+    for (i, s) in site_names.iter().enumerate() {
+        entries.push(format!("<site site=\"{}\"/>", esc(s)));
+        if let Some(w) = wrap_after[i] {
+            let obj = &model.wrap_objects[w];
+            let side = if obj.quadrant.trim().eq_ignore_ascii_case("all")
+                || obj.quadrant.trim().is_empty()
+            {
+                String::new()
+            } else {
+                format!(" sidesite=\"side:{}\"", esc(&obj.name))
+            };
+            entries.push(format!("<geom geom=\"wrap:{}\"{side}/>", esc(&obj.name)));
+        }
+    }
+    entries
+}
+
+/// Writes the muscle's `<muscle>` actuator; returns whether it is pennated, or None (nothing
+/// written) when it lacks force or length parameters.
+fn write_muscle_actuator(f: &ForceElement, actuators: &mut String) -> Option<bool> {
+    let num = |tag: &str| f.raw.number(tag);
+    let (Some(fmax), Some(l0), Some(lt)) = (
+        num("max_isometric_force"),
+        num("optimal_fiber_length"),
+        num("tendon_slack_length"),
+    ) else {
+        return None;
+    };
+    // MuJoCo's muscle: L0 = (lr₁ − lr₀)/(r₁ − r₀), tendon length lr₀ − r₀ L0; choose
+    // the length range that gives OpenSim's optimal fibre and tendon slack lengths.
+    let lr = [lt + MUSCLE_RANGE[0] * l0, lt + MUSCLE_RANGE[1] * l0];
+    let vmax = num("max_contraction_velocity").unwrap_or(10.0);
+    let tact = num("activation_time_constant").unwrap_or(0.01);
+    let tdeact = num("deactivation_time_constant").unwrap_or(0.04);
+    let _ = writeln!(
+        actuators,
+        "<muscle name=\"{}\" tendon=\"{}\" force=\"{fmax}\" lengthrange=\"{} {}\" range=\"{} {}\" vmax=\"{vmax}\" timeconst=\"{tact} {tdeact}\"/>",
+        esc(&f.name),
+        esc(&f.name),
+        lr[0],
+        lr[1],
+        MUSCLE_RANGE[0],
+        MUSCLE_RANGE[1]
+    );
+    Some(num("pennation_angle_at_optimal").is_some_and(|a| a != 0.0))
+}
+
+/// `<mujoco>`, `<compiler>`, `<option>` and `<default>`; notes MuJoCo's balanceinertia when
+/// some inertia violates the triangle inequality.
+fn write_header(model: &Model, out: &mut String, notes: &mut Vec<String>) {
     let _ = writeln!(out, "<mujoco model=\"{}\">", esc(&model.name));
     let balance = model
         .warnings
@@ -368,12 +512,27 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
         out,
         "<default><joint armature=\"0\" damping=\"0\"/><geom contype=\"1\" conaffinity=\"1\"/></default>"
     );
+}
+
+/// What the body-tree stage reads.
+struct BodyTree<'a> {
+    model: &'a Model,
+    children: &'a [Vec<usize>],
+    body_extra: &'a [String],
+    limits: &'a [Option<[f64; 2]>],
+}
+
+/// `<worldbody>`: the bodies depth-first from ground, each with its inertial, its joints and
+/// its sites and geoms.
+fn write_worldbody(tree: &BodyTree, out: &mut String, notes: &mut Vec<String>) {
+    let model = tree.model;
     let _ = writeln!(out, "<worldbody>\n<light pos=\"0 0 4\" dir=\"0 0 -1\"/>");
-    out += &body_extra[0];
-    let mut stack: Vec<(usize, bool)> = children[0].iter().rev().map(|&j| (j, false)).collect();
+    *out += &tree.body_extra[0];
+    let mut stack: Vec<(usize, bool)> =
+        tree.children[0].iter().rev().map(|&j| (j, false)).collect();
     while let Some((j, closing)) = stack.pop() {
         if closing {
-            out += "</body>\n";
+            *out += "</body>\n";
             continue;
         }
         let joint = &model.joints[j];
@@ -387,93 +546,105 @@ pub fn to_mjcf(model: &Model) -> MjcfExport {
             v3(&x_pb.pos),
             quat(&x_pb.rot)
         );
-        let mut mass = body.mass;
-        let moving = !joint.dof_range.is_empty() || {
-            let mut p = joint.parent_body;
-            let mut m = false;
-            while let Some(pj) = model.bodies[p].joint {
-                if !model.joints[pj].dof_range.is_empty() {
-                    m = true;
-                    break;
-                }
-                p = model.joints[pj].parent_body;
-            }
-            m
-        };
-        let mut i = body.inertia_about_com;
-        if moving && (mass <= 0.0 || i.trace() <= 0.0) {
-            notes.push(format!(
-                "body `{}` has no mass or inertia; MuJoCo needs both on moving bodies: exported with 1e-9 kg and 1e-12 kg·m²",
-                body.name
-            ));
-            mass = mass.max(1e-9);
-            if i.trace() <= 0.0 {
-                i = Mat3::identity() * 1e-12;
-            }
-        }
-        if mass > 0.0 {
-            let _ = writeln!(
-                out,
-                "<inertial pos=\"{}\" mass=\"{mass}\" fullinertia=\"{}\"/>",
-                v3(&body.com_in_body),
-                crate::spatial::inertia_text(&i)
-            );
-        }
-        for d in joint.dof_range.clone() {
-            let dof = &model.dofs[d];
-            let x = frames[&d];
-            let (kind, axis) = match dof.kind {
-                DofKind::Hinge => ("hinge", x.rot * dof.axis),
-                DofKind::Slide => ("slide", x.rot * dof.axis),
-            };
-            let limit = match limits[d] {
-                Some([lo, hi]) => format!("limited=\"true\" range=\"{lo} {hi}\""),
-                None => "limited=\"false\"".to_string(),
-            };
-            let _ = writeln!(
-                out,
-                "<joint name=\"{}\" type=\"{kind}\" pos=\"{}\" axis=\"{}\" {limit}/>",
-                esc(&dof.name),
-                v3(&x.pos),
-                v3(&axis)
-            );
-        }
-        out += &body_extra[b];
+        write_inertial(model, j, out, notes);
+        write_joints(tree, j, &frames, out);
+        *out += &tree.body_extra[b];
         stack.push((j, true));
-        for &c in children[b].iter().rev() {
+        for &c in tree.children[b].iter().rev() {
             stack.push((c, false));
         }
     }
-    out += "</worldbody>\n";
-    if !equalities.is_empty() {
-        let _ = writeln!(out, "<equality>\n{equalities}</equality>");
+    *out += "</worldbody>\n";
+}
+
+/// Whether the joint's child body moves: the joint or one of its ancestors has a full
+/// coordinate.
+fn body_moves(model: &Model, j: usize) -> bool {
+    let joint = &model.joints[j];
+    if !joint.dof_range.is_empty() {
+        return true;
     }
-    // MuJoCo's qpos0 is θ = 0, where coupled axes (e.g. a knee's translations) violate their
-    // equalities; the keyframe `default` is the model's default pose, which satisfies them.
-    if fk_ok {
-        let qpos: Vec<String> = qpos_order(model, &children)
-            .into_iter()
-            .map(|d| data.theta(model)[d].to_string())
-            .collect();
-        let _ = writeln!(
-            out,
-            "<keyframe>\n<key name=\"default\" qpos=\"{}\"/>\n</keyframe>",
-            qpos.join(" ")
-        );
+    let mut p = joint.parent_body;
+    while let Some(pj) = model.bodies[p].joint {
+        if !model.joints[pj].dof_range.is_empty() {
+            return true;
+        }
+        p = model.joints[pj].parent_body;
     }
-    if !tendons.is_empty() {
-        let _ = writeln!(out, "<tendon>\n{tendons}</tendon>");
-    }
-    if !actuators.is_empty() {
-        let _ = writeln!(out, "<actuator>\n{actuators}</actuator>");
-    }
-    out += "</mujoco>\n";
-    for w in &model.warnings {
-        if w.message.contains("NOT enforced") {
-            notes.push(format!("{}: {}", w.element, w.message));
+    false
+}
+
+/// The child body's `<inertial>`; a moving body without mass or inertia gets tiny ones (noted),
+/// since MuJoCo needs both on moving bodies.
+fn write_inertial(model: &Model, j: usize, out: &mut String, notes: &mut Vec<String>) {
+    let body = &model.bodies[model.joints[j].child_body];
+    let mut mass = body.mass;
+    let mut i = body.inertia_about_com;
+    if body_moves(model, j) && (mass <= 0.0 || i.trace() <= 0.0) {
+        notes.push(format!(
+            "body `{}` has no mass or inertia; MuJoCo needs both on moving bodies: exported with 1e-9 kg and 1e-12 kg·m²",
+            body.name
+        ));
+        mass = mass.max(1e-9);
+        if i.trace() <= 0.0 {
+            i = Mat3::identity() * 1e-12;
         }
     }
-    MjcfExport { xml: out, notes }
+    if mass > 0.0 {
+        let _ = writeln!(
+            out,
+            "<inertial pos=\"{}\" mass=\"{mass}\" fullinertia=\"{}\"/>",
+            v3(&body.com_in_body),
+            crate::spatial::inertia_text(&i)
+        );
+    }
+}
+
+/// A hinge or slide `<joint>` per full coordinate of joint `j`, its axis and anchor in the
+/// body frame at θ = 0 (`frames`), limited where the coupling stage found a range.
+fn write_joints(tree: &BodyTree, j: usize, frames: &HashMap<usize, Transform>, out: &mut String) {
+    let model = tree.model;
+    for d in model.joints[j].dof_range.clone() {
+        let dof = &model.dofs[d];
+        let x = frames[&d];
+        let (kind, axis) = match dof.kind {
+            DofKind::Hinge => ("hinge", x.rot * dof.axis),
+            DofKind::Slide => ("slide", x.rot * dof.axis),
+        };
+        let limit = match tree.limits[d] {
+            Some([lo, hi]) => format!("limited=\"true\" range=\"{lo} {hi}\""),
+            None => "limited=\"false\"".to_string(),
+        };
+        let _ = writeln!(
+            out,
+            "<joint name=\"{}\" type=\"{kind}\" pos=\"{}\" axis=\"{}\" {limit}/>",
+            esc(&dof.name),
+            v3(&x.pos),
+            v3(&axis)
+        );
+    }
+}
+
+/// MuJoCo's qpos0 is θ = 0, where coupled axes (e.g. a knee's translations) violate their
+/// equalities; the keyframe `default` is the model's default pose, which satisfies them.
+fn write_default_keyframe(
+    model: &Model,
+    pose: &DefaultPose,
+    children: &[Vec<usize>],
+    out: &mut String,
+) {
+    if !pose.fk_ok {
+        return;
+    }
+    let qpos: Vec<String> = qpos_order(model, children)
+        .into_iter()
+        .map(|d| pose.data.theta(model)[d].to_string())
+        .collect();
+    let _ = writeln!(
+        out,
+        "<keyframe>\n<key name=\"default\" qpos=\"{}\"/>\n</keyframe>",
+        qpos.join(" ")
+    );
 }
 
 /// The full coordinates in MuJoCo's qpos order: bodies depth-first as written, each body's

@@ -149,131 +149,18 @@ impl Columns {
 
 impl Reduction {
     /// Builds the plan. Errors name a coupler (index) whose dependencies form a cycle.
+    ///
+    /// Steps: the graph's nodes (coordinates, then full coordinates); the evaluation order of
+    /// the coordinate nodes; each node's dependency set on q (Φ's sparsity); the offsets of
+    /// each node's argument gradients and Hessians; the chain-rule scatter plan; the
+    /// motion-subspace columns.
     pub(crate) fn build(model: &Model) -> Result<Reduction, (usize, String)> {
         let nc = model.coordinates.len();
-        let mut independent = Vec::new();
-        let mut nodes = Vec::with_capacity(nc + model.dofs.len());
-        for c in &model.coordinates {
-            nodes.push(NodeKind::Constant(c.default_value));
-        }
-        // Roles: dependents were marked while reading couplers; the rest are locked or
-        // independent.
-        let mut roles: Vec<CoordinateRole> = model.coordinates.iter().map(|c| c.role).collect();
-        for (i, c) in model.coordinates.iter().enumerate() {
-            if let CoordinateRole::Dependent(k) = roles[i] {
-                let cp = &model.couplers[k];
-                nodes[i] = NodeKind::Function {
-                    function: cp.function.clone(),
-                    args: cp.independents.clone(),
-                    scale: cp.scale,
-                };
-            } else if c.locked {
-                roles[i] = CoordinateRole::Locked;
-            } else {
-                roles[i] = CoordinateRole::Independent(independent.len());
-                nodes[i] = NodeKind::Independent(independent.len());
-                independent.push(i);
-            }
-        }
-        for d in &model.dofs {
-            nodes.push(NodeKind::Function {
-                function: d.function.clone(),
-                args: d.args.clone(),
-                scale: 1.0,
-            });
-        }
-        for n in nodes.iter_mut() {
-            if let NodeKind::Function {
-                function: Function::Linear(c),
-                args,
-                scale,
-            } = n
-            {
-                if args.len() == 1 && c.len() == 2 {
-                    *n = NodeKind::Affine {
-                        arg: args[0],
-                        slope: *scale * c[0],
-                        intercept: *scale * c[1],
-                    };
-                }
-            }
-        }
+        let (nodes, roles, independent) = graph_nodes(model);
+        let order = coordinate_evaluation_order(model, &nodes, &roles)?;
 
-        // Topological order of coordinate nodes (Kahn), to evaluate couplers of couplers.
-        let mut order = Vec::with_capacity(nc);
-        let mut state = vec![0u8; nc]; // 0 new, 1 visiting, 2 done
-        fn visit(
-            i: usize,
-            nodes: &[NodeKind],
-            state: &mut [u8],
-            order: &mut Vec<usize>,
-            stack: &mut Vec<usize>,
-        ) -> Result<(), Vec<usize>> {
-            match state[i] {
-                2 => return Ok(()),
-                1 => {
-                    let pos = stack.iter().position(|&s| s == i).unwrap_or(0);
-                    return Err(stack[pos..].to_vec());
-                }
-                _ => {}
-            }
-            state[i] = 1;
-            stack.push(i);
-            for a in node_args(&nodes[i]) {
-                visit(a, nodes, state, order, stack)?;
-            }
-            stack.pop();
-            state[i] = 2;
-            order.push(i);
-            Ok(())
-        }
-        for i in 0..nc {
-            let mut stack = Vec::new();
-            if let Err(cycle) = visit(i, &nodes, &mut state, &mut order, &mut stack) {
-                let names: Vec<&str> = cycle
-                    .iter()
-                    .map(|&c| model.coordinates[c].name.as_str())
-                    .collect();
-                let coupler = match roles[cycle[0]] {
-                    CoordinateRole::Dependent(k) => k,
-                    _ => 0,
-                };
-                return Err((
-                    coupler,
-                    format!("coupler constraints form a cycle: {}", names.join(" → ")),
-                ));
-            }
-        }
-
-        // Dependency sets on q, in evaluation order.
-        let n_nodes = nodes.len();
-        let mut deps: Vec<Vec<usize>> = vec![Vec::new(); n_nodes];
-        let eval_order: Vec<usize> = order.iter().copied().chain(nc..n_nodes).collect();
-        for &i in &eval_order {
-            deps[i] = match &nodes[i] {
-                NodeKind::Independent(j) => vec![*j],
-                NodeKind::Constant(_) => vec![],
-                NodeKind::Affine { arg, slope, .. } => {
-                    if *slope == 0.0 {
-                        vec![]
-                    } else {
-                        deps[*arg].clone()
-                    }
-                }
-                NodeKind::Function { args, function, .. } => {
-                    if function.is_constant() {
-                        vec![]
-                    } else {
-                        let mut d: Vec<usize> =
-                            args.iter().flat_map(|&a| deps[a].iter().copied()).collect();
-                        d.sort_unstable();
-                        d.dedup();
-                        d
-                    }
-                }
-            };
-        }
-        let mut dep_start = Vec::with_capacity(n_nodes + 1);
+        let deps = dependency_sets(&nodes, &order, nc);
+        let mut dep_start = Vec::with_capacity(nodes.len() + 1);
         let mut dep_index = Vec::new();
         for d in &deps {
             dep_start.push(dep_index.len());
@@ -281,41 +168,8 @@ impl Reduction {
         }
         dep_start.push(dep_index.len());
 
-        let mut arg_start = Vec::with_capacity(n_nodes + 1);
-        let mut hess_start = Vec::with_capacity(n_nodes + 1);
-        let (mut na, mut nh, mut max_args) = (0, 0, 0);
-        for n in &nodes {
-            arg_start.push(na);
-            hess_start.push(nh);
-            let k = node_args(n).len();
-            na += k;
-            nh += k * k;
-            max_args = max_args.max(k);
-        }
-        arg_start.push(na);
-        hess_start.push(nh);
-
-        let mut scatter_start = Vec::with_capacity(n_nodes + 1);
-        let mut scatter = Vec::new();
-        for i in 0..n_nodes {
-            scatter_start.push(scatter.len());
-            {
-                for (ai, a) in node_args(&nodes[i]).into_iter().enumerate() {
-                    for src in dep_start[a]..dep_start[a + 1] {
-                        let j = dep_index[src];
-                        if let Some(p) = deps[i].iter().position(|&x| x == j) {
-                            scatter.push(Scatter {
-                                arg: ai,
-                                src,
-                                dst: dep_start[i] + p,
-                            });
-                        }
-                    }
-                }
-            }
-        }
-        scatter_start.push(scatter.len());
-
+        let (arg_start, hess_start, max_args) = argument_offsets(&nodes);
+        let (scatter_start, scatter) = scatter_plan(&nodes, &deps, &dep_start, &dep_index);
         let columns = Columns::build(model, &dep_start, &dep_index, nc);
         Ok(Reduction {
             independent,
@@ -341,6 +195,202 @@ impl Reduction {
     }
 }
 
+/// The graph's nodes: one per coordinate (constant, independent, or its coupler's function)
+/// then one per full coordinate (its function); single-argument linear functions become
+/// affine nodes. Also returns each coordinate's role and the independent coordinates in q
+/// order.
+fn graph_nodes(model: &Model) -> (Vec<NodeKind>, Vec<CoordinateRole>, Vec<usize>) {
+    let mut independent = Vec::new();
+    let mut nodes = Vec::with_capacity(model.coordinates.len() + model.dofs.len());
+    for c in &model.coordinates {
+        nodes.push(NodeKind::Constant(c.default_value));
+    }
+    // Roles: dependents were marked while reading couplers; the rest are locked or
+    // independent.
+    let mut roles: Vec<CoordinateRole> = model.coordinates.iter().map(|c| c.role).collect();
+    for (i, c) in model.coordinates.iter().enumerate() {
+        if let CoordinateRole::Dependent(k) = roles[i] {
+            let cp = &model.couplers[k];
+            nodes[i] = NodeKind::Function {
+                function: cp.function.clone(),
+                args: cp.independents.clone(),
+                scale: cp.scale,
+            };
+        } else if c.locked {
+            roles[i] = CoordinateRole::Locked;
+        } else {
+            roles[i] = CoordinateRole::Independent(independent.len());
+            nodes[i] = NodeKind::Independent(independent.len());
+            independent.push(i);
+        }
+    }
+    for d in &model.dofs {
+        nodes.push(NodeKind::Function {
+            function: d.function.clone(),
+            args: d.args.clone(),
+            scale: 1.0,
+        });
+    }
+    for n in nodes.iter_mut() {
+        if let NodeKind::Function {
+            function: Function::Linear(c),
+            args,
+            scale,
+        } = n
+        {
+            if args.len() == 1 && c.len() == 2 {
+                // scale·(c₀ x + c₁) = slope x + intercept
+                *n = NodeKind::Affine {
+                    arg: args[0],
+                    slope: *scale * c[0],
+                    intercept: *scale * c[1],
+                };
+            }
+        }
+    }
+    (nodes, roles, independent)
+}
+
+/// Topological order of the coordinate nodes (depth-first), to evaluate couplers of
+/// couplers; a cycle is an error naming its coupler.
+fn coordinate_evaluation_order(
+    model: &Model,
+    nodes: &[NodeKind],
+    roles: &[CoordinateRole],
+) -> Result<Vec<usize>, (usize, String)> {
+    let nc = model.coordinates.len();
+    let mut order = Vec::with_capacity(nc);
+    let mut state = vec![0u8; nc]; // 0 new, 1 visiting, 2 done
+    for i in 0..nc {
+        let mut stack = Vec::new();
+        if let Err(cycle) = visit_node(i, nodes, &mut state, &mut order, &mut stack) {
+            let names: Vec<&str> = cycle
+                .iter()
+                .map(|&c| model.coordinates[c].name.as_str())
+                .collect();
+            let coupler = match roles[cycle[0]] {
+                CoordinateRole::Dependent(k) => k,
+                _ => 0,
+            };
+            return Err((
+                coupler,
+                format!("coupler constraints form a cycle: {}", names.join(" → ")),
+            ));
+        }
+    }
+    Ok(order)
+}
+
+/// Depth-first visit of node `i` for the evaluation order: its arguments first. Err(the
+/// cycle) when `i` is on the current `stack`.
+fn visit_node(
+    i: usize,
+    nodes: &[NodeKind],
+    state: &mut [u8],
+    order: &mut Vec<usize>,
+    stack: &mut Vec<usize>,
+) -> Result<(), Vec<usize>> {
+    match state[i] {
+        2 => return Ok(()),
+        1 => {
+            let pos = stack.iter().position(|&s| s == i).unwrap_or(0);
+            return Err(stack[pos..].to_vec());
+        }
+        _ => {}
+    }
+    state[i] = 1;
+    stack.push(i);
+    for a in node_args(&nodes[i]) {
+        visit_node(a, nodes, state, order, stack)?;
+    }
+    stack.pop();
+    state[i] = 2;
+    order.push(i);
+    Ok(())
+}
+
+/// Per node, the sorted independent coordinates (indices into q) it depends on, computed in
+/// evaluation order (coordinates in `order`, then the full coordinates); a constant function
+/// or a zero slope depends on none.
+fn dependency_sets(nodes: &[NodeKind], order: &[usize], nc: usize) -> Vec<Vec<usize>> {
+    let n_nodes = nodes.len();
+    let mut deps: Vec<Vec<usize>> = vec![Vec::new(); n_nodes];
+    let eval_order: Vec<usize> = order.iter().copied().chain(nc..n_nodes).collect();
+    for &i in &eval_order {
+        deps[i] = match &nodes[i] {
+            NodeKind::Independent(j) => vec![*j],
+            NodeKind::Constant(_) => vec![],
+            NodeKind::Affine { arg, slope, .. } => {
+                if *slope == 0.0 {
+                    vec![]
+                } else {
+                    deps[*arg].clone()
+                }
+            }
+            NodeKind::Function { args, function, .. } => {
+                if function.is_constant() {
+                    vec![]
+                } else {
+                    let mut d: Vec<usize> =
+                        args.iter().flat_map(|&a| deps[a].iter().copied()).collect();
+                    d.sort_unstable();
+                    d.dedup();
+                    d
+                }
+            }
+        };
+    }
+    deps
+}
+
+/// (arg_start, hess_start, max_args): per node, the offsets of its k argument gradients and
+/// its k² Hessian entries in flat arrays, and the largest k.
+fn argument_offsets(nodes: &[NodeKind]) -> (Vec<usize>, Vec<usize>, usize) {
+    let mut arg_start = Vec::with_capacity(nodes.len() + 1);
+    let mut hess_start = Vec::with_capacity(nodes.len() + 1);
+    let (mut na, mut nh, mut max_args) = (0, 0, 0);
+    for n in nodes {
+        arg_start.push(na);
+        hess_start.push(nh);
+        let k = node_args(n).len();
+        na += k;
+        nh += k * k;
+        max_args = max_args.max(k);
+    }
+    arg_start.push(na);
+    hess_start.push(nh);
+    (arg_start, hess_start, max_args)
+}
+
+/// The chain rule ∂node_i/∂q_j = Σ_a ∂f_i/∂arg_a · ∂arg_a/∂q_j as a list of (argument, source
+/// entry, destination entry) per node: (scatter_start, scatter).
+fn scatter_plan(
+    nodes: &[NodeKind],
+    deps: &[Vec<usize>],
+    dep_start: &[usize],
+    dep_index: &[usize],
+) -> (Vec<usize>, Vec<Scatter>) {
+    let n_nodes = nodes.len();
+    let mut scatter_start = Vec::with_capacity(n_nodes + 1);
+    let mut scatter = Vec::new();
+    for i in 0..n_nodes {
+        scatter_start.push(scatter.len());
+        for (ai, a) in node_args(&nodes[i]).into_iter().enumerate() {
+            for src in dep_start[a]..dep_start[a + 1] {
+                let j = dep_index[src];
+                if let Some(p) = deps[i].iter().position(|&x| x == j) {
+                    scatter.push(Scatter {
+                        arg: ai,
+                        src,
+                        dst: dep_start[i] + p,
+                    });
+                }
+            }
+        }
+    }
+    scatter_start.push(scatter.len());
+    (scatter_start, scatter)
+}
 /// The arguments of a node.
 fn node_args(n: &NodeKind) -> Vec<usize> {
     match n {

@@ -194,12 +194,36 @@ fn v3(x: f64, y: f64, z: f64) -> String {
 }
 
 /// Builds the model file's text from the tables.
+///
+/// The sections in file order: header, bodies (with their wrap objects), joints, coupler
+/// constraints, muscles, contact spheres, markers. Each is checked against the tables it
+/// refers to as it is written.
 pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
     let (total_mass, height) = reference_subject(tables)?;
     let bodies = mass_properties(tables)?;
     let known_body = |name: &str| name == "ground" || bodies.iter().any(|(b, _)| b == name);
     let mut x = String::new();
     let w = &mut x;
+    write_header(w, tables, total_mass, height);
+
+    let scales = body_scales(tables, height)?;
+    let coordinate_joint: BTreeMap<&str, &str> = (tables.axes.iter())
+        .filter(|a| !a.coordinate.is_empty())
+        .map(|a| (a.coordinate.as_str(), a.joint.as_str()))
+        .collect();
+    write_body_set(w, tables, &bodies, &scales)?;
+    write_joint_set(w, tables, height, &known_body)?;
+    write_constraint_set(w, tables)?;
+    write_force_set(w, tables, &scales, &coordinate_joint)?;
+    write_contact_geometry_set(w, tables, height, &known_body)?;
+    write_marker_set(w, tables, height, &known_body)?;
+    let _ = writeln!(w, "\t</Model>\n</OpenSimDocument>");
+    Ok(x)
+}
+
+/// The document and model elements' opening, the credits (reference subject and the tables'
+/// sources), gravity, units and ground.
+fn write_header(w: &mut String, tables: &ModelTables, total_mass: f64, height: f64) {
     // writing into a String cannot fail
     let _ = writeln!(w, "<?xml version=\"1.0\" encoding=\"UTF-8\" ?>");
     let _ = writeln!(w, "<OpenSimDocument Version=\"40000\">");
@@ -218,15 +242,17 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
     let _ = writeln!(w, "\t\t<length_units>meters</length_units>");
     let _ = writeln!(w, "\t\t<force_units>N</force_units>");
     let _ = writeln!(w, "\t\t<Ground name=\"ground\" />");
+}
 
-    let scales = body_scales(tables, height)?;
-    let coordinate_joint: BTreeMap<&str, &str> = (tables.axes.iter())
-        .filter(|a| !a.coordinate.is_empty())
-        .map(|a| (a.coordinate.as_str(), a.joint.as_str()))
-        .collect();
-    // bodies
+/// `<BodySet>`: each body's mass properties and wrap objects.
+fn write_body_set(
+    w: &mut String,
+    tables: &ModelTables,
+    bodies: &[(String, MassProperties)],
+    scales: &BTreeMap<&str, f64>,
+) -> Result<(), BuildError> {
     let _ = writeln!(w, "\t\t<BodySet name=\"bodyset\">\n\t\t\t<objects>");
-    for (name, p) in &bodies {
+    for (name, p) in bodies {
         let i = &p.inertia;
         let _ = writeln!(w, "\t\t\t\t<Body name=\"{name}\">");
         let _ = writeln!(w, "\t\t\t\t\t<mass>{}</mass>", p.mass);
@@ -244,8 +270,16 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
         let _ = writeln!(w, "\t\t\t\t</Body>");
     }
     let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</BodySet>");
+    Ok(())
+}
 
-    // joints
+/// `<JointSet>`: a custom or weld joint per row of joints.csv, between known bodies.
+fn write_joint_set(
+    w: &mut String,
+    tables: &ModelTables,
+    height: f64,
+    known_body: &impl Fn(&str) -> bool,
+) -> Result<(), BuildError> {
     let splines = spline_knots(tables)?;
     let _ = writeln!(w, "\t\t<JointSet name=\"jointset\">\n\t\t\t<objects>");
     for j in &tables.joints {
@@ -259,78 +293,100 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
             ));
         }
         let s = scale_for(height, j.source_height, "joints.csv", &j.joint)?;
-        let tag = match j.kind.as_str() {
-            "custom" => "CustomJoint",
-            "weld" => "WeldJoint",
-            other => {
-                return Err(inconsistent(
-                    "joints.csv",
-                    format!("{}: kind `{other}` (expected custom or weld)", j.joint),
-                ));
-            }
-        };
-        let (pf, cf) = (
-            format!("{}_offset", j.parent),
-            format!("{}_offset", j.child),
-        );
-        let _ = writeln!(w, "\t\t\t\t<{tag} name=\"{}\">", j.joint);
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<socket_parent_frame>{pf}</socket_parent_frame>"
-        );
-        let _ = writeln!(w, "\t\t\t\t\t<socket_child_frame>{cf}</socket_child_frame>");
-        let axes: Vec<_> = tables.axes.iter().filter(|a| a.joint == j.joint).collect();
-        if tag == "CustomJoint" {
-            write_coordinates(w, &j.joint, &axes)?;
-        } else if !axes.is_empty() {
-            return Err(inconsistent(
-                "coordinates.csv",
-                format!("{}: a weld joint has no axes", j.joint),
-            ));
-        }
-        let _ = writeln!(w, "\t\t\t\t\t<frames>");
-        for (frame, body, loc, ori) in [
-            (
-                &pf,
-                &j.parent,
-                [j.parent_x, j.parent_y, j.parent_z],
-                [j.parent_rx, j.parent_ry, j.parent_rz],
-            ),
-            (
-                &cf,
-                &j.child,
-                [j.child_x, j.child_y, j.child_z],
-                [j.child_rx, j.child_ry, j.child_rz],
-            ),
-        ] {
-            let path = if body == "ground" {
-                "/ground".to_string()
-            } else {
-                format!("/bodyset/{body}")
-            };
-            let _ = writeln!(w, "\t\t\t\t\t\t<PhysicalOffsetFrame name=\"{frame}\">");
-            let _ = writeln!(w, "\t\t\t\t\t\t\t<socket_parent>{path}</socket_parent>");
-            let _ = writeln!(
-                w,
-                "\t\t\t\t\t\t\t<translation>{}</translation>",
-                v3(loc[0] * s, loc[1] * s, loc[2] * s)
-            );
-            let _ = writeln!(
-                w,
-                "\t\t\t\t\t\t\t<orientation>{}</orientation>",
-                v3(ori[0], ori[1], ori[2])
-            );
-            let _ = writeln!(w, "\t\t\t\t\t\t</PhysicalOffsetFrame>");
-        }
-        let _ = writeln!(w, "\t\t\t\t\t</frames>");
-        if tag == "CustomJoint" {
-            write_spatial_transform(w, &j.joint, &axes, &splines, s)?;
-        }
-        let _ = writeln!(w, "\t\t\t\t</{tag}>");
+        write_joint(w, tables, j, &splines, s)?;
     }
     let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</JointSet>");
+    Ok(())
+}
 
-    // coupler constraints
+/// One joint: sockets, coordinates (custom joints), the two offset frames scaled by `s`, and
+/// the spatial transform (custom joints).
+fn write_joint(
+    w: &mut String,
+    tables: &ModelTables,
+    j: &tables::JointRow,
+    splines: &BTreeMap<&str, (Vec<f64>, Vec<f64>)>,
+    s: f64,
+) -> Result<(), BuildError> {
+    let tag = match j.kind.as_str() {
+        "custom" => "CustomJoint",
+        "weld" => "WeldJoint",
+        other => {
+            return Err(inconsistent(
+                "joints.csv",
+                format!("{}: kind `{other}` (expected custom or weld)", j.joint),
+            ));
+        }
+    };
+    let (pf, cf) = (
+        format!("{}_offset", j.parent),
+        format!("{}_offset", j.child),
+    );
+    let _ = writeln!(w, "\t\t\t\t<{tag} name=\"{}\">", j.joint);
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<socket_parent_frame>{pf}</socket_parent_frame>"
+    );
+    let _ = writeln!(w, "\t\t\t\t\t<socket_child_frame>{cf}</socket_child_frame>");
+    let axes: Vec<_> = tables.axes.iter().filter(|a| a.joint == j.joint).collect();
+    if tag == "CustomJoint" {
+        write_coordinates(w, &j.joint, &axes)?;
+    } else if !axes.is_empty() {
+        return Err(inconsistent(
+            "coordinates.csv",
+            format!("{}: a weld joint has no axes", j.joint),
+        ));
+    }
+    let _ = writeln!(w, "\t\t\t\t\t<frames>");
+    for (frame, body, loc, ori) in [
+        (
+            &pf,
+            &j.parent,
+            [j.parent_x, j.parent_y, j.parent_z],
+            [j.parent_rx, j.parent_ry, j.parent_rz],
+        ),
+        (
+            &cf,
+            &j.child,
+            [j.child_x, j.child_y, j.child_z],
+            [j.child_rx, j.child_ry, j.child_rz],
+        ),
+    ] {
+        write_offset_frame(w, frame, body, [loc[0] * s, loc[1] * s, loc[2] * s], ori);
+    }
+    let _ = writeln!(w, "\t\t\t\t\t</frames>");
+    if tag == "CustomJoint" {
+        write_spatial_transform(w, &j.joint, &axes, splines, s)?;
+    }
+    let _ = writeln!(w, "\t\t\t\t</{tag}>");
+    Ok(())
+}
+
+/// A `<PhysicalOffsetFrame>` on `body` (ground or a body of the body set).
+fn write_offset_frame(w: &mut String, frame: &str, body: &str, loc: [f64; 3], ori: [f64; 3]) {
+    let path = if body == "ground" {
+        "/ground".to_string()
+    } else {
+        format!("/bodyset/{body}")
+    };
+    let _ = writeln!(w, "\t\t\t\t\t\t<PhysicalOffsetFrame name=\"{frame}\">");
+    let _ = writeln!(w, "\t\t\t\t\t\t\t<socket_parent>{path}</socket_parent>");
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t\t\t<translation>{}</translation>",
+        v3(loc[0], loc[1], loc[2])
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t\t\t<orientation>{}</orientation>",
+        v3(ori[0], ori[1], ori[2])
+    );
+    let _ = writeln!(w, "\t\t\t\t\t\t</PhysicalOffsetFrame>");
+}
+
+/// `<ConstraintSet>`: a linear coupler q_dep = ratio · q_ind per row of couplers.csv, between
+/// known coordinates.
+fn write_constraint_set(w: &mut String, tables: &ModelTables) -> Result<(), BuildError> {
     let coordinates: Vec<&str> = (tables.axes.iter())
         .filter(|a| !a.coordinate.is_empty())
         .map(|a| a.coordinate.as_str())
@@ -377,10 +433,16 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
         w,
         "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ConstraintSet>"
     );
+    Ok(())
+}
 
-    write_force_set(w, tables, &scales, &coordinate_joint)?;
-
-    // contact spheres and markers
+/// `<ContactGeometrySet>`: a contact sphere per row of contacts.csv, scaled to the subject.
+fn write_contact_geometry_set(
+    w: &mut String,
+    tables: &ModelTables,
+    height: f64,
+    known_body: &impl Fn(&str) -> bool,
+) -> Result<(), BuildError> {
     let _ = writeln!(
         w,
         "\t\t<ContactGeometrySet name=\"contactgeometryset\">\n\t\t\t<objects>"
@@ -412,6 +474,16 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
         w,
         "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ContactGeometrySet>"
     );
+    Ok(())
+}
+
+/// `<MarkerSet>`: a marker per row of markers.csv, scaled to the subject.
+fn write_marker_set(
+    w: &mut String,
+    tables: &ModelTables,
+    height: f64,
+    known_body: &impl Fn(&str) -> bool,
+) -> Result<(), BuildError> {
     let _ = writeln!(w, "\t\t<MarkerSet name=\"markerset\">\n\t\t\t<objects>");
     for m in &tables.markers {
         if !known_body(&m.body) {
@@ -436,8 +508,7 @@ pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
         let _ = writeln!(w, "\t\t\t\t</Marker>");
     }
     let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</MarkerSet>");
-    let _ = writeln!(w, "\t</Model>\n</OpenSimDocument>");
-    Ok(x)
+    Ok(())
 }
 
 /// The geometry scale s = H / H_source of every body (its rows must agree).
@@ -568,13 +639,6 @@ fn write_force_set(
     scales: &BTreeMap<&str, f64>,
     coordinate_joint: &BTreeMap<&str, &str>,
 ) -> Result<(), BuildError> {
-    const T: &str = "path_points.csv";
-    let coordinate_path = |name: &str, muscle: &str| {
-        coordinate_joint
-            .get(name)
-            .map(|joint| format!("/jointset/{joint}/{name}"))
-            .ok_or_else(|| inconsistent(T, format!("{muscle}: unknown coordinate `{name}`")))
-    };
     let mut names: Vec<&str> = Vec::new();
     let _ = writeln!(w, "\t\t<ForceSet name=\"forceset\">\n\t\t\t<objects>");
     for m in &tables.muscles {
@@ -585,177 +649,262 @@ fn write_force_set(
             ));
         }
         names.push(&m.name);
-        let mut points: Vec<_> = tables
-            .path_points
-            .iter()
-            .filter(|p| p.muscle == m.name)
-            .collect();
-        points.sort_by_key(|p| p.index);
-        if points.len() < 2 {
-            return Err(inconsistent(
-                T,
-                format!("{}: a path needs at least two points", m.name),
-            ));
-        }
-        let mut scale = None;
-        for p in &points {
-            let s = *scales.get(p.body.as_str()).ok_or_else(|| {
-                inconsistent(
-                    T,
-                    format!("{} point {}: unknown body `{}`", m.name, p.index, p.body),
-                )
-            })?;
-            if scale.is_some_and(|old| old != s) {
-                return Err(inconsistent(
-                    T,
-                    format!("{}: spans bodies of different geometry scales", m.name),
-                ));
-            }
-            scale = Some(s);
-        }
-        let s = scale.unwrap_or(1.0);
+        let (points, s) = muscle_path_points(tables, m, scales)?;
+        let muscle = MusclePath {
+            tables,
+            coordinate_joint,
+            muscle: m,
+            s,
+        };
         let _ = writeln!(w, "\t\t\t\t<Thelen2003Muscle name=\"{}\">", m.name);
         let _ = writeln!(
             w,
             "\t\t\t\t\t<GeometryPath name=\"path\">\n\t\t\t\t\t\t<PathPointSet>\n\t\t\t\t\t\t\t<objects>"
         );
         for p in &points {
-            let pname = format!("{}-P{}", m.name, p.index);
-            let frame = format!(
-                "<socket_parent_frame>/bodyset/{}</socket_parent_frame>",
-                p.body
-            );
-            let location = || match (p.x, p.y, p.z) {
-                (Some(x), Some(y), Some(z)) => Ok(v3(x * s, y * s, z * s)),
-                _ => Err(inconsistent(T, format!("{pname}: needs x, y, z"))),
-            };
-            match p.kind.as_str() {
-                "fixed" => {
-                    let _ = writeln!(
-                        w,
-                        "\t\t\t\t\t\t\t\t<PathPoint name=\"{pname}\">{frame}<location>{}</location></PathPoint>",
-                        location()?
-                    );
-                }
-                "conditional" => {
-                    let (Some(lo), Some(hi)) = (p.range_min, p.range_max) else {
-                        return Err(inconsistent(
-                            T,
-                            format!("{pname}: a conditional point needs its range"),
-                        ));
-                    };
-                    let _ = writeln!(
-                        w,
-                        "\t\t\t\t\t\t\t\t<ConditionalPathPoint name=\"{pname}\">{frame}<location>{}</location><socket_coordinate>{}</socket_coordinate><range>{lo} {hi}</range></ConditionalPathPoint>",
-                        location()?,
-                        coordinate_path(&p.coordinate, &m.name)?
-                    );
-                }
-                "moving" => {
-                    let _ = writeln!(
-                        w,
-                        "\t\t\t\t\t\t\t\t<MovingPathPoint name=\"{pname}\">{frame}"
-                    );
-                    for axis in ["x", "y", "z"] {
-                        let knots: Vec<_> = (tables.moving_knots.iter())
-                            .filter(|k| k.muscle == m.name && k.index == p.index && k.axis == axis)
-                            .collect();
-                        let Some(first) = knots.first() else {
-                            return Err(inconsistent(
-                                "moving_point_functions.csv",
-                                format!("{pname}: no {axis} function"),
-                            ));
-                        };
-                        if knots.windows(2).any(|k| !(k[1].knot > k[0].knot)) {
-                            return Err(inconsistent(
-                                "moving_point_functions.csv",
-                                format!("{pname} {axis}: knots must increase"),
-                            ));
-                        }
-                        let tag = match first.function.as_str() {
-                            "SimmSpline" | "NaturalCubicSpline" => first.function.as_str(),
-                            other => {
-                                return Err(inconsistent(
-                                    "moving_point_functions.csv",
-                                    format!("{pname} {axis}: function `{other}`"),
-                                ));
-                            }
-                        };
-                        let xs: Vec<String> = knots.iter().map(|k| format!("{}", k.knot)).collect();
-                        let ys: Vec<String> =
-                            knots.iter().map(|k| format!("{}", k.value * s)).collect();
-                        let _ = writeln!(
-                            w,
-                            "\t\t\t\t\t\t\t\t\t<socket_{axis}_coordinate>{}</socket_{axis}_coordinate><{axis}_location><{tag} name=\"function\"><x>{}</x><y>{}</y></{tag}></{axis}_location>",
-                            coordinate_path(&first.coordinate, &m.name)?,
-                            xs.join(" "),
-                            ys.join(" ")
-                        );
-                    }
-                    let _ = writeln!(w, "\t\t\t\t\t\t\t\t</MovingPathPoint>");
-                }
-                other => {
-                    return Err(inconsistent(
-                        T,
-                        format!("{pname}: type `{other}` (fixed, conditional or moving)"),
-                    ));
-                }
-            }
+            write_path_point(w, &muscle, p)?;
         }
         let _ = writeln!(w, "\t\t\t\t\t\t\t</objects>\n\t\t\t\t\t\t</PathPointSet>");
-        let mut wraps: Vec<_> = tables
-            .muscle_wraps
-            .iter()
-            .filter(|r| r.muscle == m.name)
-            .collect();
-        wraps.sort_by_key(|r| r.order);
-        if !wraps.is_empty() {
-            let _ = writeln!(w, "\t\t\t\t\t\t<PathWrapSet>\n\t\t\t\t\t\t\t<objects>");
-            for r in wraps {
-                if !tables.wrap_objects.iter().any(|o| o.name == r.wrap_object) {
-                    return Err(inconsistent(
-                        "muscle_wraps.csv",
-                        format!("{}: unknown wrap object `{}`", m.name, r.wrap_object),
-                    ));
-                }
-                let _ = writeln!(
-                    w,
-                    "\t\t\t\t\t\t\t\t<PathWrap name=\"{}-wrap{}\"><wrap_object>{}</wrap_object><method>{}</method><range>{} {}</range></PathWrap>",
-                    m.name, r.order, r.wrap_object, r.method, r.range_start, r.range_end
-                );
-            }
-            let _ = writeln!(w, "\t\t\t\t\t\t\t</objects>\n\t\t\t\t\t\t</PathWrapSet>");
-        }
+        write_path_wraps(w, tables, m)?;
         let _ = writeln!(w, "\t\t\t\t\t</GeometryPath>");
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<max_isometric_force>{}</max_isometric_force>",
-            m.max_isometric_force
-        );
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<optimal_fiber_length>{}</optimal_fiber_length>",
-            m.optimal_fiber_length * s
-        );
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<tendon_slack_length>{}</tendon_slack_length>",
-            m.tendon_slack_length * s
-        );
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<pennation_angle_at_optimal>{}</pennation_angle_at_optimal>",
-            m.pennation_angle
-        );
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<max_contraction_velocity>{}</max_contraction_velocity>",
-            m.max_contraction_velocity
-        );
+        write_muscle_parameters(w, m, s);
         let _ = writeln!(w, "\t\t\t\t</Thelen2003Muscle>");
     }
     let _ = writeln!(w, "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ForceSet>");
     Ok(())
+}
+
+const PATH_POINTS: &str = "path_points.csv";
+
+/// A muscle's path points in order (at least two) and the geometry scale of the bodies they
+/// lie on, which must be one.
+fn muscle_path_points<'t>(
+    tables: &'t ModelTables,
+    m: &tables::MuscleRow,
+    scales: &BTreeMap<&str, f64>,
+) -> Result<(Vec<&'t tables::PathPointRow>, f64), BuildError> {
+    let mut points: Vec<_> = tables
+        .path_points
+        .iter()
+        .filter(|p| p.muscle == m.name)
+        .collect();
+    points.sort_by_key(|p| p.index);
+    if points.len() < 2 {
+        return Err(inconsistent(
+            PATH_POINTS,
+            format!("{}: a path needs at least two points", m.name),
+        ));
+    }
+    let mut scale = None;
+    for p in &points {
+        let s = *scales.get(p.body.as_str()).ok_or_else(|| {
+            inconsistent(
+                PATH_POINTS,
+                format!("{} point {}: unknown body `{}`", m.name, p.index, p.body),
+            )
+        })?;
+        if scale.is_some_and(|old| old != s) {
+            return Err(inconsistent(
+                PATH_POINTS,
+                format!("{}: spans bodies of different geometry scales", m.name),
+            ));
+        }
+        scale = Some(s);
+    }
+    Ok((points, scale.unwrap_or(1.0)))
+}
+
+/// What writing one muscle's path points needs: the tables, the joint of each coordinate, the
+/// muscle and its geometry scale s.
+struct MusclePath<'a> {
+    tables: &'a ModelTables,
+    coordinate_joint: &'a BTreeMap<&'a str, &'a str>,
+    muscle: &'a tables::MuscleRow,
+    s: f64,
+}
+
+impl MusclePath<'_> {
+    /// The component path `/jointset/<joint>/<coordinate>` of a coordinate the path uses.
+    fn coordinate_path(&self, name: &str) -> Result<String, BuildError> {
+        self.coordinate_joint
+            .get(name)
+            .map(|joint| format!("/jointset/{joint}/{name}"))
+            .ok_or_else(|| {
+                inconsistent(
+                    PATH_POINTS,
+                    format!("{}: unknown coordinate `{name}`", self.muscle.name),
+                )
+            })
+    }
+}
+
+/// One fixed, conditional or moving path point, its location scaled by s.
+fn write_path_point(
+    w: &mut String,
+    mp: &MusclePath,
+    p: &tables::PathPointRow,
+) -> Result<(), BuildError> {
+    let s = mp.s;
+    let pname = format!("{}-P{}", mp.muscle.name, p.index);
+    let frame = format!(
+        "<socket_parent_frame>/bodyset/{}</socket_parent_frame>",
+        p.body
+    );
+    let location = || match (p.x, p.y, p.z) {
+        (Some(x), Some(y), Some(z)) => Ok(v3(x * s, y * s, z * s)),
+        _ => Err(inconsistent(PATH_POINTS, format!("{pname}: needs x, y, z"))),
+    };
+    match p.kind.as_str() {
+        "fixed" => {
+            let _ = writeln!(
+                w,
+                "\t\t\t\t\t\t\t\t<PathPoint name=\"{pname}\">{frame}<location>{}</location></PathPoint>",
+                location()?
+            );
+        }
+        "conditional" => {
+            let (Some(lo), Some(hi)) = (p.range_min, p.range_max) else {
+                return Err(inconsistent(
+                    PATH_POINTS,
+                    format!("{pname}: a conditional point needs its range"),
+                ));
+            };
+            let _ = writeln!(
+                w,
+                "\t\t\t\t\t\t\t\t<ConditionalPathPoint name=\"{pname}\">{frame}<location>{}</location><socket_coordinate>{}</socket_coordinate><range>{lo} {hi}</range></ConditionalPathPoint>",
+                location()?,
+                mp.coordinate_path(&p.coordinate)?
+            );
+        }
+        "moving" => {
+            let _ = writeln!(
+                w,
+                "\t\t\t\t\t\t\t\t<MovingPathPoint name=\"{pname}\">{frame}"
+            );
+            for axis in ["x", "y", "z"] {
+                write_moving_point_axis(w, mp, p, &pname, axis)?;
+            }
+            let _ = writeln!(w, "\t\t\t\t\t\t\t\t</MovingPathPoint>");
+        }
+        other => {
+            return Err(inconsistent(
+                PATH_POINTS,
+                format!("{pname}: type `{other}` (fixed, conditional or moving)"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// One axis of a moving path point: its coordinate and its spline (knots increasing, values
+/// scaled by s) from moving_point_functions.csv.
+fn write_moving_point_axis(
+    w: &mut String,
+    mp: &MusclePath,
+    p: &tables::PathPointRow,
+    pname: &str,
+    axis: &str,
+) -> Result<(), BuildError> {
+    let m = mp.muscle;
+    let knots: Vec<_> = (mp.tables.moving_knots.iter())
+        .filter(|k| k.muscle == m.name && k.index == p.index && k.axis == axis)
+        .collect();
+    let Some(first) = knots.first() else {
+        return Err(inconsistent(
+            "moving_point_functions.csv",
+            format!("{pname}: no {axis} function"),
+        ));
+    };
+    if knots.windows(2).any(|k| !(k[1].knot > k[0].knot)) {
+        return Err(inconsistent(
+            "moving_point_functions.csv",
+            format!("{pname} {axis}: knots must increase"),
+        ));
+    }
+    let tag = match first.function.as_str() {
+        "SimmSpline" | "NaturalCubicSpline" => first.function.as_str(),
+        other => {
+            return Err(inconsistent(
+                "moving_point_functions.csv",
+                format!("{pname} {axis}: function `{other}`"),
+            ));
+        }
+    };
+    let xs: Vec<String> = knots.iter().map(|k| format!("{}", k.knot)).collect();
+    let ys: Vec<String> = knots
+        .iter()
+        .map(|k| format!("{}", k.value * mp.s))
+        .collect();
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t\t\t\t\t<socket_{axis}_coordinate>{}</socket_{axis}_coordinate><{axis}_location><{tag} name=\"function\"><x>{}</x><y>{}</y></{tag}></{axis}_location>",
+        mp.coordinate_path(&first.coordinate)?,
+        xs.join(" "),
+        ys.join(" ")
+    );
+    Ok(())
+}
+
+/// The muscle's `<PathWrapSet>` (none when it has no wraps), in wrap order.
+fn write_path_wraps(
+    w: &mut String,
+    tables: &ModelTables,
+    m: &tables::MuscleRow,
+) -> Result<(), BuildError> {
+    let mut wraps: Vec<_> = tables
+        .muscle_wraps
+        .iter()
+        .filter(|r| r.muscle == m.name)
+        .collect();
+    wraps.sort_by_key(|r| r.order);
+    if wraps.is_empty() {
+        return Ok(());
+    }
+    let _ = writeln!(w, "\t\t\t\t\t\t<PathWrapSet>\n\t\t\t\t\t\t\t<objects>");
+    for r in wraps {
+        if !tables.wrap_objects.iter().any(|o| o.name == r.wrap_object) {
+            return Err(inconsistent(
+                "muscle_wraps.csv",
+                format!("{}: unknown wrap object `{}`", m.name, r.wrap_object),
+            ));
+        }
+        let _ = writeln!(
+            w,
+            "\t\t\t\t\t\t\t\t<PathWrap name=\"{}-wrap{}\"><wrap_object>{}</wrap_object><method>{}</method><range>{} {}</range></PathWrap>",
+            m.name, r.order, r.wrap_object, r.method, r.range_start, r.range_end
+        );
+    }
+    let _ = writeln!(w, "\t\t\t\t\t\t\t</objects>\n\t\t\t\t\t\t</PathWrapSet>");
+    Ok(())
+}
+
+/// The Hill-type parameters; the lengths scale by s.
+fn write_muscle_parameters(w: &mut String, m: &tables::MuscleRow, s: f64) {
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<max_isometric_force>{}</max_isometric_force>",
+        m.max_isometric_force
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<optimal_fiber_length>{}</optimal_fiber_length>",
+        m.optimal_fiber_length * s
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<tendon_slack_length>{}</tendon_slack_length>",
+        m.tendon_slack_length * s
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<pennation_angle_at_optimal>{}</pennation_angle_at_optimal>",
+        m.pennation_angle
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<max_contraction_velocity>{}</max_contraction_velocity>",
+        m.max_contraction_velocity
+    );
 }
 
 fn spline_knots(tables: &ModelTables) -> Result<BTreeMap<&str, (Vec<f64>, Vec<f64>)>, BuildError> {

@@ -98,25 +98,19 @@ impl NaturalSpline {
     /// interpolation matrix, its factorization and the B-spline values at the knots depend on
     /// the knots only, so they are computed once (each spline is exactly the one
     /// `interpolating` builds for its column). An `Err` names the first failing column.
-    #[allow(clippy::needless_range_loop)] // index arithmetic mirrors the equations
+    ///
+    /// Steps (module documentation, Method): check the data; normalise the knots to
+    /// u ∈ [0, 1]; build the B-spline basis of order 2m; assemble the banded system of blossom
+    /// and interpolation rows; solve it for every column; convert each solution to the
+    /// monomial coefficients of every interval and the Taylor coefficients of the ends.
     pub fn interpolating_many(
         half_order: usize,
         x: Vec<f64>,
         ys: Vec<Vec<f64>>,
     ) -> Result<Vec<Self>, (usize, String)> {
         let m = half_order;
-        if m == 0 || m > MAX_HALF_ORDER {
-            return Err((
-                0,
-                format!(
-                    "half order must be between 1 and {MAX_HALF_ORDER} (spline degree 1, 3, 5 or 7), got {m}"
-                ),
-            ));
-        }
+        check_half_order_and_data(m, &x, &ys)?;
         let n = x.len();
-        for (c, y) in ys.iter().enumerate() {
-            super::knots::check_xy(&x, y, m.max(1)).map_err(|e| (c, e))?;
-        }
         if n == 1 {
             // Only possible for m = 1: the "interpolating polynomial of degree 0".
             return Ok(ys
@@ -132,65 +126,9 @@ impl NaturalSpline {
         }
 
         // Normalisation: u = (x − x_1)/L with L = x_n − x_1, and ỹ = y / Y with Y = max |y_i|.
-        let span = x[n - 1] - x[0];
-        if !span.is_finite() {
-            return Err((
-                0,
-                format!(
-                    "the knot range x[{}] - x[0] = {} - {} is too large to represent",
-                    n - 1,
-                    x[n - 1],
-                    x[0]
-                ),
-            ));
-        }
-        let u: Vec<f64> = x.iter().map(|v| (v - x[0]) / span).collect();
-        if let Some(i) = (1..n).find(|&i| u[i] <= u[i - 1]) {
-            return Err((
-                0,
-                format!(
-                    "knot spacing x[{i}] - x[{}] = {} is too small relative to the knot range {span}",
-                    i - 1,
-                    x[i] - x[i - 1]
-                ),
-            ));
-        }
-
-        // B-spline basis of order k = 2m on the knot sequence with x_1 and x_n of multiplicity k
-        // and simple interior knots: nb = n + 2m − 2 functions B_0 … B_{nb−1}; every spline of
-        // degree 2m−1 that is C^(2m−2) at the interior knots is f = Σ_j a_j B_j.
-        let k = 2 * m;
-        let nb = n + k - 2;
-        let mut t = Vec::with_capacity(nb + k);
-        t.extend(std::iter::repeat_n(u[0], k - 1));
-        t.extend_from_slice(&u);
-        t.extend(std::iter::repeat_n(u[n - 1], k - 1));
-        // Span of interval i (u_i ≤ u ≤ u_{i+1}) in `t`: t[k−1+i] = u_i; the k B-splines that are
-        // non-zero there are B_i … B_{i+k−1}.
-        let span_of = |i: usize| k - 1 + i;
-
-        // Natural end conditions. Writing them as rows f^(r)(x_1) = Σ_j a_j B_j^(r)(x_1) = 0 is
-        // numerically poor when the first interval is much shorter than the next ones (the
-        // restrictions of B_0 … B_{2m−1} to that interval are then nearly dependent, and the
-        // rows for r = m … 2m−2 agree in their leading digits). Instead, the polynomial on the
-        // first interval is written in Taylor form at x_1 with the natural conditions built in,
-        //   p_0(u) = Σ_{r<m} c_r (u − u_1)^r + c_{2m−1} (u − u_1)^{2m−1},
-        // and tied to the B-spline coefficients of the functions that are non-zero there by the
-        // blossoming (Marsden) identity: for j = 0 … 2m−1,
-        //   a_j = Σ_r c_r σ_r(δ_{j,1}, …, δ_{j,2m−1}) / C(2m−1, r),   δ_{j,l} = t_{j+l} − u_1,
-        // σ_r the elementary symmetric function. Since 0 ≤ δ ≤ 1 these weights lie in [0, 1].
-        // Only j = 2m−1 involves c_{2m−1}, whose unknown is scaled as e = c_{2m−1} Π_l δ_{2m−1,l}.
-        // The same at x_n with Taylor coefficients c'_r at u_n (there −1 ≤ δ ≤ 0).
-        //
-        // Unknowns: [c_0 … c_{m−1}, e | a_0 … a_{nb−1} | c'_0 … c'_{m−1}, e'].
-        // Equations, in this order (banded with half-bandwidth max(2m − 1, m + 1)):
-        //   2m blossom rows at x_1; f(x_i) = ỹ_i for i = 1 … n; 2m blossom rows at x_n.
-        // Count: 4m + n = nb + 2(m + 1) unknowns.
-        let col_a = m + 1;
-        let col_r = col_a + nb;
-        let size = col_r + m + 1;
-        let mut sys = BandLu::new(size, (2 * m - 1).max(m + 1));
-        // Normalised data ỹ = y / Y per column, Y = max |y_i|, and the right-hand sides.
+        let (span, u) = normalised_knots(&x)?;
+        let basis = EndBlossomBasis::new(m, &u);
+        let sys = basis.interpolation_system(&u);
         let y_scales: Vec<f64> = ys
             .iter()
             .map(|y| {
@@ -198,121 +136,13 @@ impl NaturalSpline {
                 if y_max > 0.0 { y_max } else { 1.0 }
             })
             .collect();
-        let mut rhs: Vec<Vec<f64>> = vec![vec![0.0; size]; ys.len()];
-        let set_rhs = |rhs: &mut [Vec<f64>], row: usize, point: usize| {
-            for ((b, y), scale) in rhs.iter_mut().zip(&ys).zip(&y_scales) {
-                b[row] = y[point] / scale;
-            }
-        };
-        let mut ders = [[0.0; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER];
-        let blossom_weights = |j: usize, origin: f64| -> [f64; MAX_HALF_ORDER] {
-            // σ_r(δ_{j,1..k−1}) / C(k−1, r), r < m, by the recurrence σ_r ← σ_r + δ σ_{r−1}.
-            let mut sigma = [0.0; MAX_HALF_ORDER];
-            sigma[0] = 1.0;
-            for l in 1..k {
-                let delta = t[j + l] - origin;
-                for r in (1..m).rev() {
-                    sigma[r] += delta * sigma[r - 1];
-                }
-            }
-            for (r, v) in sigma.iter_mut().enumerate().take(m) {
-                *v /= binomial(k - 1, r);
-            }
-            sigma
-        };
-        for j in 0..k {
-            let w = blossom_weights(j, u[0]);
-            sys.set(j, col_a + j, 1.0);
-            for r in 0..m {
-                sys.set(j, r, -w[r]);
-            }
-        }
-        sys.set(k - 1, m, -1.0);
-        sys.set(k, col_a, 1.0);
-        set_rhs(&mut rhs, k, 0);
-        for i in 1..n - 1 {
-            basis_derivatives(&t, k, span_of(i), u[i], 0, &mut ders);
-            // B_{i+k−1} starts at x_i and vanishes there.
-            for q in 0..k - 1 {
-                sys.set(k + i, col_a + i + q, ders[0][q]);
-            }
-            set_rhs(&mut rhs, k + i, i);
-        }
-        sys.set(k + n - 1, col_a + nb - 1, 1.0);
-        set_rhs(&mut rhs, k + n - 1, n - 1);
-        for jj in 0..k {
-            let (row, j) = (k + n + jj, nb - k + jj);
-            let w = blossom_weights(j, u[n - 1]);
-            sys.set(row, col_a + j, 1.0);
-            for r in 0..m {
-                sys.set(row, col_r + r, -w[r]);
-            }
-        }
-        sys.set(k + n, col_r + m, -1.0);
-
+        let rhs = basis.right_hand_sides(&ys, &y_scales);
         let solutions = sys.solve_many(rhs)?;
-        // The B-spline derivatives at each interior knot, shared by the columns.
-        let mut knot_ders = vec![[[0.0; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER]; n];
-        for i in 1..n.saturating_sub(2) {
-            basis_derivatives(&t, k, span_of(i), u[i], k - 1, &mut knot_ders[i]);
-        }
-        let mut splines = Vec::with_capacity(ys.len());
-        for (column, (z, y_scale)) in solutions.iter().zip(&y_scales).enumerate() {
-            let y_scale = *y_scale;
-            let a = &z[col_a..col_r];
 
-            // Local polynomials p_i(s) = Σ_r coef_{i,r} s^r, s = (u − u_i)/h_i ∈ [0, 1], in data units.
-            let mut coef = vec![0.0; (n - 1) * k];
-            // Interior intervals: coef_{i,r} = Y f̃^(r)(u_i⁺) h_i^r / r!, with
-            // f̃^(r)(u_i⁺) = Σ_q a_{i+q} B_{i+q}^(r)(u_i).
-            for i in 1..n.saturating_sub(2) {
-                let hi = u[i + 1] - u[i];
-                let ders = &knot_ders[i];
-                let mut factor = y_scale; // Y h^r / r!
-                for r in 0..k {
-                    let fr: f64 = (0..k).map(|q| a[i + q] * ders[r][q]).sum();
-                    coef[i * k + r] = fr * factor;
-                    factor *= hi / (r + 1) as f64;
-                }
-            }
-            // Last interval (done before the first, which wins when n = 2): from the Taylor form at
-            // u_n, p(u) = Σ_q d_q σ^q with σ = (u − u_n)/h = s − 1 and d_q = c'_q h^q, so
-            // coef_r = Σ_{q≥r} d_q C(q, r) (−1)^(q−r). d_{2m−1} = e' h^{2m−1}/Π_l δ'_l with
-            // δ'_{2m−1} = −h, i.e. −e' Π_{l<2m−1} (h/δ'_l).
-            {
-                let i = n - 2;
-                let h = u[n - 1] - u[n - 2];
-                let mut d = [0.0; 2 * MAX_HALF_ORDER];
-                let mut hp = 1.0;
-                for q in 0..m {
-                    d[q] = z[col_r + q] * hp;
-                    hp *= h;
-                }
-                let j = nb - k;
-                d[k - 1] = -z[col_r + m]
-                    * (1..k - 1)
-                        .map(|l| h / (t[j + l] - u[n - 1]))
-                        .product::<f64>();
-                for r in 0..k {
-                    let cr: f64 = (r..k)
-                        .map(|q| d[q] * binomial(q, r) * if (q - r) % 2 == 0 { 1.0 } else { -1.0 })
-                        .sum();
-                    coef[i * k + r] = cr * y_scale;
-                }
-            }
-            // First interval: coef_r = c_r h^r (r < m), 0 for m ≤ r ≤ 2m−2 (natural conditions,
-            // exactly), and c_{2m−1} h^{2m−1} = e Π_{l≥2} (h/δ_l) since δ_1 = h.
-            {
-                let h = u[1] - u[0];
-                let mut hp = 1.0;
-                coef[..k].fill(0.0);
-                for r in 0..m {
-                    coef[r] = z[r] * hp * y_scale;
-                    hp *= h;
-                }
-                coef[k - 1] =
-                    z[m] * (2..k).map(|l| h / (t[k - 1 + l] - u[0])).product::<f64>() * y_scale;
-            }
+        let knot_ders = basis.interior_knot_derivatives(&u);
+        let mut splines = Vec::with_capacity(ys.len());
+        for (column, (z, &y_scale)) in solutions.iter().zip(&y_scales).enumerate() {
+            let coef = basis.interval_coefficients(&u, &knot_ders, z, y_scale);
             // Extrapolation: f^(r)(x_end)/r! = Y c_r / L^r.
             let taylor = |c: &[f64]| -> Vec<f64> {
                 c.iter()
@@ -321,7 +151,7 @@ impl NaturalSpline {
                     .collect()
             };
             let left = taylor(&z[0..m]);
-            let right = taylor(&z[col_r..col_r + m]);
+            let right = taylor(&z[basis.col_r..basis.col_r + m]);
 
             if !coef
                 .iter()
@@ -330,10 +160,10 @@ impl NaturalSpline {
                 .all(|v| v.is_finite())
             {
                 return Err((
-                column,
-                "natural spline computation overflowed: knot spacing or data magnitude too extreme"
-                    .to_string(),
-            ));
+                    column,
+                    "natural spline computation overflowed: knot spacing or data magnitude too extreme"
+                        .to_string(),
+                ));
             }
 
             splines.push(Self {
@@ -444,6 +274,287 @@ impl NaturalSpline {
 fn falling_factorial(l: usize, r: usize) -> f64 {
     (l + 1 - r..=l).map(|v| v as f64).product()
 }
+
+/// 1 ≤ m ≤ MAX_HALF_ORDER, and every column is valid data on the knots (`check_xy`).
+fn check_half_order_and_data(m: usize, x: &[f64], ys: &[Vec<f64>]) -> Result<(), (usize, String)> {
+    if m == 0 || m > MAX_HALF_ORDER {
+        return Err((
+            0,
+            format!(
+                "half order must be between 1 and {MAX_HALF_ORDER} (spline degree 1, 3, 5 or 7), got {m}"
+            ),
+        ));
+    }
+    for (c, y) in ys.iter().enumerate() {
+        super::knots::check_xy(x, y, m.max(1)).map_err(|e| (c, e))?;
+    }
+    Ok(())
+}
+
+/// (L, u): the knot range L = x_n − x_1 and the knots u_i = (x_i − x_1)/L, which must stay
+/// strictly increasing (n ≥ 2).
+fn normalised_knots(x: &[f64]) -> Result<(f64, Vec<f64>), (usize, String)> {
+    let n = x.len();
+    let span = x[n - 1] - x[0];
+    if !span.is_finite() {
+        return Err((
+            0,
+            format!(
+                "the knot range x[{}] - x[0] = {} - {} is too large to represent",
+                n - 1,
+                x[n - 1],
+                x[0]
+            ),
+        ));
+    }
+    let u: Vec<f64> = x.iter().map(|v| (v - x[0]) / span).collect();
+    if let Some(i) = (1..n).find(|&i| u[i] <= u[i - 1]) {
+        return Err((
+            0,
+            format!(
+                "knot spacing x[{i}] - x[{}] = {} is too small relative to the knot range {span}",
+                i - 1,
+                x[i] - x[i - 1]
+            ),
+        ));
+    }
+    Ok((span, u))
+}
+
+/// The B-spline basis of order k = 2m on the normalised knots, with the layout of the
+/// unknowns of the interpolation system.
+///
+/// Basis: the knot sequence `t` has u_1 and u_n of multiplicity k and simple interior knots:
+/// nb = n + 2m − 2 functions B_0 … B_{nb−1}; every spline of degree 2m−1 that is C^(2m−2) at
+/// the interior knots is f = Σ_j a_j B_j.
+///
+/// Natural end conditions. Writing them as rows f^(r)(x_1) = Σ_j a_j B_j^(r)(x_1) = 0 is
+/// numerically poor when the first interval is much shorter than the next ones (the
+/// restrictions of B_0 … B_{2m−1} to that interval are then nearly dependent, and the
+/// rows for r = m … 2m−2 agree in their leading digits). Instead, the polynomial on the
+/// first interval is written in Taylor form at x_1 with the natural conditions built in,
+///   p_0(u) = Σ_{r<m} c_r (u − u_1)^r + c_{2m−1} (u − u_1)^{2m−1},
+/// and tied to the B-spline coefficients of the functions that are non-zero there by the
+/// blossoming (Marsden) identity: for j = 0 … 2m−1,
+///   a_j = Σ_r c_r σ_r(δ_{j,1}, …, δ_{j,2m−1}) / C(2m−1, r),   δ_{j,l} = t_{j+l} − u_1,
+/// σ_r the elementary symmetric function. Since 0 ≤ δ ≤ 1 these weights lie in [0, 1].
+/// Only j = 2m−1 involves c_{2m−1}, whose unknown is scaled as e = c_{2m−1} Π_l δ_{2m−1,l}.
+/// The same at x_n with Taylor coefficients c'_r at u_n (there −1 ≤ δ ≤ 0).
+///
+/// Unknowns: [c_0 … c_{m−1}, e | a_0 … a_{nb−1} | c'_0 … c'_{m−1}, e'].
+/// Equations, in this order (banded with half-bandwidth max(2m − 1, m + 1)):
+///   2m blossom rows at x_1; f(x_i) = ỹ_i for i = 1 … n; 2m blossom rows at x_n.
+/// Count: 4m + n = nb + 2(m + 1) unknowns.
+struct EndBlossomBasis {
+    m: usize,
+    /// k = 2m, the B-spline order.
+    k: usize,
+    /// Number of knots.
+    n: usize,
+    /// Number of B-splines, n + 2m − 2.
+    nb: usize,
+    /// The knot sequence.
+    t: Vec<f64>,
+    /// First column of the a_j.
+    col_a: usize,
+    /// First column of the c'_r.
+    col_r: usize,
+    /// Number of unknowns.
+    size: usize,
+}
+
+impl EndBlossomBasis {
+    fn new(m: usize, u: &[f64]) -> Self {
+        let n = u.len();
+        let k = 2 * m;
+        let nb = n + k - 2;
+        let mut t = Vec::with_capacity(nb + k);
+        t.extend(std::iter::repeat_n(u[0], k - 1));
+        t.extend_from_slice(u);
+        t.extend(std::iter::repeat_n(u[n - 1], k - 1));
+        let col_a = m + 1;
+        let col_r = col_a + nb;
+        let size = col_r + m + 1;
+        EndBlossomBasis {
+            m,
+            k,
+            n,
+            nb,
+            t,
+            col_a,
+            col_r,
+            size,
+        }
+    }
+
+    /// Span of interval i (u_i ≤ u ≤ u_{i+1}) in `t`: t[k−1+i] = u_i; the k B-splines that are
+    /// non-zero there are B_i … B_{i+k−1}.
+    fn span_of(&self, i: usize) -> usize {
+        self.k - 1 + i
+    }
+
+    /// σ_r(δ_{j,1..k−1}) / C(k−1, r), r < m, δ_{j,l} = t_{j+l} − origin, by the recurrence
+    /// σ_r ← σ_r + δ σ_{r−1}.
+    fn blossom_weights(&self, j: usize, origin: f64) -> [f64; MAX_HALF_ORDER] {
+        let (m, k) = (self.m, self.k);
+        let mut sigma = [0.0; MAX_HALF_ORDER];
+        sigma[0] = 1.0;
+        for l in 1..k {
+            let delta = self.t[j + l] - origin;
+            for r in (1..m).rev() {
+                sigma[r] += delta * sigma[r - 1];
+            }
+        }
+        for (r, v) in sigma.iter_mut().enumerate().take(m) {
+            *v /= binomial(k - 1, r);
+        }
+        sigma
+    }
+
+    /// The banded matrix: 2m blossom rows at x_1, n interpolation rows, 2m blossom rows at x_n.
+    #[allow(clippy::needless_range_loop)] // index arithmetic mirrors the equations
+    fn interpolation_system(&self, u: &[f64]) -> BandLu {
+        let (m, k, n, nb) = (self.m, self.k, self.n, self.nb);
+        let (col_a, col_r) = (self.col_a, self.col_r);
+        let mut sys = BandLu::new(self.size, (2 * m - 1).max(m + 1));
+        // a_j − Σ_r w_{j,r} c_r = 0 (and − e for j = 2m−1)
+        for j in 0..k {
+            let w = self.blossom_weights(j, u[0]);
+            sys.set(j, col_a + j, 1.0);
+            for r in 0..m {
+                sys.set(j, r, -w[r]);
+            }
+        }
+        sys.set(k - 1, m, -1.0);
+        // f(u_1) = a_0
+        sys.set(k, col_a, 1.0);
+        let mut ders = [[0.0; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER];
+        for i in 1..n - 1 {
+            basis_derivatives(&self.t, k, self.span_of(i), u[i], 0, &mut ders);
+            // B_{i+k−1} starts at x_i and vanishes there.
+            for q in 0..k - 1 {
+                sys.set(k + i, col_a + i + q, ders[0][q]);
+            }
+        }
+        // f(u_n) = a_{nb−1}
+        sys.set(k + n - 1, col_a + nb - 1, 1.0);
+        for jj in 0..k {
+            let (row, j) = (k + n + jj, nb - k + jj);
+            let w = self.blossom_weights(j, u[n - 1]);
+            sys.set(row, col_a + j, 1.0);
+            for r in 0..m {
+                sys.set(row, col_r + r, -w[r]);
+            }
+        }
+        sys.set(k + n, col_r + m, -1.0);
+        sys
+    }
+
+    /// Per column, the right-hand side: ỹ_i = y_i / Y in the interpolation rows, 0 elsewhere.
+    fn right_hand_sides(&self, ys: &[Vec<f64>], y_scales: &[f64]) -> Vec<Vec<f64>> {
+        let mut rhs: Vec<Vec<f64>> = vec![vec![0.0; self.size]; ys.len()];
+        for ((b, y), scale) in rhs.iter_mut().zip(ys).zip(y_scales) {
+            for i in 0..self.n {
+                b[self.k + i] = y[i] / scale;
+            }
+        }
+        rhs
+    }
+
+    /// The B-spline derivatives at each interior knot, shared by the columns.
+    fn interior_knot_derivatives(&self, u: &[f64]) -> Vec<KnotDerivatives> {
+        let n = self.n;
+        let mut knot_ders = vec![[[0.0; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER]; n];
+        for i in 1..n.saturating_sub(2) {
+            basis_derivatives(
+                &self.t,
+                self.k,
+                self.span_of(i),
+                u[i],
+                self.k - 1,
+                &mut knot_ders[i],
+            );
+        }
+        knot_ders
+    }
+
+    /// Local polynomials p_i(s) = Σ_r coef_{i,r} s^r, s = (u − u_i)/h_i ∈ [0, 1], in data
+    /// units, from one solution `z` with data scale Y = `y_scale`.
+    fn interval_coefficients(
+        &self,
+        u: &[f64],
+        knot_ders: &[KnotDerivatives],
+        z: &[f64],
+        y_scale: f64,
+    ) -> Vec<f64> {
+        let (k, n) = (self.k, self.n);
+        let a = &z[self.col_a..self.col_r];
+        let mut coef = vec![0.0; (n - 1) * k];
+        // Interior intervals: coef_{i,r} = Y f̃^(r)(u_i⁺) h_i^r / r!, with
+        // f̃^(r)(u_i⁺) = Σ_q a_{i+q} B_{i+q}^(r)(u_i).
+        for i in 1..n.saturating_sub(2) {
+            let hi = u[i + 1] - u[i];
+            let ders = &knot_ders[i];
+            let mut factor = y_scale; // Y h^r / r!
+            for r in 0..k {
+                let fr: f64 = (0..k).map(|q| a[i + q] * ders[r][q]).sum();
+                coef[i * k + r] = fr * factor;
+                factor *= hi / (r + 1) as f64;
+            }
+        }
+        // The last interval is done before the first, which wins when n = 2.
+        self.last_interval_coefficients(u, z, y_scale, &mut coef[(n - 2) * k..(n - 1) * k]);
+        self.first_interval_coefficients(u, z, y_scale, &mut coef[..k]);
+        coef
+    }
+
+    /// Last interval, from the Taylor form at u_n: p(u) = Σ_q d_q σ^q with σ = (u − u_n)/h =
+    /// s − 1 and d_q = c'_q h^q, so coef_r = Σ_{q≥r} d_q C(q, r) (−1)^(q−r).
+    /// d_{2m−1} = e' h^{2m−1}/Π_l δ'_l with δ'_{2m−1} = −h, i.e. −e' Π_{l<2m−1} (h/δ'_l).
+    #[allow(clippy::needless_range_loop)] // index arithmetic mirrors the equations
+    fn last_interval_coefficients(&self, u: &[f64], z: &[f64], y_scale: f64, coef: &mut [f64]) {
+        let (m, k, n, col_r) = (self.m, self.k, self.n, self.col_r);
+        let h = u[n - 1] - u[n - 2];
+        let mut d = [0.0; 2 * MAX_HALF_ORDER];
+        let mut hp = 1.0;
+        for q in 0..m {
+            d[q] = z[col_r + q] * hp;
+            hp *= h;
+        }
+        let j = self.nb - k;
+        d[k - 1] = -z[col_r + m]
+            * (1..k - 1)
+                .map(|l| h / (self.t[j + l] - u[n - 1]))
+                .product::<f64>();
+        for r in 0..k {
+            let cr: f64 = (r..k)
+                .map(|q| d[q] * binomial(q, r) * if (q - r) % 2 == 0 { 1.0 } else { -1.0 })
+                .sum();
+            coef[r] = cr * y_scale;
+        }
+    }
+
+    /// First interval: coef_r = c_r h^r (r < m), 0 for m ≤ r ≤ 2m−2 (natural conditions,
+    /// exactly), and c_{2m−1} h^{2m−1} = e Π_{l≥2} (h/δ_l) since δ_1 = h.
+    fn first_interval_coefficients(&self, u: &[f64], z: &[f64], y_scale: f64, coef: &mut [f64]) {
+        let (m, k) = (self.m, self.k);
+        let h = u[1] - u[0];
+        let mut hp = 1.0;
+        coef.fill(0.0);
+        for r in 0..m {
+            coef[r] = z[r] * hp * y_scale;
+            hp *= h;
+        }
+        coef[k - 1] = z[m]
+            * (2..k)
+                .map(|l| h / (self.t[k - 1 + l] - u[0]))
+                .product::<f64>()
+            * y_scale;
+    }
+}
+
+/// B_j^(r) at one knot: [r][q] for the k B-splines non-zero on the interval it starts.
+type KnotDerivatives = [[f64; 2 * MAX_HALF_ORDER]; 2 * MAX_HALF_ORDER];
 
 /// Binomial coefficient C(n, r) as a float, r ≤ n.
 fn binomial(n: usize, r: usize) -> f64 {

@@ -326,6 +326,16 @@ pub(super) struct Tree {
     pub body_parent: Vec<Option<usize>>,
 }
 
+/// A joint's frames resolved to bodies: X_PF on the parent, X_BM on the child.
+struct Resolved {
+    parent: usize,
+    x_parent: Transform,
+    child: usize,
+    x_child: Transform,
+}
+
+/// Orders the joints from ground (file order among those ready), numbers the bodies in that
+/// order and expands each joint into its coordinates, full coordinates and steps.
 pub(super) fn build_tree(
     ctx: &mut Ctx,
     defs: Vec<JointDef>,
@@ -333,13 +343,52 @@ pub(super) fn build_tree(
     body_lines: &[u32],
 ) -> Result<Tree, Error> {
     let n_bodies = body_lines.len();
-    // Resolve each joint's frames to bodies.
-    struct Resolved {
-        parent: usize,
-        x_parent: Transform,
-        child: usize,
-        x_child: Transform,
+    let (resolved, child_of) = resolve_joint_frames(ctx, &defs, frames, n_bodies)?;
+    let order = topological_order(&resolved, n_bodies)
+        .map_err(|k| unplaced_joint_error(ctx, &defs, &resolved, &child_of, frames, k))?;
+    if let Some(b) = (1..n_bodies).find(|&b| child_of[b].is_none()) {
+        let path = body_name_hint(frames, b);
+        return Err(Error::Model {
+            file: ctx.file.to_string(),
+            line: body_lines[b],
+            element: format!("Body \"{}\"", path.rsplit('/').next().unwrap_or(&path)),
+            message: "no joint connects this body to the tree".into(),
+        });
     }
+
+    // New body numbering: ground, then children in joint order.
+    let mut body_order = vec![0usize];
+    body_order.extend(order.iter().map(|&k| resolved[k].child));
+    let mut body_new_index = vec![0usize; n_bodies];
+    for (new, &old) in body_order.iter().enumerate() {
+        body_new_index[old] = new;
+    }
+
+    let mut builder = TreeBuilder::new(n_bodies, order.len());
+    for &k in &order {
+        builder.add_joint(ctx, &defs[k], &resolved[k], &body_new_index)?;
+    }
+    // body_joint / body_parent were filled at new indices.
+    Ok(Tree {
+        joints: builder.joints,
+        coordinates: builder.coordinates,
+        dofs: builder.dofs,
+        body_order,
+        body_new_index,
+        body_joint: builder.body_joint,
+        body_parent: builder.body_parent,
+    })
+}
+
+/// Resolves each joint's parent and child frames to bodies; a reversed joint (ground as the
+/// child), a joint within one body or a body with two parent joints is an error. Returns the
+/// resolved frames and, per file-order body, the joint whose child it is.
+fn resolve_joint_frames(
+    ctx: &Ctx,
+    defs: &[JointDef],
+    frames: &mut FrameRegistry,
+    n_bodies: usize,
+) -> Result<(Vec<Resolved>, Vec<Option<usize>>), Error> {
     let mut resolved = Vec::with_capacity(defs.len());
     let mut child_of: Vec<Option<usize>> = vec![None; n_bodies];
     for (k, d) in defs.iter().enumerate() {
@@ -376,16 +425,20 @@ pub(super) fn build_tree(
             x_child,
         });
     }
+    Ok((resolved, child_of))
+}
 
-    // Stable topological order: repeatedly take, in file order, the joints whose parent body
-    // is already placed.
+/// Stable topological order: repeatedly take, in file order, the joints whose parent body
+/// is already placed. Err(the first joint never reached), from a cycle or a missing
+/// connection.
+fn topological_order(resolved: &[Resolved], n_bodies: usize) -> Result<Vec<usize>, usize> {
     let mut placed = vec![false; n_bodies];
     placed[0] = true;
-    let mut order = Vec::with_capacity(defs.len());
-    let mut done = vec![false; defs.len()];
+    let mut order = Vec::with_capacity(resolved.len());
+    let mut done = vec![false; resolved.len()];
     loop {
         let mut progress = false;
-        for k in 0..defs.len() {
+        for k in 0..resolved.len() {
             if !done[k] && placed[resolved[k].parent] {
                 done[k] = true;
                 placed[resolved[k].child] = true;
@@ -397,97 +450,102 @@ pub(super) fn build_tree(
             break;
         }
     }
-    if let Some(k) = (0..defs.len()).find(|&k| !done[k]) {
-        // Walk up the parents to tell a cycle from a missing connection.
-        let mut chain = vec![k];
-        let mut body = resolved[k].parent;
-        loop {
-            match child_of[body] {
-                None => {
-                    return Err(ctx.err(
-                        defs[k].node,
-                        format!(
-                            "not connected to ground: body `{}` has no joint to a parent",
-                            body_name_hint(frames, body)
-                        ),
-                    ));
-                }
-                Some(j) if chain.contains(&j) => {
-                    let names: Vec<&str> = chain.iter().map(|&j| defs[j].name.as_str()).collect();
-                    return Err(ctx.err(
-                        defs[k].node,
-                        format!(
-                            "joints form a cycle ({}), so no body in it is connected to ground",
-                            names.join(" → ")
-                        ),
-                    ));
-                }
-                Some(j) => {
-                    chain.push(j);
-                    body = resolved[j].parent;
-                }
+    match (0..resolved.len()).find(|&k| !done[k]) {
+        Some(k) => Err(k),
+        None => Ok(order),
+    }
+}
+
+/// The error for joint `k`, which the topological order never reached: walking up its
+/// parents tells a cycle from a missing connection to ground.
+fn unplaced_joint_error(
+    ctx: &Ctx,
+    defs: &[JointDef],
+    resolved: &[Resolved],
+    child_of: &[Option<usize>],
+    frames: &FrameRegistry,
+    k: usize,
+) -> Error {
+    let mut chain = vec![k];
+    let mut body = resolved[k].parent;
+    loop {
+        match child_of[body] {
+            None => {
+                return ctx.err(
+                    defs[k].node,
+                    format!(
+                        "not connected to ground: body `{}` has no joint to a parent",
+                        body_name_hint(frames, body)
+                    ),
+                );
+            }
+            Some(j) if chain.contains(&j) => {
+                let names: Vec<&str> = chain.iter().map(|&j| defs[j].name.as_str()).collect();
+                return ctx.err(
+                    defs[k].node,
+                    format!(
+                        "joints form a cycle ({}), so no body in it is connected to ground",
+                        names.join(" → ")
+                    ),
+                );
+            }
+            Some(j) => {
+                chain.push(j);
+                body = resolved[j].parent;
             }
         }
     }
-    if let Some(b) = (1..n_bodies).find(|&b| child_of[b].is_none()) {
-        let path = body_name_hint(frames, b);
-        return Err(Error::Model {
-            file: ctx.file.to_string(),
-            line: body_lines[b],
-            element: format!("Body \"{}\"", path.rsplit('/').next().unwrap_or(&path)),
-            message: "no joint connects this body to the tree".into(),
-        });
+}
+
+/// The tree as it is assembled, joint by joint in topological order (bodies at new indices).
+struct TreeBuilder {
+    joints: Vec<Joint>,
+    coordinates: Vec<Coordinate>,
+    dofs: Vec<Dof>,
+    body_joint: Vec<Option<usize>>,
+    body_parent: Vec<Option<usize>>,
+    /// The last full coordinate on each body's chain from ground (its dofs' `parent_dof`).
+    last_dof_of_body: Vec<Option<usize>>,
+    coord_names: std::collections::HashMap<String, usize>,
+}
+
+impl TreeBuilder {
+    fn new(n_bodies: usize, n_joints: usize) -> Self {
+        TreeBuilder {
+            joints: Vec::with_capacity(n_joints),
+            coordinates: Vec::new(),
+            dofs: Vec::new(),
+            body_joint: vec![None; n_bodies],
+            body_parent: vec![None; n_bodies],
+            last_dof_of_body: vec![None; n_bodies],
+            coord_names: std::collections::HashMap::new(),
+        }
     }
 
-    // New body numbering: ground, then children in joint order.
-    let mut body_order = vec![0usize];
-    body_order.extend(order.iter().map(|&k| resolved[k].child));
-    let mut body_new_index = vec![0usize; n_bodies];
-    for (new, &old) in body_order.iter().enumerate() {
-        body_new_index[old] = new;
-    }
-
-    let mut joints = Vec::with_capacity(order.len());
-    let mut coordinates = Vec::new();
-    let mut dofs: Vec<Dof> = Vec::new();
-    let mut body_joint = vec![None; n_bodies];
-    let mut body_parent = vec![None; n_bodies];
-    let mut last_dof_of_body: Vec<Option<usize>> = vec![None; n_bodies];
-    let mut coord_names = std::collections::HashMap::new();
-    for &k in &order {
-        let d = &defs[k];
-        let r = &resolved[k];
-        let ji = joints.len();
+    /// Appends joint `d` (resolved as `r`): its coordinates, then its steps (fixed transforms
+    /// and full coordinates) from the joint type's recipe.
+    fn add_joint(
+        &mut self,
+        ctx: &Ctx,
+        d: &JointDef,
+        r: &Resolved,
+        body_new_index: &[usize],
+    ) -> Result<(), Error> {
+        let ji = self.joints.len();
         let parent = body_new_index[r.parent];
         let child = body_new_index[r.child];
-        body_joint[child] = Some(ji);
-        body_parent[child] = Some(parent);
+        self.body_joint[child] = Some(ji);
+        self.body_parent[child] = Some(parent);
 
         let (coord_defs, motion_types, recipe) = joint_recipe(ctx, d)?;
-        let first_coord = coordinates.len();
+        let first_coord = self.coordinates.len();
         for (cd, mt) in coord_defs.iter().zip(motion_types) {
-            if let Some(prev) = coord_names.insert(cd.name.clone(), coordinates.len()) {
-                let _ = prev;
-                return Err(ctx.err(cd.node, "two coordinates have this name"));
-            }
-            coordinates.push(Coordinate {
-                name: cd.name.clone(),
-                joint: ji,
-                motion_type: mt,
-                default_value: cd.default_value,
-                default_speed: cd.default_speed,
-                range: cd.range,
-                clamped: cd.clamped,
-                locked: cd.locked,
-                prescribed: cd.prescribed,
-                role: CoordinateRole::Locked, // set by the reduction
-                line: ctx.line(cd.node),
-            });
+            self.add_coordinate(ctx, cd, mt, ji)?;
         }
 
         let mut steps = Vec::new();
-        let dof_start = dofs.len();
-        let mut prev = last_dof_of_body[parent];
+        let dof_start = self.dofs.len();
+        let mut prev = self.last_dof_of_body[parent];
         for item in recipe {
             match item {
                 RecipeItem::Fixed(x) => steps.push(JointStep::Fixed(x)),
@@ -498,8 +556,8 @@ pub(super) fn build_tree(
                     function,
                     args,
                 } => {
-                    let di = dofs.len();
-                    dofs.push(Dof {
+                    let di = self.dofs.len();
+                    self.dofs.push(Dof {
                         name: format!("{}/{}", d.name, name),
                         joint: ji,
                         kind,
@@ -514,8 +572,8 @@ pub(super) fn build_tree(
                 }
             }
         }
-        last_dof_of_body[child] = prev;
-        joints.push(Joint {
+        self.last_dof_of_body[child] = prev;
+        self.joints.push(Joint {
             name: d.name.clone(),
             kind: d.kind,
             parent_body: parent,
@@ -523,22 +581,44 @@ pub(super) fn build_tree(
             parent_offset: r.x_parent,
             child_offset: r.x_child,
             child_offset_inv: r.x_child.inverse(),
-            coordinates: (first_coord..coordinates.len()).collect(),
+            coordinates: (first_coord..self.coordinates.len()).collect(),
             steps,
-            dof_range: dof_start..dofs.len(),
+            dof_range: dof_start..self.dofs.len(),
             line: ctx.line(d.node),
         });
+        Ok(())
     }
-    // body_joint / body_parent were filled at new indices.
-    Ok(Tree {
-        joints,
-        coordinates,
-        dofs,
-        body_order,
-        body_new_index,
-        body_joint,
-        body_parent,
-    })
+
+    /// Appends coordinate `cd` of joint `ji`; two coordinates with one name are an error.
+    fn add_coordinate(
+        &mut self,
+        ctx: &Ctx,
+        cd: &CoordDef,
+        motion_type: MotionType,
+        ji: usize,
+    ) -> Result<(), Error> {
+        if self
+            .coord_names
+            .insert(cd.name.clone(), self.coordinates.len())
+            .is_some()
+        {
+            return Err(ctx.err(cd.node, "two coordinates have this name"));
+        }
+        self.coordinates.push(Coordinate {
+            name: cd.name.clone(),
+            joint: ji,
+            motion_type,
+            default_value: cd.default_value,
+            default_speed: cd.default_speed,
+            range: cd.range,
+            clamped: cd.clamped,
+            locked: cd.locked,
+            prescribed: cd.prescribed,
+            role: CoordinateRole::Locked, // set by the reduction
+            line: ctx.line(cd.node),
+        });
+        Ok(())
+    }
 }
 
 fn body_name_hint(frames: &FrameRegistry, body: usize) -> String {

@@ -147,6 +147,25 @@ fn parse_inner(
     ModelReader::default().read(&mut ctx, model_node, source, options, force_sets)
 }
 
+/// `<length_units>` must be meters and `<force_units>` newtons: musculo does not convert.
+fn check_units(ctx: &Ctx, node: XNode) -> Result<(), Error> {
+    let u = node.text().unwrap_or("").trim();
+    if node.tag_name().name() == "length_units" {
+        if !matches!(u, "meters" | "meter" | "m") {
+            return Err(ctx.err(
+                node,
+                format!("length units `{u}` are not supported; musculo reads models in meters"),
+            ));
+        }
+    } else if !matches!(u, "N" | "newtons" | "Newtons") {
+        return Err(ctx.err(
+            node,
+            format!("force units `{u}` are not supported; musculo reads models in N"),
+        ));
+    }
+    Ok(())
+}
+
 /// A body as read, before topological ordering.
 struct BodyDef {
     name: String,
@@ -170,6 +189,9 @@ struct ModelReader<'a, 'i> {
 }
 
 impl<'a, 'i> ModelReader<'a, 'i> {
+    /// Reads the `<Model>` element: its sets, then ground, the joint tree with the bodies in
+    /// topological order, constraints and the coordinate reduction, wrap objects, markers,
+    /// contact geometry and forces (with the force-set files).
     fn read(
         mut self,
         ctx: &mut Ctx<'a, 'i>,
@@ -182,6 +204,67 @@ impl<'a, 'i> ModelReader<'a, 'i> {
             Some(n) if !n.is_empty() => ctx.check_component_name(model, n.to_string())?,
             _ => "model".to_string(),
         };
+        let (gravity, ground) = self.read_model_elements(ctx, model, options)?;
+        self.add_ground(ctx, ground)?;
+        self.check_unique_body_names(ctx)?;
+
+        // Joints: register their frames first (a joint may refer to another joint's frame).
+        let joint_defs = joints::read_joints(ctx, &self.joint_nodes, &mut self.frames)?;
+        let body_lines: Vec<u32> = self.bodies.iter().map(|b| b.line).collect();
+        let tree = joints::build_tree(ctx, joint_defs, &mut self.frames, &body_lines)?;
+        let bodies = self.bodies_in_tree_order(&tree);
+        self.frames.renumber_bodies(&tree.body_new_index);
+
+        let mut model = Model {
+            name,
+            source: source.to_string(),
+            gravity,
+            bodies,
+            joints: tree.joints,
+            coordinates: tree.coordinates,
+            dofs: tree.dofs,
+            couplers: Vec::new(),
+            markers: Vec::new(),
+            contact_geometry: Vec::new(),
+            forces: Vec::new(),
+            wrap_objects: Vec::new(),
+            warnings: Vec::new(),
+            visual_elements_skipped: 0,
+            reduction: Reduction::default(),
+        };
+
+        self.read_constraints_and_reduce(ctx, &mut model)?;
+        for &(w, body) in &self.wrap_nodes {
+            if let Some(obj) = forces::read_wrap_object(ctx, w, tree.body_new_index[body])? {
+                model.wrap_objects.push(obj);
+            }
+        }
+        self.read_markers(ctx, &mut model)?;
+        for &c in &self.contact_nodes {
+            if let Some(g) = forces::read_contact_geometry(ctx, c, &mut self.frames)? {
+                model.contact_geometry.push(g);
+            }
+        }
+        let replace = force_sets.is_some_and(|f| f.replace);
+        if !replace {
+            self.read_forces(ctx, &mut model)?;
+        }
+        model.warnings = std::mem::take(&mut ctx.warnings);
+        for (text, file) in force_sets.map(|f| f.files.as_slice()).unwrap_or(&[]) {
+            self.read_force_set_file(text, file, &mut model)?;
+        }
+        model.visual_elements_skipped = ctx.visual;
+        Ok(model)
+    }
+
+    /// The children of `<Model>`: bodies are read now, the other sets' members collected for
+    /// later stages. Returns (gravity, the `<Ground>` element).
+    fn read_model_elements(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        model: XNode<'a, 'i>,
+        options: &LoadOptions,
+    ) -> Result<(Vec3, Option<XNode<'a, 'i>>), Error> {
         let mut gravity = Vec3::new(0.0, -9.80665, 0.0);
         let mut ground = None;
         for c in elements(model) {
@@ -189,48 +272,8 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 "Ground" => ground = Some(c),
                 "gravity" => gravity = ctx.vec3_or(model, "gravity", gravity)?,
                 "credits" | "publications" => {}
-                "length_units" => {
-                    let u = c.text().unwrap_or("").trim();
-                    if !matches!(u, "meters" | "meter" | "m") {
-                        return Err(ctx.err(c, format!("length units `{u}` are not supported; musculo reads models in meters")));
-                    }
-                }
-                "force_units" => {
-                    let u = c.text().unwrap_or("").trim();
-                    if !matches!(u, "N" | "newtons" | "Newtons") {
-                        return Err(ctx.err(
-                            c,
-                            format!(
-                                "force units `{u}` are not supported; musculo reads models in N"
-                            ),
-                        ));
-                    }
-                }
-                "BodySet" => {
-                    let members = set_members(c);
-                    // ground is a body too
-                    if members.len() + 1 > crate::limits::MAX_BODIES {
-                        return Err(ctx.err(
-                            c,
-                            format!(
-                                "{} bodies: more than the {} a model may have \
-                                 (musculo::limits::MAX_BODIES, ground included)",
-                                members.len() + 1,
-                                crate::limits::MAX_BODIES
-                            ),
-                        ));
-                    }
-                    for b in members {
-                        if b.tag_name().name() == "Body" {
-                            self.read_body(ctx, b, options)?;
-                        } else {
-                            return Err(ctx.err(
-                                b,
-                                format!("unsupported body type `{}`", b.tag_name().name()),
-                            ));
-                        }
-                    }
-                }
+                "length_units" | "force_units" => check_units(ctx, c)?,
+                "BodySet" => self.read_body_set(ctx, c, options)?,
                 "JointSet" => self.joint_nodes.extend(set_members(c)),
                 "ConstraintSet" => self.constraint_nodes.extend(set_members(c)),
                 "ForceSet" => self.force_nodes.extend(set_members(c)),
@@ -256,7 +299,50 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 _ => ctx.unknown(c),
             }
         }
-        // Ground is body 0 in file order too.
+        Ok((gravity, ground))
+    }
+
+    /// The `<Body>` members of `<BodySet>`, at most MAX_BODIES with ground; any other body
+    /// type is an error.
+    fn read_body_set(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        set: XNode<'a, 'i>,
+        options: &LoadOptions,
+    ) -> Result<(), Error> {
+        let members = set_members(set);
+        // ground is a body too
+        if members.len() + 1 > crate::limits::MAX_BODIES {
+            return Err(ctx.err(
+                set,
+                format!(
+                    "{} bodies: more than the {} a model may have \
+                     (musculo::limits::MAX_BODIES, ground included)",
+                    members.len() + 1,
+                    crate::limits::MAX_BODIES
+                ),
+            ));
+        }
+        for b in members {
+            if b.tag_name().name() == "Body" {
+                self.read_body(ctx, b, options)?;
+            } else {
+                return Err(ctx.err(
+                    b,
+                    format!("unsupported body type `{}`", b.tag_name().name()),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Ground becomes body 0 (file order too): the other bodies' indices shift by one, every
+    /// body's frame is registered, and ground's wrap objects and components are read.
+    fn add_ground(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        ground: Option<XNode<'a, 'i>>,
+    ) -> Result<(), Error> {
         let ground_name = match ground.and_then(|g| Some((g, g.attribute("name")?.trim()))) {
             Some((g, n)) if !n.is_empty() => ctx.check_component_name(g, n.to_string())?,
             _ => "ground".to_string(),
@@ -294,28 +380,28 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 }
             }
         }
-        {
-            let mut seen = std::collections::HashSet::new();
-            for b in &self.bodies {
-                if !seen.insert(b.name.clone()) {
-                    return Err(Error::Model {
-                        file: ctx.file.to_string(),
-                        line: b.line,
-                        element: format!("Body \"{}\"", b.name),
-                        message: "two bodies have this name".into(),
-                    });
-                }
+        Ok(())
+    }
+
+    /// Two bodies (ground included) with one name are an error.
+    fn check_unique_body_names(&self, ctx: &Ctx<'a, 'i>) -> Result<(), Error> {
+        let mut seen = std::collections::HashSet::new();
+        for b in &self.bodies {
+            if !seen.insert(b.name.clone()) {
+                return Err(Error::Model {
+                    file: ctx.file.to_string(),
+                    line: b.line,
+                    element: format!("Body \"{}\"", b.name),
+                    message: "two bodies have this name".into(),
+                });
             }
         }
+        Ok(())
+    }
 
-        // Joints: register their frames first (a joint may refer to another joint's frame).
-        let joint_defs = joints::read_joints(ctx, &self.joint_nodes, &mut self.frames)?;
-        let body_lines: Vec<u32> = self.bodies.iter().map(|b| b.line).collect();
-        let tree = joints::build_tree(ctx, joint_defs, &mut self.frames, &body_lines)?;
-
-        // Bodies in topological order.
-        let bodies: Vec<Body> = tree
-            .body_order
+    /// The bodies in the tree's topological order, with their joint and parent.
+    fn bodies_in_tree_order(&self, tree: &joints::Tree) -> Vec<Body> {
+        tree.body_order
             .iter()
             .enumerate()
             .map(|(new, &old)| {
@@ -330,32 +416,21 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                     line: d.line,
                 }
             })
-            .collect();
-        let new_index = |old: usize| tree.body_new_index[old];
-        self.frames.renumber_bodies(&tree.body_new_index);
+            .collect()
+    }
 
-        let mut model = Model {
-            name,
-            source: source.to_string(),
-            gravity,
-            bodies,
-            joints: tree.joints,
-            coordinates: tree.coordinates,
-            dofs: tree.dofs,
-            couplers: Vec::new(),
-            markers: Vec::new(),
-            contact_geometry: Vec::new(),
-            forces: Vec::new(),
-            wrap_objects: Vec::new(),
-            warnings: Vec::new(),
-            visual_elements_skipped: 0,
-            reduction: Reduction::default(),
-        };
-
+    /// Reads the constraints, builds the coordinate reduction (an error names the coupler it
+    /// fails on), checks the kinematic functions over their ranges and sets each coordinate's
+    /// role: dependent, independent (its index in q) or locked.
+    fn read_constraints_and_reduce(
+        &mut self,
+        ctx: &mut Ctx<'a, 'i>,
+        model: &mut Model,
+    ) -> Result<(), Error> {
         for c in std::mem::take(&mut self.constraint_nodes) {
-            self.read_constraint(ctx, c, &mut model)?;
+            self.read_constraint(ctx, c, model)?;
         }
-        model.reduction = Reduction::build(&model).map_err(|(coupler, message)| {
+        model.reduction = Reduction::build(model).map_err(|(coupler, message)| {
             let c = &model.couplers[coupler];
             Error::Model {
                 file: ctx.file.to_string(),
@@ -364,7 +439,7 @@ impl<'a, 'i> ModelReader<'a, 'i> {
                 message,
             }
         })?;
-        kinematic_range::check_kinematic_functions(ctx, &model)?;
+        kinematic_range::check_kinematic_functions(ctx, model)?;
         for c in model.coordinates.iter_mut() {
             if !matches!(c.role, CoordinateRole::Dependent(_)) {
                 c.role = CoordinateRole::Locked;
@@ -373,12 +448,11 @@ impl<'a, 'i> ModelReader<'a, 'i> {
         for (j, &c) in model.reduction.independent.iter().enumerate() {
             model.coordinates[c].role = CoordinateRole::Independent(j);
         }
+        Ok(())
+    }
 
-        for &(w, body) in &self.wrap_nodes {
-            if let Some(obj) = forces::read_wrap_object(ctx, w, new_index(body))? {
-                model.wrap_objects.push(obj);
-            }
-        }
+    /// The markers; two with one name are an error.
+    fn read_markers(&mut self, ctx: &mut Ctx<'a, 'i>, model: &mut Model) -> Result<(), Error> {
         let mut marker_names = std::collections::HashSet::new();
         for &m in &self.marker_nodes {
             let marker = forces::read_marker(ctx, m, &mut self.frames)?;
@@ -394,39 +468,31 @@ impl<'a, 'i> ModelReader<'a, 'i> {
             }
             model.markers.push(marker);
         }
-        for &c in &self.contact_nodes {
-            if let Some(g) = forces::read_contact_geometry(ctx, c, &mut self.frames)? {
-                model.contact_geometry.push(g);
+        Ok(())
+    }
+
+    /// The model's own forces; two with one name are an error.
+    fn read_forces(&mut self, ctx: &mut Ctx<'a, 'i>, model: &mut Model) -> Result<(), Error> {
+        let mut by_name = std::collections::HashMap::new();
+        for &f in &self.force_nodes {
+            let force = forces::read_force(ctx, f, &mut self.frames, model)?;
+            if let Some(first) = by_name
+                .insert(force.name.clone(), model.forces.len())
+                .map(|i| &model.forces[i])
+            {
+                return Err(ctx.err(
+                    f,
+                    format!(
+                        "two forces are named \"{}\" (the first, a {}, at line {}): \
+                         OpenSim names forces uniquely, and tables of muscles and \
+                         actuators are keyed by name",
+                        force.name, first.kind, first.line
+                    ),
+                ));
             }
+            model.forces.push(force);
         }
-        let replace = force_sets.is_some_and(|f| f.replace);
-        if !replace {
-            let mut by_name = std::collections::HashMap::new();
-            for &f in &self.force_nodes {
-                let force = forces::read_force(ctx, f, &mut self.frames, &model)?;
-                if let Some(first) = by_name
-                    .insert(force.name.clone(), model.forces.len())
-                    .map(|i| &model.forces[i])
-                {
-                    return Err(ctx.err(
-                        f,
-                        format!(
-                            "two forces are named \"{}\" (the first, a {}, at line {}): \
-                             OpenSim names forces uniquely, and tables of muscles and \
-                             actuators are keyed by name",
-                            force.name, first.kind, first.line
-                        ),
-                    ));
-                }
-                model.forces.push(force);
-            }
-        }
-        model.warnings = std::mem::take(&mut ctx.warnings);
-        for (text, file) in force_sets.map(|f| f.files.as_slice()).unwrap_or(&[]) {
-            self.read_force_set_file(text, file, &mut model)?;
-        }
-        model.visual_elements_skipped = ctx.visual;
-        Ok(model)
+        Ok(())
     }
 
     /// Appends the members of the `<ForceSet>` (or OpenSim 2–3 `<ActuatorSet>`) of a

@@ -103,9 +103,36 @@ impl HillMuscle {
     }
 }
 
+/// Reads a muscle of class `kind`: the Muscle base class's properties, its pennation model,
+/// then the class's curves and the class-specific parameters (minimum activation, fiber
+/// damping, minimum fiber length, activation smoothing).
 fn read(kind: MuscleKind, name: &str, raw: &RawElement) -> Result<HillMuscle, String> {
     let p = Props { el: raw };
-    // Muscle base class.
+    let mut params = read_base_parameters(kind, &p)?;
+    let pennation = FixedWidthPennation::new(
+        params.optimal_fiber_length,
+        params.pennation_angle_at_optimal,
+        params.maximum_pennation_angle,
+    );
+    let pennation_minimum = pennation.minimum_fiber_length(params.optimal_fiber_length);
+    let curves = match kind {
+        MuscleKind::Thelen2003 => read_thelen(&p, &mut params, pennation_minimum)?,
+        MuscleKind::Millard2012Equilibrium => read_millard(&p, &mut params, pennation_minimum)?,
+        MuscleKind::DeGrooteFregly2016 => read_degroote(&p, &mut params)?,
+    };
+    Ok(HillMuscle {
+        name: name.to_string(),
+        kind,
+        params,
+        curves,
+        pennation,
+    })
+}
+
+/// The Muscle base class's properties with the class's defaults (time constants, default
+/// activation) and the maximum pennation angle; the class-specific fields are left at zero
+/// (minimum activation, fiber damping, minimum fiber length) or None.
+fn read_base_parameters(kind: MuscleKind, p: &Props) -> Result<HillParameters, String> {
     let max_isometric_force = p.number("max_isometric_force", 1000.0)?;
     if !(max_isometric_force >= 0.0) {
         return Err(format!(
@@ -159,14 +186,7 @@ fn read(kind: MuscleKind, name: &str, raw: &RawElement) -> Result<HillMuscle, St
             a
         }
     };
-    let pennation = FixedWidthPennation::new(
-        optimal_fiber_length,
-        pennation_angle_at_optimal,
-        maximum_pennation_angle,
-    );
-    let pennation_minimum = pennation.minimum_fiber_length(optimal_fiber_length);
-
-    let mut params = HillParameters {
+    Ok(HillParameters {
         max_isometric_force,
         optimal_fiber_length,
         tendon_slack_length,
@@ -182,125 +202,133 @@ fn read(kind: MuscleKind, name: &str, raw: &RawElement) -> Result<HillMuscle, St
         minimum_fiber_length: 0.0,
         default_activation,
         activation_dynamics_smoothing: None,
-    };
-
-    let curves = match kind {
-        MuscleKind::Thelen2003 => {
-            let d = Thelen2003Curves::default();
-            let c = Thelen2003Curves {
-                fmax_tendon_strain: p.number("FmaxTendonStrain", d.fmax_tendon_strain)?,
-                fmax_muscle_strain: p.number("FmaxMuscleStrain", d.fmax_muscle_strain)?,
-                kshape_active: p.number("KshapeActive", d.kshape_active)?,
-                kshape_passive: p.number("KshapePassive", d.kshape_passive)?,
-                af: p.number("Af", d.af)?,
-                flen: p.number("Flen", d.flen)?,
-                fv_linear_extrap_threshold: p
-                    .number("fv_linear_extrap_threshold", d.fv_linear_extrap_threshold)?,
-            };
-            c.validate()?;
-            let min_act = p.number("minimum_activation", 0.01)?;
-            if !(0.01..1.0).contains(&min_act) {
-                return Err(format!(
-                    "<minimum_activation> must be in [0.01, 1) for Thelen2003Muscle, found {min_act}"
-                ));
-            }
-            params.minimum_activation = min_act;
-            params.minimum_fiber_length = pennation_minimum;
-            HillCurves::Thelen2003(c)
-        }
-        MuscleKind::Millard2012Equilibrium => {
-            let damping = p.number("fiber_damping", 0.1)?;
-            if damping < 0.0 {
-                return Err(format!(
-                    "<fiber_damping> must be non-negative, found {damping}"
-                ));
-            }
-            let damped = damping >= MIN_NONZERO_DAMPING;
-            params.fiber_damping = if damped { damping } else { 0.0 };
-            let classic = !ignore_tendon_compliance && !damped;
-            let mut min_act = p.number("minimum_activation", 0.01)?;
-            if classic {
-                if !(min_act >= 0.01) {
-                    return Err(format!(
-                        "<minimum_activation> must be at least 0.01 for an elastic tendon without \
-                         fiber damping, found {min_act}"
-                    ));
-                }
-            } else if min_act < 0.0 {
-                return Err(format!(
-                    "<minimum_activation> must be non-negative, found {min_act}"
-                ));
-            } else {
-                min_act = min_act.min(1.0);
-            }
-            if min_act >= 1.0 {
-                return Err(format!(
-                    "<minimum_activation> must be below 1, found {min_act}"
-                ));
-            }
-            params.minimum_activation = min_act;
-            let curves = read_millard_curves(&p, classic)?;
-            let active_min = curves
-                .active_force_length_params
-                .min_norm_active_fiber_length
-                * optimal_fiber_length;
-            params.minimum_fiber_length =
-                super::millard::SIGNIFICANT_REAL.max(active_min.max(pennation_minimum));
-            HillCurves::Millard2012(curves)
-        }
-        MuscleKind::DeGrooteFregly2016 => {
-            let d = DeGrooteFregly2016Curves::default();
-            let c = DeGrooteFregly2016Curves {
-                active_force_width_scale: p
-                    .number("active_force_width_scale", d.active_force_width_scale)?,
-                passive_fiber_strain_at_one_norm_force: p.number(
-                    "passive_fiber_strain_at_one_norm_force",
-                    d.passive_fiber_strain_at_one_norm_force,
-                )?,
-                tendon_strain_at_one_norm_force: p.number(
-                    "tendon_strain_at_one_norm_force",
-                    d.tendon_strain_at_one_norm_force,
-                )?,
-                ignore_passive_fiber_force: p.boolean("ignore_passive_fiber_force", false)?,
-            };
-            c.validate()?;
-            let damping = p.number("fiber_damping", 0.0)?;
-            if damping < 0.0 {
-                return Err(format!(
-                    "<fiber_damping> must be non-negative, found {damping}"
-                ));
-            }
-            params.fiber_damping = damping;
-            let smoothing = positive(
-                "activation_dynamics_smoothing",
-                p.number("activation_dynamics_smoothing", 0.1)?,
-            )?;
-            params.activation_dynamics_smoothing = Some(smoothing);
-            if !(default_activation > 0.0) {
-                return Err(format!(
-                    "<default_activation> must be positive, found {default_activation}"
-                ));
-            }
-            if let Some(mode) = p.text("tendon_compliance_dynamics_mode")
-                && !mode.is_empty()
-                && mode != "explicit"
-                && mode != "implicit"
-            {
-                return Err(format!(
-                    "<tendon_compliance_dynamics_mode> must be `explicit` or `implicit`, found `{mode}`"
-                ));
-            }
-            HillCurves::DeGrooteFregly2016(c)
-        }
-    };
-
-    Ok(HillMuscle {
-        name: name.to_string(),
-        kind,
-        params,
-        curves,
-        pennation,
     })
+}
+
+/// Thelen2003Muscle: its curve parameters, minimum activation in [0.01, 1), and the
+/// pennation model's minimum fiber length.
+fn read_thelen(
+    p: &Props,
+    params: &mut HillParameters,
+    pennation_minimum: f64,
+) -> Result<HillCurves, String> {
+    let d = Thelen2003Curves::default();
+    let c = Thelen2003Curves {
+        fmax_tendon_strain: p.number("FmaxTendonStrain", d.fmax_tendon_strain)?,
+        fmax_muscle_strain: p.number("FmaxMuscleStrain", d.fmax_muscle_strain)?,
+        kshape_active: p.number("KshapeActive", d.kshape_active)?,
+        kshape_passive: p.number("KshapePassive", d.kshape_passive)?,
+        af: p.number("Af", d.af)?,
+        flen: p.number("Flen", d.flen)?,
+        fv_linear_extrap_threshold: p
+            .number("fv_linear_extrap_threshold", d.fv_linear_extrap_threshold)?,
+    };
+    c.validate()?;
+    let min_act = p.number("minimum_activation", 0.01)?;
+    if !(0.01..1.0).contains(&min_act) {
+        return Err(format!(
+            "<minimum_activation> must be in [0.01, 1) for Thelen2003Muscle, found {min_act}"
+        ));
+    }
+    params.minimum_activation = min_act;
+    params.minimum_fiber_length = pennation_minimum;
+    Ok(HillCurves::Thelen2003(c))
+}
+
+/// Millard2012EquilibriumMuscle: fiber damping (below MIN_NONZERO_DAMPING the undamped
+/// model), minimum activation (at least 0.01 for the classic elastic, undamped model), its
+/// curves, and the minimum fiber length max(ε, l_min,active, l_min,pennation).
+fn read_millard(
+    p: &Props,
+    params: &mut HillParameters,
+    pennation_minimum: f64,
+) -> Result<HillCurves, String> {
+    let damping = p.number("fiber_damping", 0.1)?;
+    if damping < 0.0 {
+        return Err(format!(
+            "<fiber_damping> must be non-negative, found {damping}"
+        ));
+    }
+    let damped = damping >= MIN_NONZERO_DAMPING;
+    params.fiber_damping = if damped { damping } else { 0.0 };
+    let classic = !params.ignore_tendon_compliance && !damped;
+    let mut min_act = p.number("minimum_activation", 0.01)?;
+    if classic {
+        if !(min_act >= 0.01) {
+            return Err(format!(
+                "<minimum_activation> must be at least 0.01 for an elastic tendon without \
+                 fiber damping, found {min_act}"
+            ));
+        }
+    } else if min_act < 0.0 {
+        return Err(format!(
+            "<minimum_activation> must be non-negative, found {min_act}"
+        ));
+    } else {
+        min_act = min_act.min(1.0);
+    }
+    if min_act >= 1.0 {
+        return Err(format!(
+            "<minimum_activation> must be below 1, found {min_act}"
+        ));
+    }
+    params.minimum_activation = min_act;
+    let curves = read_millard_curves(p, classic)?;
+    let active_min = curves
+        .active_force_length_params
+        .min_norm_active_fiber_length
+        * params.optimal_fiber_length;
+    params.minimum_fiber_length =
+        super::millard::SIGNIFICANT_REAL.max(active_min.max(pennation_minimum));
+    Ok(HillCurves::Millard2012(curves))
+}
+
+/// DeGrooteFregly2016Muscle: its curve parameters, fiber damping, activation smoothing, a
+/// positive default activation and the tendon compliance mode (read, not used).
+fn read_degroote(p: &Props, params: &mut HillParameters) -> Result<HillCurves, String> {
+    let d = DeGrooteFregly2016Curves::default();
+    let c = DeGrooteFregly2016Curves {
+        active_force_width_scale: p
+            .number("active_force_width_scale", d.active_force_width_scale)?,
+        passive_fiber_strain_at_one_norm_force: p.number(
+            "passive_fiber_strain_at_one_norm_force",
+            d.passive_fiber_strain_at_one_norm_force,
+        )?,
+        tendon_strain_at_one_norm_force: p.number(
+            "tendon_strain_at_one_norm_force",
+            d.tendon_strain_at_one_norm_force,
+        )?,
+        ignore_passive_fiber_force: p.boolean("ignore_passive_fiber_force", false)?,
+    };
+    c.validate()?;
+    let damping = p.number("fiber_damping", 0.0)?;
+    if damping < 0.0 {
+        return Err(format!(
+            "<fiber_damping> must be non-negative, found {damping}"
+        ));
+    }
+    params.fiber_damping = damping;
+    let smoothing = positive(
+        "activation_dynamics_smoothing",
+        p.number("activation_dynamics_smoothing", 0.1)?,
+    )?;
+    params.activation_dynamics_smoothing = Some(smoothing);
+    let default_activation = params.default_activation;
+    if !(default_activation > 0.0) {
+        return Err(format!(
+            "<default_activation> must be positive, found {default_activation}"
+        ));
+    }
+    if let Some(mode) = p.text("tendon_compliance_dynamics_mode")
+        && !mode.is_empty()
+        && mode != "explicit"
+        && mode != "implicit"
+    {
+        return Err(format!(
+            "<tendon_compliance_dynamics_mode> must be `explicit` or `implicit`, found `{mode}`"
+        ));
+    }
+    Ok(HillCurves::DeGrooteFregly2016(c))
 }
 
 fn read_millard_curves(p: &Props, classic_hill: bool) -> Result<Millard2012Curves, String> {

@@ -30,7 +30,7 @@
 
 use super::chain::{body_point_derivative, segment_sign};
 use super::wrapping::{WrapCache, surface_of, wrap_frame};
-use super::{Node, NodeKind, PathSet, PointKind, active_points, apply_wrap_objects};
+use super::{Node, NodeKind, PathGeometry, PathSet, PointKind, active_points, apply_wrap_objects};
 use crate::dynamics::{Data, JacobianTimeVariation, Stage};
 use crate::error::Error;
 use crate::model::Model;
@@ -143,29 +143,54 @@ impl MomentArmRates {
     }
 
     /// ṙ of path `k` into `self.rate`.
+    ///
+    /// Steps (module documentation): the path's nodes; first order (D of every node, the
+    /// engaged wraps, D of the tangent points at their fixed point, ẋ); second order (the
+    /// wraps' rates, Ḋ of the path points, Ḋ of the tangent points); ṙ = −d/dt ∇ℓ.
     fn path(&mut self, model: &Model, data: &Data, set: &PathSet, k: usize) -> crate::Result<()> {
         let n = model.nq();
         let path = &set.paths[k];
-        let nodes = &mut self.nodes;
-        active_points(model, data, path, nodes);
+        active_points(model, data, path, &mut self.nodes);
         if !path.wraps.is_empty() {
-            apply_wrap_objects(model, data, path, nodes, &mut WrapCache::new());
+            apply_wrap_objects(model, data, path, &mut self.nodes, &mut WrapCache::new());
         }
-        let m = nodes.len();
-        let col = |i: usize| i * n..(i + 1) * n;
         let qd: Vec3Speeds = Vec3Speeds { data, model };
-        let c = data.coordinate_values(model);
 
-        // ---- first order: J_body at every node, D of path points, J_W at wrap neighbours ----
+        // ---- first order ----
+        self.point_derivatives(model, data, path);
+        self.engage_wraps(model, data, path)?;
+        self.tangent_derivatives(n);
+        for i in 0..self.nodes.len() {
+            self.xdot[i] = qd.apply(&self.d[col(i, n)]);
+        }
+
+        // ---- second order ----
+        self.wrap_rates(model, data, path, &qd)?;
+        self.point_derivative_rates(model, data, path)?;
+        self.tangent_derivative_rates(n);
+
+        // ---- ṙ = −d/dt ∇ℓ ----
+        self.length_gradient_rate(n);
+        Ok(())
+    }
+
+    /// First order at every node: J_body(x) into `fixed`, D = J_body(x) (+ the moving
+    /// point's R_b F e_i f′(c) ∂c/∂q) into `d`, and J_W at the neighbours of every first
+    /// tangent node into `wa`, `wb`.
+    #[inline]
+    fn point_derivatives(&mut self, model: &Model, data: &Data, path: &PathGeometry) {
+        let n = model.nq();
+        let c = data.coordinate_values(model);
+        let nodes = &self.nodes;
         for (i, node) in nodes.iter().enumerate() {
             body_point_derivative(
                 model,
                 data,
                 node.body,
                 &node.ground,
-                &mut self.fixed[col(i)],
+                &mut self.fixed[col(i, n)],
             );
-            self.d[col(i)].copy_from_slice(&self.fixed[col(i)]);
+            self.d[col(i, n)].copy_from_slice(&self.fixed[col(i, n)]);
             if let NodeKind::Point(pi) = node.kind
                 && let PointKind::Moving { frame, axes } = &path.points[pi].kind
             {
@@ -187,20 +212,31 @@ impl MomentArmRates {
                     data,
                     node.body,
                     &nodes[i - 1].ground,
-                    &mut self.wa[col(i)],
+                    &mut self.wa[col(i, n)],
                 );
                 body_point_derivative(
                     model,
                     data,
                     node.body,
                     &nodes[i + 2].ground,
-                    &mut self.wb[col(i)],
+                    &mut self.wb[col(i, n)],
                 );
             }
         }
-        // Each engaged wrap between its final neighbours (wrap frame).
+    }
+
+    /// Each engaged wrap between its final neighbours (wrap frame): its length gradients and
+    /// tangent Jacobians in ground axes, into `engaged`.
+    #[inline]
+    fn engage_wraps(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        path: &PathGeometry,
+    ) -> crate::Result<()> {
+        let nodes = &self.nodes;
         self.engaged.clear();
-        for i in 0..m {
+        for i in 0..nodes.len() {
             if let NodeKind::Tangent(w, false) = nodes[i].kind {
                 let def = &path.wraps[w];
                 let (rot, origin) = wrap_frame(model, data, def);
@@ -212,6 +248,7 @@ impl MomentArmRates {
                 else {
                     return Err(not_rewrapped(model, path, w));
                 };
+                // G = R_W G_local R_Wᵀ
                 let ground = |m: &Matrix3x6<f64>, c: usize| {
                     rot * m.fixed_columns::<3>(c).into_owned() * rot.transpose()
                 };
@@ -233,7 +270,14 @@ impl MomentArmRates {
                 });
             }
         }
-        // D of the tangent points at their fixed point.
+        Ok(())
+    }
+
+    /// D of the tangent points at their fixed point:
+    /// D_T = J_W(T) + G_TA (D_A − J_W(A)) + G_TB (D_B − J_W(B)).
+    #[inline]
+    fn tangent_derivatives(&mut self, n: usize) {
+        let (fixed, wa, wb) = (&self.fixed, &self.wa, &self.wb);
         iterate_tangents(n, &self.engaged, &mut self.d, |e, t, j, d| {
             let (a, b, k) = (e.node - 1, e.node + 2, e.node);
             let (ja, jb) = if t == k {
@@ -241,22 +285,32 @@ impl MomentArmRates {
             } else {
                 (e.jac[2], e.jac[3])
             };
-            self.fixed[t * n + j]
-                + ja * (d[a * n + j] - self.wa[k * n + j])
-                + jb * (d[b * n + j] - self.wb[k * n + j])
+            fixed[t * n + j]
+                + ja * (d[a * n + j] - wa[k * n + j])
+                + jb * (d[b * n + j] - wb[k * n + j])
         });
-        for i in 0..m {
-            self.xdot[i] = qd.apply(&self.d[col(i)]);
-        }
+    }
 
-        // ---- second order ----
+    /// Each engaged wrap's ġ_A, ġ_B = ω_W × g + R_W (H δ) and
+    /// Ġ_T = [ω_W]× G_T − G_T [ω_W]× + R_W (d/dt ∂T)_local R_Wᵀ.
+    #[inline]
+    fn wrap_rates(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        path: &PathGeometry,
+        qd: &Vec3Speeds,
+    ) -> crate::Result<()> {
+        let n = model.nq();
+        let nodes = &self.nodes;
         for e in self.engaged.iter_mut() {
             let (i, w, rot) = (e.node, e.wrap, e.rot);
             let def = &path.wraps[w];
             let omega = data.body_velocity(nodes[i].body).0;
             let (a, b) = (i - 1, i + 2);
-            let va = qd.apply(&self.wa[col(i)]);
-            let vb = qd.apply(&self.wb[col(i)]);
+            let va = qd.apply(&self.wa[col(i, n)]);
+            let vb = qd.apply(&self.wb[col(i, n)]);
+            // δ = (R_Wᵀ(ẋ_A − J_W(A) q̇), R_Wᵀ(ẋ_B − J_W(B) q̇))
             let da = rot.transpose() * (self.xdot[a] - va);
             let db = rot.transpose() * (self.xdot[b] - vb);
             let dir = [da.x, da.y, da.z, db.x, db.y, db.z];
@@ -280,8 +334,21 @@ impl MomentArmRates {
                 *r = om * g - g * om + rot * l * rot.transpose();
             }
         }
-        // Rates of the body Jacobians at every node (the node moving with ẋ) and of J_W at
-        // the wrap neighbours; Ḋ of the path points.
+        Ok(())
+    }
+
+    /// Rates of the body Jacobians at every node (the node moving with ẋ) into `fixed_rate`
+    /// and of J_W at the wrap neighbours into `wa_rate`, `wb_rate`; Ḋ of the path points
+    /// into `d_rate`.
+    #[inline]
+    fn point_derivative_rates(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        path: &PathGeometry,
+    ) -> crate::Result<()> {
+        let n = model.nq();
+        let nodes = &self.nodes;
         for (i, node) in nodes.iter().enumerate() {
             self.jtv.point_jacobian_rate(
                 model,
@@ -289,33 +356,19 @@ impl MomentArmRates {
                 node.body,
                 &node.ground,
                 &self.xdot[i],
-                &mut self.fixed_rate[col(i)],
+                &mut self.fixed_rate[col(i, n)],
             )?;
-            self.d_rate[col(i)].copy_from_slice(&self.fixed_rate[col(i)]);
+            self.d_rate[col(i, n)].copy_from_slice(&self.fixed_rate[col(i, n)]);
             if let NodeKind::Point(pi) = node.kind
                 && let PointKind::Moving { frame, axes } = &path.points[pi].kind
             {
                 let rot = data.body_pose(node.body).0 * frame.rot;
-                let omega = data.body_velocity(node.body).0;
-                for (a, (func, ci)) in axes.iter().enumerate() {
-                    let [lo, hi] = model.coordinates[*ci].range;
-                    if c[*ci] < lo || c[*ci] > hi {
-                        continue;
-                    }
-                    let (_, f1, f2) = func.eval1(c[*ci]);
-                    let axis = rot.column(a).into_owned();
-                    let cdot: f64 = data
-                        .coordinate_gradient(model, *ci)
-                        .map(|(j, g)| g * data.independent_speed(model, j))
-                        .sum();
-                    let dir_rate = omega.cross(&axis) * f1 + axis * (f2 * cdot);
-                    for ((j, g), (_, g_rate)) in data
-                        .coordinate_gradient(model, *ci)
-                        .zip(self.jtv.coordinate_gradient_rate(model, data, *ci))
-                    {
-                        self.d_rate[i * n + j] += dir_rate * g + axis * (f1 * g_rate);
-                    }
-                }
+                let moving = MovingPointRate {
+                    rot,
+                    omega: data.body_velocity(node.body).0,
+                    axes,
+                };
+                moving.add_rate(model, data, &self.jtv, &mut self.d_rate[col(i, n)]);
             }
             if let NodeKind::Tangent(_, false) = node.kind {
                 self.jtv.point_jacobian_rate(
@@ -324,7 +377,7 @@ impl MomentArmRates {
                     node.body,
                     &nodes[i - 1].ground,
                     &self.xdot[i - 1],
-                    &mut self.wa_rate[col(i)],
+                    &mut self.wa_rate[col(i, n)],
                 )?;
                 self.jtv.point_jacobian_rate(
                     model,
@@ -332,38 +385,44 @@ impl MomentArmRates {
                     node.body,
                     &nodes[i + 2].ground,
                     &self.xdot[i + 2],
-                    &mut self.wb_rate[col(i)],
+                    &mut self.wb_rate[col(i, n)],
                 )?;
             }
         }
-        // Ḋ of the tangent points at their fixed point.
-        {
-            let (d, wa, wb, wa_rate, wb_rate, fixed_rate) = (
-                &self.d,
-                &self.wa,
-                &self.wb,
-                &self.wa_rate,
-                &self.wb_rate,
-                &self.fixed_rate,
-            );
-            iterate_tangents(n, &self.engaged, &mut self.d_rate, |e, t, j, dr| {
-                let (a, b, k) = (e.node - 1, e.node + 2, e.node);
-                let s = if t == k { 0 } else { 2 };
-                let (ja, jb, ja_r, jb_r) =
-                    (e.jac[s], e.jac[s + 1], e.jac_rate[s], e.jac_rate[s + 1]);
-                let rel_a = d[a * n + j] - wa[k * n + j];
-                let rel_b = d[b * n + j] - wb[k * n + j];
-                let rel_a_rate = dr[a * n + j] - wa_rate[k * n + j];
-                let rel_b_rate = dr[b * n + j] - wb_rate[k * n + j];
-                fixed_rate[t * n + j]
-                    + ja_r * rel_a
-                    + ja * rel_a_rate
-                    + jb_r * rel_b
-                    + jb * rel_b_rate
-            });
-        }
+        Ok(())
+    }
 
-        // ---- ṙ = −d/dt ∇ℓ ----
+    /// Ḋ of the tangent points at their fixed point: Ḋ_T = J̇_W(T) + Ġ_TA (D_A − J_W(A)) +
+    /// G_TA (Ḋ_A − J̇_W(A)) + Ġ_TB (D_B − J_W(B)) + G_TB (Ḋ_B − J̇_W(B)).
+    #[inline]
+    fn tangent_derivative_rates(&mut self, n: usize) {
+        let (d, wa, wb, wa_rate, wb_rate, fixed_rate) = (
+            &self.d,
+            &self.wa,
+            &self.wb,
+            &self.wa_rate,
+            &self.wb_rate,
+            &self.fixed_rate,
+        );
+        iterate_tangents(n, &self.engaged, &mut self.d_rate, |e, t, j, dr| {
+            let (a, b, k) = (e.node - 1, e.node + 2, e.node);
+            let s = if t == k { 0 } else { 2 };
+            let (ja, jb, ja_r, jb_r) = (e.jac[s], e.jac[s + 1], e.jac_rate[s], e.jac_rate[s + 1]);
+            let rel_a = d[a * n + j] - wa[k * n + j];
+            let rel_b = d[b * n + j] - wb[k * n + j];
+            let rel_a_rate = dr[a * n + j] - wa_rate[k * n + j];
+            let rel_b_rate = dr[b * n + j] - wb_rate[k * n + j];
+            fixed_rate[t * n + j] + ja_r * rel_a + ja * rel_a_rate + jb_r * rel_b + jb * rel_b_rate
+        });
+    }
+
+    /// ṙ = −d/dt ∇ℓ into `rate`: the wraps' terms
+    /// −[ġ_Aᵀ(D_A − J_W(A)) + g_Aᵀ(Ḋ_A − J̇_W(A)) + (same for B)], then per straight segment
+    /// −sign·[u̇ᵀ(D_b − D_a) + ûᵀ(Ḋ_b − Ḋ_a)] with u̇ = (I − ûûᵀ)(ẋ_b − ẋ_a)/|x_b − x_a|.
+    #[inline]
+    fn length_gradient_rate(&mut self, n: usize) {
+        let nodes = &self.nodes;
+        let m = nodes.len();
         let rate = &mut self.rate;
         rate.fill(0.0);
         for e in &self.engaged {
@@ -397,7 +456,55 @@ impl MomentArmRates {
                 rate[j] -= sign * (u_rate.dot(&rel) + u.dot(&rel_rate));
             }
         }
-        Ok(())
+    }
+}
+
+/// The n columns of node i in the node-major 3 × n blocks.
+#[inline]
+fn col(i: usize, n: usize) -> std::ops::Range<usize> {
+    i * n..(i + 1) * n
+}
+
+/// A moving path point's frame in ground (R_b F), its body's angular velocity and its
+/// location functions.
+struct MovingPointRate<'a> {
+    rot: Mat3,
+    omega: Vec3,
+    axes: &'a [(crate::model::Function, usize)],
+}
+
+impl MovingPointRate<'_> {
+    /// Adds to the point's Ḋ columns d/dt (R_b F e_i f′(c) ∂c/∂q) =
+    /// ω_b × (R_b F e_i) f′ ∂c/∂q + R_b F e_i (f″ ċ ∂c/∂q + f′ (∂c/∂q)˙), for each axis whose
+    /// coordinate is within its range (clamped locations do not move).
+    #[inline]
+    fn add_rate(
+        &self,
+        model: &Model,
+        data: &Data,
+        jtv: &JacobianTimeVariation,
+        d_rate: &mut [Vec3],
+    ) {
+        let c = data.coordinate_values(model);
+        for (a, (func, ci)) in self.axes.iter().enumerate() {
+            let [lo, hi] = model.coordinates[*ci].range;
+            if c[*ci] < lo || c[*ci] > hi {
+                continue;
+            }
+            let (_, f1, f2) = func.eval1(c[*ci]);
+            let axis = self.rot.column(a).into_owned();
+            let cdot: f64 = data
+                .coordinate_gradient(model, *ci)
+                .map(|(j, g)| g * data.independent_speed(model, j))
+                .sum();
+            let dir_rate = self.omega.cross(&axis) * f1 + axis * (f2 * cdot);
+            for ((j, g), (_, g_rate)) in data
+                .coordinate_gradient(model, *ci)
+                .zip(jtv.coordinate_gradient_rate(model, data, *ci))
+            {
+                d_rate[j] += dir_rate * g + axis * (f1 * g_rate);
+            }
+        }
     }
 }
 

@@ -159,6 +159,10 @@ const CCW: f64 = 1.0;
 const CW: f64 = -1.0;
 
 /// The cylinder wrap on any scalar: decisions on values, the length in `T`.
+///
+/// Steps: the planar (projected) setup of P and S; the wrap direction from the quadrant
+/// (or no wrap); the wrap angle; the unrolled length on `T`; OpenSim's finite-length test;
+/// the tangent points and the surface arc.
 pub(crate) fn cylinder_core<T: Real>(
     r: f64,
     half_length: f64,
@@ -167,152 +171,18 @@ pub(crate) fn cylinder_core<T: Real>(
     s: &V3<T>,
 ) -> Option<CylWrap<T>> {
     let (pv, sv) = (p.val(), s.val());
-    let (d1, d2) = (pv.xy().norm(), sv.xy().norm());
-    if d1 < r || d2 < r || pv == sv {
-        return None;
-    }
+    let pl = Planar::new(r, &pv, &sv)?;
+    let (sense, far, mandatory) = pl.choose_sense(quadrant, &pv, &sv)?;
+    let (turns, theta) = pl.wrap_angle(sense, &pv, &sv);
+    let (h_total_t, length) = pl.unrolled_length(p, s, sense, turns);
 
-    // Closest approach of the muscle line to the axis = of the projected line to the origin.
-    // OpenSim treats a segment within ~5e-7 rad of the axis direction as parallel.
-    let e = (sv - pv).xy();
-    let parallel = e.norm_squared() <= 2e-13 * (sv - pv).norm_squared();
-    let t12 = if parallel {
-        f64::NAN
-    } else {
-        -pv.xy().dot(&e) / e.norm_squared()
-    };
-    let crosses = !parallel && (pv.xy() + e * t12).norm_squared() < r * r && t12 > 0.0 && t12 < 1.0;
-    let cross = pv.x * sv.y - pv.y * sv.x;
-    let near_sense = if cross > 0.0 { CCW } else { CW };
-
-    let (h1, h2) = (
-        (d1 * d1 - r * r).max(0.0).sqrt(),
-        (d2 * d2 - r * r).max(0.0).sqrt(),
-    );
-    let (dir1, dir2) = (
-        Vec3::new(pv.x / d1, pv.y / d1, 0.0),
-        Vec3::new(sv.x / d2, sv.y / d2, 0.0),
-    );
-    // Tangent points in the projection: sense = +1 puts T1 counter-clockwise of P's
-    // direction and T2 clockwise of S's direction (OpenSim's pair r1a, r2b).
-    let contact1 = |sense: f64| {
-        let u = Vec3::new(-dir1.y, dir1.x, 0.0);
-        (dir1 * r + u * (sense * h1)) * (r / d1)
-    };
-    let contact2 = |sense: f64| {
-        let u = Vec3::new(-dir2.y, dir2.x, 0.0);
-        (dir2 * r - u * (sense * h2)) * (r / d2)
-    };
-
-    let mut mandatory = false;
-    // `far`: OpenSim's far_side_wrap, which only picks the apex of its trial contact heights.
-    let (sense, far) = match quadrant.constraint() {
-        None => {
-            if !crosses {
-                return None;
-            }
-            mandatory = true;
-            (near_sense, false)
-        }
-        Some((axis, sign)) => {
-            let active = |v: f64| dsign(v) == sign;
-            if active(pv[axis]) || active(sv[axis]) {
-                mandatory = crosses;
-                let near12 = pv + (sv - pv) * t12;
-                let forced =
-                    !parallel && dsign(pv[axis]) != dsign(sv[axis]) && !active(near12[axis]);
-                if !crosses && !forced {
-                    return None;
-                }
-            }
-            // OpenSim's candidates carry the heights of P and S.
-            let at = |xy: Vec3, z: f64| Vec3::new(xy.x, xy.y, z);
-            let r1a = at(contact1(CCW), pv.z);
-            let r1b = at(contact1(CW), pv.z);
-            let r2a = at(contact2(CW), sv.z);
-            let r2b = at(contact2(CCW), sv.z);
-            let (a, b) = (active(r1a[axis]), active(r1b[axis]));
-            let (c, d) = (active(r2a[axis]), active(r2b[axis]));
-            // Planar angles of the counter-clockwise pair (r1a, r2b) and the clockwise pair
-            // (r1b, r2a); NaN (degenerate) compares false, as in OpenSim.
-            let angle =
-                |u: Vec3, v: Vec3| (u.xy().dot(&v.xy()) / (u.xy().norm() * v.xy().norm())).acos();
-            let ccw_wider = angle(r1a, r2b) > angle(r1b, r2a);
-            let ccw = (CCW, ccw_wider);
-            let cw = (CW, !ccw_wider);
-            match (a, b) {
-                (true, true) => {
-                    if c {
-                        cw
-                    } else {
-                        ccw
-                    }
-                }
-                (true, false) => ccw,
-                (false, true) => cw,
-                (false, false) => {
-                    if c {
-                        cw
-                    } else if d {
-                        ccw
-                    } else {
-                        // Neither side active: the pair with the larger planar angle, taken
-                        // as a far-side wrap.
-                        (if ccw_wider { CCW } else { CW }, true)
-                    }
-                }
-            }
-        }
-    };
-
-    // Angle about the axis from P to S in the wrap direction, and the wrap angle θ.
-    let delta_near = cross.abs().atan2(pv.xy().dot(&sv.xy()));
-    let beta = h1.atan2(r) + h2.atan2(r);
-    let (turns, theta) = if sense == near_sense {
-        let th = delta_near - beta;
-        if crosses || th >= 0.0 {
-            (0.0, th.max(0.0))
-        } else {
-            // A forced wrap the short way round a line that misses: a full turn less.
-            (1.0, th + 2.0 * PI)
-        }
-    } else {
-        (0.0, (2.0 * PI - delta_near - beta).max(0.0))
-    };
-
-    // Unrolled horizontal length H = (h1 − Rβ1) + (h2 − Rβ2) + R·Δ_dir, on `T`. The terms
-    // h − Rβ have derivative h/d with respect to d, finite on the surface.
-    let dd1 = (p.x * p.x + p.y * p.y).sqrt();
-    let dd2 = (s.x * s.x + s.y * s.y).sqrt();
-    // q(d) = h − R·atan(h/R): q' = h/d, q'' = R²/(h d²).
-    let q1 = T::chain(
-        h1 - r * h1.atan2(r),
-        &[(h1 / d1, dd1)],
-        &[r * r / (h1 * d1 * d1)],
-    );
-    let q2 = T::chain(
-        h2 - r * h2.atan2(r),
-        &[(h2 / d2, dd2)],
-        &[r * r / (h2 * d2 * d2)],
-    );
-    let cross_t = p.x * s.y - p.y * s.x;
-    let dot_t = p.x * s.x + p.y * s.y;
-    // (+ 0.0 turns a −0 into +0, so that atan2 gives π, not −π, for opposite P and S.)
-    let delta_near_t = (cross_t * near_sense + 0.0).atan2(dot_t);
-    let delta_dir = if sense == near_sense {
-        delta_near_t
-    } else {
-        -delta_near_t + 2.0 * PI
-    };
-    let h_total_t = q1 + q2 + (delta_dir + 2.0 * PI * turns) * r;
-    let dz_t = s.z - p.z;
-    let length = (h_total_t * h_total_t + dz_t * dz_t).sqrt();
-
-    let (h_total, dz, len) = (h_total_t.val(), dz_t.val(), length.val());
+    let (h_total, dz, len) = (h_total_t.val(), (s.z - p.z).val(), length.val());
     if !(h_total > 0.0) || !len.is_finite() {
         return None;
     }
-    let (c1, c2) = (contact1(sense), contact2(sense));
+    let (h1, h2) = (pl.h1, pl.h2);
+    let (c1, c2) = (pl.contact1(sense), pl.contact2(sense));
+    // Heights of T1, T2: the path rises uniformly along the unrolled length.
     let t1 = Vec3::new(c1.x, c1.y, pv.z + dz * h1 / h_total);
     let t2 = Vec3::new(c2.x, c2.y, sv.z - dz * h2 / h_total);
     let outside = |z: f64| z < -half_length || z > half_length;
@@ -342,17 +212,224 @@ pub(crate) fn cylinder_core<T: Real>(
         },
         geo: CylGeometry {
             sense,
-            d1,
-            d2,
+            d1: pl.d1,
+            d2: pl.d2,
             h1,
             h2,
-            dir1,
-            dir2,
+            dir1: pl.dir1,
+            dir2: pl.dir2,
             h_total,
             dz,
         },
         mandatory,
     })
+}
+
+/// P and S projected on the xy-plane (values only): their distances d from the axis, tangent
+/// lengths h = √(d² − R²) and directions, and the projected line's closest approach to the
+/// axis.
+struct Planar {
+    r: f64,
+    d1: f64,
+    d2: f64,
+    h1: f64,
+    h2: f64,
+    dir1: Vec3,
+    dir2: Vec3,
+    /// The segment is (within OpenSim's tolerance) parallel to the axis.
+    parallel: bool,
+    /// Parameter of the closest approach on P + t (S − P) (NaN when parallel).
+    t12: f64,
+    /// The projected segment crosses the circle strictly between P and S.
+    crosses: bool,
+    /// (P × S)_z, and the sense (CCW, CW) the short way from P to S.
+    cross: f64,
+    near_sense: f64,
+}
+
+impl Planar {
+    /// None when P or S is inside the cylinder or P = S.
+    #[inline]
+    fn new(r: f64, pv: &Vec3, sv: &Vec3) -> Option<Planar> {
+        let (d1, d2) = (pv.xy().norm(), sv.xy().norm());
+        if d1 < r || d2 < r || pv == sv {
+            return None;
+        }
+        // Closest approach of the muscle line to the axis = of the projected line to the
+        // origin. OpenSim treats a segment within ~5e-7 rad of the axis direction as parallel.
+        let e = (sv - pv).xy();
+        let parallel = e.norm_squared() <= 2e-13 * (sv - pv).norm_squared();
+        let t12 = if parallel {
+            f64::NAN
+        } else {
+            -pv.xy().dot(&e) / e.norm_squared()
+        };
+        let crosses =
+            !parallel && (pv.xy() + e * t12).norm_squared() < r * r && t12 > 0.0 && t12 < 1.0;
+        let cross = pv.x * sv.y - pv.y * sv.x;
+        let near_sense = if cross > 0.0 { CCW } else { CW };
+        Some(Planar {
+            r,
+            d1,
+            d2,
+            h1: (d1 * d1 - r * r).max(0.0).sqrt(),
+            h2: (d2 * d2 - r * r).max(0.0).sqrt(),
+            dir1: Vec3::new(pv.x / d1, pv.y / d1, 0.0),
+            dir2: Vec3::new(sv.x / d2, sv.y / d2, 0.0),
+            parallel,
+            t12,
+            crosses,
+            cross,
+            near_sense,
+        })
+    }
+
+    /// Tangent point of P's line in the projection: sense = +1 puts T1 counter-clockwise of
+    /// P's direction (OpenSim's r1a).
+    #[inline]
+    fn contact1(&self, sense: f64) -> Vec3 {
+        let u = Vec3::new(-self.dir1.y, self.dir1.x, 0.0);
+        (self.dir1 * self.r + u * (sense * self.h1)) * (self.r / self.d1)
+    }
+
+    /// Tangent point of S's line in the projection: sense = +1 puts T2 clockwise of S's
+    /// direction (OpenSim's r2b).
+    #[inline]
+    fn contact2(&self, sense: f64) -> Vec3 {
+        let u = Vec3::new(-self.dir2.y, self.dir2.x, 0.0);
+        (self.dir2 * self.r - u * (sense * self.h2)) * (self.r / self.d2)
+    }
+
+    /// (sense, far, mandatory), or None (no wrap). `far`: OpenSim's far_side_wrap, which
+    /// only picks the apex of its trial contact heights. Unconstrained: wrap the side the
+    /// segment passes, only when it crosses (then mandatory).
+    #[inline]
+    fn choose_sense(&self, quadrant: Quadrant, pv: &Vec3, sv: &Vec3) -> Option<(f64, bool, bool)> {
+        match quadrant.constraint() {
+            None => {
+                if !self.crosses {
+                    return None;
+                }
+                Some((self.near_sense, false, true))
+            }
+            Some((axis, sign)) => self.quadrant_sense(axis, sign, pv, sv),
+        }
+    }
+
+    /// Quadrant (axis, sign): with P or S on the active side, wrap when the segment crosses
+    /// (mandatory) or is forced across the quadrant plane; then the direction from OpenSim's
+    /// table of which tangent candidates (at P's and S's heights) lie on the active side.
+    #[inline]
+    fn quadrant_sense(
+        &self,
+        axis: usize,
+        sign: f64,
+        pv: &Vec3,
+        sv: &Vec3,
+    ) -> Option<(f64, bool, bool)> {
+        let mut mandatory = false;
+        let active = |v: f64| dsign(v) == sign;
+        if active(pv[axis]) || active(sv[axis]) {
+            mandatory = self.crosses;
+            let near12 = pv + (sv - pv) * self.t12;
+            let forced =
+                !self.parallel && dsign(pv[axis]) != dsign(sv[axis]) && !active(near12[axis]);
+            if !self.crosses && !forced {
+                return None;
+            }
+        }
+        // OpenSim's candidates carry the heights of P and S.
+        let at = |xy: Vec3, z: f64| Vec3::new(xy.x, xy.y, z);
+        let r1a = at(self.contact1(CCW), pv.z);
+        let r1b = at(self.contact1(CW), pv.z);
+        let r2a = at(self.contact2(CW), sv.z);
+        let r2b = at(self.contact2(CCW), sv.z);
+        let (a, b) = (active(r1a[axis]), active(r1b[axis]));
+        let (c, d) = (active(r2a[axis]), active(r2b[axis]));
+        // Planar angles of the counter-clockwise pair (r1a, r2b) and the clockwise pair
+        // (r1b, r2a); NaN (degenerate) compares false, as in OpenSim.
+        let angle =
+            |u: Vec3, v: Vec3| (u.xy().dot(&v.xy()) / (u.xy().norm() * v.xy().norm())).acos();
+        let ccw_wider = angle(r1a, r2b) > angle(r1b, r2a);
+        let ccw = (CCW, ccw_wider);
+        let cw = (CW, !ccw_wider);
+        let (sense, far) = match (a, b) {
+            (true, true) => {
+                if c {
+                    cw
+                } else {
+                    ccw
+                }
+            }
+            (true, false) => ccw,
+            (false, true) => cw,
+            (false, false) => {
+                if c {
+                    cw
+                } else if d {
+                    ccw
+                } else {
+                    // Neither side active: the pair with the larger planar angle, taken
+                    // as a far-side wrap.
+                    (if ccw_wider { CCW } else { CW }, true)
+                }
+            }
+        };
+        Some((sense, far, mandatory))
+    }
+
+    /// (turns, θ): the wrap angle θ = Δ − β1 − β2 about the axis from T1 to T2 in direction
+    /// `sense`, Δ the angle from P to S that way, β = atan(h/R); a forced wrap the short way
+    /// round a line that misses takes a full turn less.
+    #[inline]
+    fn wrap_angle(&self, sense: f64, pv: &Vec3, sv: &Vec3) -> (f64, f64) {
+        let r = self.r;
+        let delta_near = self.cross.abs().atan2(pv.xy().dot(&sv.xy()));
+        let beta = self.h1.atan2(r) + self.h2.atan2(r);
+        if sense == self.near_sense {
+            let th = delta_near - beta;
+            if self.crosses || th >= 0.0 {
+                (0.0, th.max(0.0))
+            } else {
+                (1.0, th + 2.0 * PI)
+            }
+        } else {
+            (0.0, (2.0 * PI - delta_near - beta).max(0.0))
+        }
+    }
+
+    /// (H, length) on `T`: the unrolled horizontal length H = (h1 − Rβ1) + (h2 − Rβ2) +
+    /// R·(Δ_dir + 2π·turns) and length = √(H² + Δz²). The terms h − Rβ have derivative h/d
+    /// with respect to d, finite on the surface.
+    #[inline]
+    fn unrolled_length<T: Real>(&self, p: &V3<T>, s: &V3<T>, sense: f64, turns: f64) -> (T, T) {
+        let (r, d1, d2, h1, h2) = (self.r, self.d1, self.d2, self.h1, self.h2);
+        let dd1 = (p.x * p.x + p.y * p.y).sqrt();
+        let dd2 = (s.x * s.x + s.y * s.y).sqrt();
+        // q(d) = h − R·atan(h/R): q' = h/d, q'' = R²/(h d²).
+        let q1 = T::chain(
+            h1 - r * h1.atan2(r),
+            &[(h1 / d1, dd1)],
+            &[r * r / (h1 * d1 * d1)],
+        );
+        let q2 = T::chain(
+            h2 - r * h2.atan2(r),
+            &[(h2 / d2, dd2)],
+            &[r * r / (h2 * d2 * d2)],
+        );
+        let cross_t = p.x * s.y - p.y * s.x;
+        let dot_t = p.x * s.x + p.y * s.y;
+        // (+ 0.0 turns a −0 into +0, so that atan2 gives π, not −π, for opposite P and S.)
+        let delta_near_t = (cross_t * self.near_sense + 0.0).atan2(dot_t);
+        let delta_dir = if sense == self.near_sense {
+            delta_near_t
+        } else {
+            -delta_near_t + 2.0 * PI
+        };
+        let h_total_t = q1 + q2 + (delta_dir + 2.0 * PI * turns) * r;
+        let dz_t = s.z - p.z;
+        (h_total_t, (h_total_t * h_total_t + dz_t * dz_t).sqrt())
+    }
 }
 
 /// OpenSim's trial contact heights, on which its finite-length test decides (the wrap is
