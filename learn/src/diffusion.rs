@@ -379,140 +379,29 @@ pub fn continue_denoiser(
     mut state: DenoiserState,
     progress: &mut dyn FnMut(&DenoiserStep),
 ) -> crate::data::Result<TrainedDenoiser> {
-    if state.step > train.steps || state.log.len() != state.step {
-        return Err(LearnError::invalid(
-            "diffusion training",
-            format!(
-                "the state has done {} steps with {} log entries, the run has {}",
-                state.step,
-                state.log.len(),
-                train.steps
-            ),
-        ));
-    }
-    let d = set.layout.width();
-    let k = config.downsample;
-    let (b, t) = (train.batch, train.window);
-    if t == 0 || !t.is_multiple_of(k) || t / k > config.max_tokens {
-        return Err(LearnError::invalid(
-            "diffusion training",
-            format!(
-                "window {t} must be a positive multiple of {k}, at most {} tokens",
-                config.max_tokens
-            ),
-        ));
-    }
-    if texts.len() != set.clips.len() || texts.iter().any(|e| e.len() != config.text) {
-        return Err(LearnError::invalid(
-            "diffusion training",
-            format!("need one caption vector of {} values per clip", config.text),
-        ));
-    }
-    if let Some(c) = set.clips.iter().find(|c| c.frames < t) {
-        return Err(LearnError::invalid(
-            "diffusion training",
-            format!(
-                "clip {} has {} frames, fewer than the window {t}",
-                c.name, c.frames
-            ),
-        ));
-    }
+    check_run(set, texts, config, train, &state)?;
     // the frozen autoencoder runs on the training device without autodiff
     let inference = device.clone().inner();
     let ae = &ae.clone().to_device(&inference);
-    // s: the latents' RMS over up to 256 windows spread evenly over the set's window starts
-    let starts: Vec<(usize, usize)> = set
-        .clips
-        .iter()
-        .enumerate()
-        .flat_map(|(ci, clip)| (0..=clip.frames - t).map(move |s| (ci, s)))
-        .collect();
-    let probe: Vec<(usize, usize)> = (0..starts.len().min(256))
-        .map(|i| starts[i * starts.len() / starts.len().min(256)])
-        .collect();
-    let (mut sum, mut count) = (0.0f64, 0usize);
-    for chunk in probe.chunks(32) {
-        let h = encode_windows(ae, set, normalizer, chunk, t, &inference);
-        sum += h.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
-        count += h.len();
-    }
-    let rms = (sum / count.max(1) as f64).sqrt().max(1e-6) as f32;
-    let total_frames = set.frames();
-    let ab = alpha_bar();
+    let rms = latent_scale(ae, set, normalizer, train.window, &inference);
+    let source = BatchSource {
+        set,
+        ae,
+        normalizer,
+        texts,
+        config,
+        batch: train.batch,
+        window: train.window,
+        inference: &inference,
+        latent_scale: rms,
+        alpha_bar: alpha_bar(),
+    };
     let mut rng = SplitMix64(state.rng);
-    let tokens = t / k;
-    let c = config.latent;
-    let blocks = ["joint_pos", "tau", "contact_point_force", "muscle_act", "q"];
     let start = Instant::now();
     let earlier = state.log.last().map_or(0.0, |s| s.2);
     for step in state.step..train.steps {
-        let (mut h_t, mut eps, mut steps, mut text) = (
-            Vec::with_capacity(b * tokens * c),
-            Vec::with_capacity(b * tokens * c),
-            Vec::with_capacity(b),
-            Vec::with_capacity(b * config.text),
-        );
-        let mut controls = Vec::with_capacity(b);
-        // B windows: a clip with probability ∝ its frames, a uniform start; encoded together
-        let picks: Vec<(usize, usize)> = (0..b)
-            .map(|_| {
-                let mut pick = (rng.unit() * total_frames as f64) as usize;
-                let mut ci = 0;
-                while pick >= set.clips[ci].frames {
-                    pick -= set.clips[ci].frames;
-                    ci += 1;
-                }
-                let s = (rng.unit() * (set.clips[ci].frames - t + 1) as f64) as usize;
-                (ci, s)
-            })
-            .collect();
-        let latents = encode_windows(ae, set, normalizer, &picks, t, &inference);
-        for (w, (ci, s)) in picks.iter().enumerate() {
-            let h0 = &latents[w * tokens * c..(w + 1) * tokens * c];
-            let ts = (rng.unit() * STEPS as f64) as usize;
-            let (sa, sn) = (ab[ts].sqrt() as f32, (1.0 - ab[ts]).sqrt() as f32);
-            for v in h0 {
-                let e = normal(&mut rng);
-                eps.push(e);
-                h_t.push(sa * v / rms + sn * e);
-            }
-            steps.push(ts);
-            if rng.unit() < 0.1 {
-                text.extend(std::iter::repeat_n(0.0, config.text));
-            } else {
-                text.extend_from_slice(&texts[*ci]);
-            }
-            // a random control: none (½), or one block on a random span
-            let mut control = Control::none(t, d);
-            if rng.unit() >= 0.5 {
-                let block = blocks[(rng.unit() * blocks.len() as f64) as usize];
-                let a = (rng.unit() * t as f64) as usize;
-                let len = 1 + (rng.unit() * (t - a) as f64) as usize;
-                let clip = &set.clips[*ci].y[s * d..(s + t) * d];
-                control.set_block(&set.layout, block, a..a + len, clip);
-                if block == "joint_pos" {
-                    // a random subset of the joints
-                    for j in 0..set.layout.joints {
-                        if rng.unit() < 0.5 {
-                            for f in a..a + len {
-                                for x in 0..3 {
-                                    control.mask[f * d + 3 * j + x] = 0.0;
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            controls.push(control);
-        }
-        let refs: Vec<&Control> = controls.iter().collect();
-        let cond = control_tensor(&refs, t, k, normalizer, device);
-        let h = Tensor::<3>::from_data(TensorData::new(h_t, [b, tokens, c]), device);
-        let e = Tensor::<2>::from_data(TensorData::new(text, [b, config.text]), device);
-        let target = Tensor::<3>::from_data(TensorData::new(eps, [b, tokens, c]), device);
-        let loss = (state.net.forward(h, &steps, e, cond) - target)
-            .powf_scalar(2.0)
-            .mean();
+        let batch = source.draw(&mut rng);
+        let loss = batch.loss(&state.net, &source, device);
         let value = loss.clone().into_scalar::<f32>() as f64;
         if !value.is_finite() {
             return Err(LearnError::invalid(
@@ -541,6 +430,209 @@ pub fn continue_denoiser(
         latent_scale: rms,
         log: state.log,
     })
+}
+
+/// Checks that `state` belongs to a run of `train`, that the window fits the denoiser and
+/// every clip, and that every clip has its caption.
+fn check_run(
+    set: &ClipSet,
+    texts: &[Vec<f32>],
+    config: &DenoiserConfig,
+    train: &DiffusionTrainConfig,
+    state: &DenoiserState,
+) -> crate::data::Result<()> {
+    if state.step > train.steps || state.log.len() != state.step {
+        return Err(LearnError::invalid(
+            "diffusion training",
+            format!(
+                "the state has done {} steps with {} log entries, the run has {}",
+                state.step,
+                state.log.len(),
+                train.steps
+            ),
+        ));
+    }
+    let k = config.downsample;
+    let t = train.window;
+    if t == 0 || !t.is_multiple_of(k) || t / k > config.max_tokens {
+        return Err(LearnError::invalid(
+            "diffusion training",
+            format!(
+                "window {t} must be a positive multiple of {k}, at most {} tokens",
+                config.max_tokens
+            ),
+        ));
+    }
+    if texts.len() != set.clips.len() || texts.iter().any(|e| e.len() != config.text) {
+        return Err(LearnError::invalid(
+            "diffusion training",
+            format!("need one caption vector of {} values per clip", config.text),
+        ));
+    }
+    if let Some(c) = set.clips.iter().find(|c| c.frames < t) {
+        return Err(LearnError::invalid(
+            "diffusion training",
+            format!(
+                "clip {} has {} frames, fewer than the window {t}",
+                c.name, c.frames
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// s: the latents' RMS over up to 256 windows of `window` frames spread evenly over the set's
+/// window starts.
+fn latent_scale(
+    ae: &Autoencoder,
+    set: &ClipSet,
+    normalizer: &crate::data::Normalizer,
+    window: usize,
+    inference: &Device,
+) -> f32 {
+    let t = window;
+    let starts: Vec<(usize, usize)> = set
+        .clips
+        .iter()
+        .enumerate()
+        .flat_map(|(ci, clip)| (0..=clip.frames - t).map(move |s| (ci, s)))
+        .collect();
+    let probe: Vec<(usize, usize)> = (0..starts.len().min(256))
+        .map(|i| starts[i * starts.len() / starts.len().min(256)])
+        .collect();
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for chunk in probe.chunks(32) {
+        let h = encode_windows(ae, set, normalizer, chunk, t, inference);
+        sum += h.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
+        count += h.len();
+    }
+    (sum / count.max(1) as f64).sqrt().max(1e-6) as f32
+}
+
+/// What a training batch is drawn from: the set, its captions and the frozen autoencoder.
+struct BatchSource<'a> {
+    set: &'a ClipSet,
+    /// The frozen autoencoder, on `inference`.
+    ae: &'a Autoencoder,
+    normalizer: &'a crate::data::Normalizer,
+    texts: &'a [Vec<f32>],
+    config: &'a DenoiserConfig,
+    /// B windows of T frames per batch.
+    batch: usize,
+    window: usize,
+    inference: &'a Device,
+    /// s, the latent scale.
+    latent_scale: f32,
+    alpha_bar: Vec<f64>,
+}
+
+/// One training batch: the noised latents h_t = √ᾱ h₀/s + √(1 − ᾱ) ε, the noise ε, the
+/// diffusion steps, the captions (dropped to zeros one time in ten) and the controls.
+struct Batch {
+    h_t: Vec<f32>,
+    eps: Vec<f32>,
+    steps: Vec<usize>,
+    text: Vec<f32>,
+    controls: Vec<Control>,
+}
+
+/// The blocks a random training control constrains.
+const CONTROL_BLOCKS: [&str; 5] = ["joint_pos", "tau", "contact_point_force", "muscle_act", "q"];
+
+impl BatchSource<'_> {
+    /// Draws a batch: B windows (a clip with probability ∝ its frames, a uniform start)
+    /// encoded together, then per window a step, the noise, the caption and a control.
+    fn draw(&self, rng: &mut SplitMix64) -> Batch {
+        let (b, t) = (self.batch, self.window);
+        let (set, config) = (self.set, self.config);
+        let (tokens, c) = (t / config.downsample, config.latent);
+        let mut batch = Batch {
+            h_t: Vec::with_capacity(b * tokens * c),
+            eps: Vec::with_capacity(b * tokens * c),
+            steps: Vec::with_capacity(b),
+            text: Vec::with_capacity(b * config.text),
+            controls: Vec::with_capacity(b),
+        };
+        let total_frames = set.frames();
+        let picks: Vec<(usize, usize)> = (0..b)
+            .map(|_| {
+                let mut pick = (rng.unit() * total_frames as f64) as usize;
+                let mut ci = 0;
+                while pick >= set.clips[ci].frames {
+                    pick -= set.clips[ci].frames;
+                    ci += 1;
+                }
+                let s = (rng.unit() * (set.clips[ci].frames - t + 1) as f64) as usize;
+                (ci, s)
+            })
+            .collect();
+        let latents = encode_windows(self.ae, set, self.normalizer, &picks, t, self.inference);
+        let ab = &self.alpha_bar;
+        let rms = self.latent_scale;
+        for (w, &(ci, s)) in picks.iter().enumerate() {
+            let h0 = &latents[w * tokens * c..(w + 1) * tokens * c];
+            let ts = (rng.unit() * STEPS as f64) as usize;
+            let (sa, sn) = (ab[ts].sqrt() as f32, (1.0 - ab[ts]).sqrt() as f32);
+            for v in h0 {
+                let e = normal(rng);
+                batch.eps.push(e);
+                batch.h_t.push(sa * v / rms + sn * e);
+            }
+            batch.steps.push(ts);
+            if rng.unit() < 0.1 {
+                batch.text.extend(std::iter::repeat_n(0.0, config.text));
+            } else {
+                batch.text.extend_from_slice(&self.texts[ci]);
+            }
+            batch.controls.push(self.random_control(ci, s, rng));
+        }
+        batch
+    }
+
+    /// A random control for the window of clip `ci` at frame `s`: none (½), or one block on a
+    /// random span (for joint positions, a random subset of the joints).
+    fn random_control(&self, ci: usize, s: usize, rng: &mut SplitMix64) -> Control {
+        let (set, t) = (self.set, self.window);
+        let d = set.layout.width();
+        let mut control = Control::none(t, d);
+        if rng.unit() >= 0.5 {
+            let block = CONTROL_BLOCKS[(rng.unit() * CONTROL_BLOCKS.len() as f64) as usize];
+            let a = (rng.unit() * t as f64) as usize;
+            let len = 1 + (rng.unit() * (t - a) as f64) as usize;
+            let clip = &set.clips[ci].y[s * d..(s + t) * d];
+            control.set_block(&set.layout, block, a..a + len, clip);
+            if block == "joint_pos" {
+                // a random subset of the joints
+                for j in 0..set.layout.joints {
+                    if rng.unit() < 0.5 {
+                        for f in a..a + len {
+                            for x in 0..3 {
+                                control.mask[f * d + 3 * j + x] = 0.0;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        control
+    }
+}
+
+impl Batch {
+    /// The denoiser's loss on the batch, mean ‖ε̂(h_t, t, e, c) − ε‖², on `device`.
+    fn loss(self, net: &Denoiser, source: &BatchSource, device: &Device) -> Tensor<1> {
+        let config = source.config;
+        let (b, t, k) = (source.batch, source.window, config.downsample);
+        let (tokens, c) = (t / k, config.latent);
+        let refs: Vec<&Control> = self.controls.iter().collect();
+        let cond = control_tensor(&refs, t, k, source.normalizer, device);
+        let h = Tensor::<3>::from_data(TensorData::new(self.h_t, [b, tokens, c]), device);
+        let e = Tensor::<2>::from_data(TensorData::new(self.text, [b, config.text]), device);
+        let target = Tensor::<3>::from_data(TensorData::new(self.eps, [b, tokens, c]), device);
+        (net.forward(h, &self.steps, e, cond) - target)
+            .powf_scalar(2.0)
+            .mean()
+    }
 }
 
 /// Spatial guidance: gradient steps on ĥ₀ that pull the decoded frames onto the controls.

@@ -563,6 +563,23 @@ def test_inverse_kinematics_of_marker_and_bvh_files():
         model.inverse_kinematics_file(BVH, format="fbx")
 
 
+@pytest.mark.skipif(not os.path.exists(BVH), reason="reference data not found")
+def test_length_unit_is_a_unit_name_or_metres_per_unit_as_text_or_number():
+    as_text = musculo.read_motion(BVH, length_unit="0.056444")
+    as_number = musculo.read_motion(BVH, length_unit=0.056444)
+    assert np.array_equal(as_text["targets"], as_number["targets"], equal_nan=True)
+    # an integer is a number of metres too: 1, like "m", makes this CMU subject 25 m tall
+    for metres in ("m", 1):
+        with pytest.raises(musculo.MusculoError, match="body height"):
+            musculo.read_motion(BVH, length_unit=metres)
+    # both forms accept the same range (1e-6 to 1e3 m per unit)
+    for bad in (0.0, -0.05, 1e4, float("nan"), "1e4"):
+        with pytest.raises(musculo.MusculoError, match="length_unit"):
+            musculo.read_motion(BVH, length_unit=bad)
+    with pytest.raises(TypeError):
+        musculo.read_motion(BVH, length_unit=[0.05])
+
+
 @pytest.mark.skipif(not os.path.exists(C3D), reason="reference data not found")
 def test_augment_file_with_force_plates_satisfies_the_equations_of_motion():
     out = musculo.augment_file(C3D, map="c3d_lower_body", force_plates=True)

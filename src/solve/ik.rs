@@ -947,8 +947,84 @@ fn solve(
     settings.validate()?;
     targets.validate()?;
     check_tasks(model, targets, tasks)?;
-    // A frame with no target keeps the previous pose; a clip in which no frame has one
-    // would be the start pose throughout, reported as solved.
+    check_something_to_fit(model, targets, tasks)?;
+    let observed = Observed { targets, tasks };
+    let n = model.nq();
+    let mut ws = IkWorkspace::new(model, settings.bounds);
+    ws.tree = task_tree(model, tasks);
+    let moved = moved_by_tasks(model, tasks);
+    set_start_pose(model, &mut ws, settings)?;
+    // Without a given start, the first frame with a target is solved from several
+    // (`start`); the frames before it (none seen) keep the start pose.
+    let mut several_starts = starts.is_none() && settings.initial_q.is_none();
+    let global_frame = if several_starts {
+        several_starts_frame(&observed)
+    } else {
+        0
+    };
+    if several_starts {
+        let first = (0..targets.n_frames())
+            .find(|&f| observed.has_data(f))
+            .unwrap_or(0);
+        move_start_to_targets(model, &mut ws, tasks, targets.frame(first))?;
+    }
+    ws.q_prev.copy_from_slice(&ws.q);
+    ws.q_prev2.copy_from_slice(&ws.q);
+    let mut out = IkSolution::empty(n, targets, tasks);
+    for f in 0..targets.n_frames() {
+        predict_frame_start(&mut ws, targets, starts, f, observed.has_data(f));
+        let frame = observed.frame(f, settings);
+        let from_several = several_starts && f == global_frame;
+        let max_iterations = if f == 0 || from_several {
+            settings.max_iterations * 10
+        } else {
+            settings.max_iterations
+        };
+        ws.evaluations = 0;
+        let (value, iterations) = if from_several {
+            several_starts = false;
+            let (value, iterations, outcomes) = start::best_of_starts(
+                model,
+                &mut ws,
+                if (0..f).any(|g| observed.has_data(g)) {
+                    "previous frames"
+                } else {
+                    "default pose"
+                },
+                tasks,
+                &frame,
+                max_iterations,
+                settings.tolerance,
+                settings.relative_decrease,
+            )?;
+            out.first_frame_starts = outcomes;
+            (value, iterations)
+        } else {
+            solve_frame(
+                model,
+                &mut ws,
+                tasks,
+                &frame,
+                max_iterations,
+                settings.tolerance,
+                settings.relative_decrease,
+            )?
+        };
+        out.evaluations.push(ws.evaluations);
+        out.q.extend_from_slice(&ws.q);
+        out.objective.push(value);
+        out.iterations.push(iterations);
+        record_fit(&mut out, model, &ws, tasks, &frame, &moved);
+        std::mem::swap(&mut ws.q_prev, &mut ws.q_prev2);
+        ws.q_prev.copy_from_slice(&ws.q);
+        progress(f + 1);
+    }
+    Ok(out)
+}
+
+/// Refuses a clip with nothing to fit: a frame with no target keeps the previous pose, so a
+/// clip in which no frame has one would be the start pose throughout, reported as solved.
+fn check_something_to_fit(model: &Model, targets: &Motion, tasks: &IkTasks) -> crate::Result<()> {
     let weighted: Vec<&MarkerTask> = tasks.markers.iter().filter(|t| t.weight > 0.0).collect();
     let no_data = !tasks.coordinates.iter().any(|t| t.weight > 0.0)
         && (0..targets.n_frames()).all(|f| {
@@ -979,10 +1055,53 @@ fn solve(
             ),
         ));
     }
+    Ok(())
+}
+
+/// The clip's targets as the tasks see them, frame by frame.
+struct Observed<'a> {
+    targets: &'a Motion,
+    tasks: &'a IkTasks,
+}
+
+impl<'a> Observed<'a> {
+    /// Whether frame `f` has a target to fit (a weighted marker present, or a weighted
+    /// coordinate task).
+    fn has_data(&self, f: usize) -> bool {
+        (self.tasks.markers.iter())
+            .any(|t| t.weight > 0.0 && !self.targets.frame(f)[t.target].x.is_nan())
+            || self.tasks.coordinates.iter().any(|t| t.weight > 0.0)
+    }
+
+    /// Σ w of the marker tasks whose targets are present in frame `f`.
+    fn present_weight(&self, f: usize) -> f64 {
+        let frame = self.targets.frame(f);
+        (self.tasks.markers.iter())
+            .filter(|t| !frame[t.target].x.is_nan())
+            .map(|t| t.weight)
+            .sum()
+    }
+
+    /// Frame `f`'s targets and weights.
+    fn frame(&self, f: usize, settings: &IkSettings) -> Frame<'a> {
+        let present_weight = self.present_weight(f);
+        Frame {
+            targets: self.targets.frame(f),
+            index: f,
+            // The first frame has no predecessor to stay close to.
+            smoothness: if f == 0 { 0.0 } else { settings.smoothness },
+            marker_scale: if settings.normalize_marker_weights && present_weight > 0.0 {
+                1.0 / present_weight
+            } else {
+                1.0
+            },
+        }
+    }
+}
+
+/// The start pose in `ws.q`: `initial_q` or the model's default coordinates, within bounds.
+fn set_start_pose(model: &Model, ws: &mut IkWorkspace, settings: &IkSettings) -> crate::Result<()> {
     let n = model.nq();
-    let mut ws = IkWorkspace::new(model, settings.bounds);
-    ws.tree = task_tree(model, tasks);
-    let moved = moved_by_tasks(model, tasks);
     let start = match &settings.initial_q {
         Some(q) if q.len() == n && q.iter().all(|v| v.is_finite()) => q.clone(),
         Some(q) => {
@@ -996,166 +1115,107 @@ fn solve(
     for j in 0..n {
         ws.q[j] = start[j].clamp(ws.lo[j], ws.hi[j]);
     }
-    // Without a given start, the first frame with a target is solved from several
-    // (`start`); the frames before it (none seen) keep the start pose.
-    let has_data = |f: usize| {
-        tasks
-            .markers
-            .iter()
-            .any(|t| t.weight > 0.0 && !targets.frame(f)[t.target].x.is_nan())
-            || tasks.coordinates.iter().any(|t| t.weight > 0.0)
-    };
-    // The frame solved from several starts is the first observed at least as well as the
-    // clip's median frame (weight of the markers present): a clip whose first frames see one
-    // or two markers (a C3D trial's subject walking into the volume) leaves the pose
-    // undetermined there.
-    let present_weight = |f: usize| -> f64 {
-        let frame = targets.frame(f);
-        (tasks.markers.iter())
-            .filter(|t| !frame[t.target].x.is_nan())
-            .map(|t| t.weight)
-            .sum()
-    };
-    let mut several_starts = starts.is_none() && settings.initial_q.is_none();
-    let global_frame = if several_starts {
-        let mut seen: Vec<f64> = (0..targets.n_frames()).map(present_weight).collect();
-        seen.sort_by(f64::total_cmp);
-        let typical = seen[seen.len() / 2];
-        (0..targets.n_frames())
-            .find(|&f| has_data(f) && present_weight(f) >= typical)
-            .unwrap_or(0)
+    Ok(())
+}
+
+/// The frame solved from several starts: the first observed at least as well as the clip's
+/// median frame (weight of the markers present). A clip whose first frames see one or two
+/// markers (a C3D trial's subject walking into the volume) leaves the pose undetermined there.
+fn several_starts_frame(observed: &Observed) -> usize {
+    let frames = observed.targets.n_frames();
+    let mut seen: Vec<f64> = (0..frames).map(|f| observed.present_weight(f)).collect();
+    seen.sort_by(f64::total_cmp);
+    let typical = seen[seen.len() / 2];
+    (0..frames)
+        .find(|&f| observed.has_data(f) && observed.present_weight(f) >= typical)
+        .unwrap_or(0)
+}
+
+/// Frame `f`'s starting point in `ws.q`: the given start, or the previous solution moved on
+/// at its last velocity (constant-velocity prediction,
+/// q̂ = q_{f−1} + (t_f − t_{f−1})/(t_{f−1} − t_{f−2}) · (q_{f−1} − q_{f−2})), kept within
+/// bounds: at 20 fps a walking pelvis moves 7 cm a frame. A frame with no target at all keeps
+/// the previous pose.
+fn predict_frame_start(
+    ws: &mut IkWorkspace,
+    targets: &Motion,
+    starts: Option<&IkSolution>,
+    f: usize,
+    observed: bool,
+) {
+    let n = ws.q.len();
+    if let Some(starts) = starts {
+        for j in 0..n {
+            ws.q[j] = starts.frame(f)[j].clamp(ws.lo[j], ws.hi[j]);
+        }
+    } else if f >= 2 && observed {
+        let ratio =
+            (targets.time[f] - targets.time[f - 1]) / (targets.time[f - 1] - targets.time[f - 2]);
+        for j in 0..n {
+            ws.q[j] =
+                (ws.q_prev[j] + ratio * (ws.q_prev[j] - ws.q_prev2[j])).clamp(ws.lo[j], ws.hi[j]);
+        }
+    }
+}
+
+/// Appends the solved frame's fit figures to `out`: each marker's error ‖p_i − x_i‖ (NaN where
+/// missing), their root mean square and maximum, and the moved coordinates at a bound.
+fn record_fit(
+    out: &mut IkSolution,
+    model: &Model,
+    ws: &IkWorkspace,
+    tasks: &IkTasks,
+    frame: &Frame,
+    moved: &[bool],
+) {
+    let (mut sum, mut count, mut worst) = (0.0, 0usize, 0.0f64);
+    for t in &tasks.markers {
+        let x = frame.targets[t.target];
+        if x.x.is_nan() {
+            out.marker_error.push(f64::NAN);
+            continue;
+        }
+        let m = &model.markers[t.marker];
+        let e = (ws.data.point_position(m.body, &m.location_in_body) - x).norm();
+        out.marker_error.push(e);
+        sum += e * e;
+        count += 1;
+        worst = worst.max(e);
+    }
+    out.rmse.push(if count > 0 {
+        (sum / count as f64).sqrt()
     } else {
-        0
-    };
-    if several_starts {
-        let first = (0..targets.n_frames()).find(|&f| has_data(f)).unwrap_or(0);
-        move_start_to_targets(model, &mut ws, tasks, targets.frame(first))?;
-    }
-    ws.q_prev.copy_from_slice(&ws.q);
-    ws.q_prev2.copy_from_slice(&ws.q);
-    let frames = targets.n_frames();
-    let nm = tasks.markers.len();
-    let mut out = IkSolution {
-        nq: n,
-        time: targets.time.clone(),
-        q: Vec::with_capacity(frames * n),
-        objective: Vec::with_capacity(frames),
-        marker_error: Vec::with_capacity(frames * nm),
-        rmse: Vec::with_capacity(frames),
-        max_error: Vec::with_capacity(frames),
-        at_limit: Vec::with_capacity(frames),
-        iterations: Vec::with_capacity(frames),
-        evaluations: Vec::with_capacity(frames),
-        marker_weight: tasks.markers.iter().map(|t| t.weight).collect(),
-        disagreeing: Vec::new(),
-        first_frame_starts: Vec::new(),
-    };
-    for f in 0..frames {
-        // Start from the previous solution moved on at its last velocity (constant-velocity
-        // prediction, q̂ = q_{f−1} + (t_f − t_{f−1})/(t_{f−1} − t_{f−2}) · (q_{f−1} − q_{f−2})),
-        // kept within bounds: at 20 fps a walking pelvis moves 7 cm a frame. A frame with no
-        // target at all keeps the previous pose.
-        let observed = has_data(f);
-        if let Some(starts) = starts {
-            for j in 0..n {
-                ws.q[j] = starts.frame(f)[j].clamp(ws.lo[j], ws.hi[j]);
-            }
-        } else if f >= 2 && observed {
-            let ratio = (targets.time[f] - targets.time[f - 1])
-                / (targets.time[f - 1] - targets.time[f - 2]);
-            for j in 0..n {
-                ws.q[j] = (ws.q_prev[j] + ratio * (ws.q_prev[j] - ws.q_prev2[j]))
-                    .clamp(ws.lo[j], ws.hi[j]);
-            }
+        f64::NAN
+    });
+    out.max_error.push(if count > 0 { worst } else { f64::NAN });
+    out.at_limit.push(
+        (0..ws.q.len())
+            .filter(|&j| moved[j] && (ws.q[j] <= ws.lo[j] || ws.q[j] >= ws.hi[j]))
+            .collect(),
+    );
+}
+
+impl IkSolution {
+    /// A solution with no frame yet, sized for `targets`.
+    fn empty(nq: usize, targets: &Motion, tasks: &IkTasks) -> IkSolution {
+        let frames = targets.n_frames();
+        let nm = tasks.markers.len();
+        IkSolution {
+            nq,
+            time: targets.time.clone(),
+            q: Vec::with_capacity(frames * nq),
+            objective: Vec::with_capacity(frames),
+            marker_error: Vec::with_capacity(frames * nm),
+            rmse: Vec::with_capacity(frames),
+            max_error: Vec::with_capacity(frames),
+            at_limit: Vec::with_capacity(frames),
+            iterations: Vec::with_capacity(frames),
+            evaluations: Vec::with_capacity(frames),
+            marker_weight: tasks.markers.iter().map(|t| t.weight).collect(),
+            disagreeing: Vec::new(),
+            first_frame_starts: Vec::new(),
         }
-        let frame_targets = targets.frame(f);
-        let present_weight: f64 = tasks
-            .markers
-            .iter()
-            .filter(|t| !frame_targets[t.target].x.is_nan())
-            .map(|t| t.weight)
-            .sum();
-        let frame = Frame {
-            targets: frame_targets,
-            index: f,
-            // The first frame has no predecessor to stay close to.
-            smoothness: if f == 0 { 0.0 } else { settings.smoothness },
-            marker_scale: if settings.normalize_marker_weights && present_weight > 0.0 {
-                1.0 / present_weight
-            } else {
-                1.0
-            },
-        };
-        let from_several = several_starts && f == global_frame;
-        let max_iterations = if f == 0 || from_several {
-            settings.max_iterations * 10
-        } else {
-            settings.max_iterations
-        };
-        ws.evaluations = 0;
-        let (value, iterations) = if from_several {
-            several_starts = false;
-            let (value, iterations, outcomes) = start::best_of_starts(
-                model,
-                &mut ws,
-                if (0..f).any(&has_data) {
-                    "previous frames"
-                } else {
-                    "default pose"
-                },
-                tasks,
-                &frame,
-                max_iterations,
-                settings.tolerance,
-                settings.relative_decrease,
-            )?;
-            out.first_frame_starts = outcomes;
-            (value, iterations)
-        } else {
-            solve_frame(
-                model,
-                &mut ws,
-                tasks,
-                &frame,
-                max_iterations,
-                settings.tolerance,
-                settings.relative_decrease,
-            )?
-        };
-        out.evaluations.push(ws.evaluations);
-        out.q.extend_from_slice(&ws.q);
-        out.objective.push(value);
-        out.iterations.push(iterations);
-        let (mut sum, mut count, mut worst) = (0.0, 0usize, 0.0f64);
-        for t in &tasks.markers {
-            let x = frame.targets[t.target];
-            if x.x.is_nan() {
-                out.marker_error.push(f64::NAN);
-                continue;
-            }
-            let m = &model.markers[t.marker];
-            let e = (ws.data.point_position(m.body, &m.location_in_body) - x).norm();
-            out.marker_error.push(e);
-            sum += e * e;
-            count += 1;
-            worst = worst.max(e);
-        }
-        out.rmse.push(if count > 0 {
-            (sum / count as f64).sqrt()
-        } else {
-            f64::NAN
-        });
-        out.max_error.push(if count > 0 { worst } else { f64::NAN });
-        out.at_limit.push(
-            (0..n)
-                .filter(|&j| moved[j] && (ws.q[j] <= ws.lo[j] || ws.q[j] >= ws.hi[j]))
-                .collect(),
-        );
-        std::mem::swap(&mut ws.q_prev, &mut ws.q_prev2);
-        ws.q_prev.copy_from_slice(&ws.q);
-        progress(f + 1);
     }
-    Ok(out)
 }
 
 /// Inverse kinematics of several clips in parallel (one clip per task, frames within a clip

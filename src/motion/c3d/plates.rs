@@ -102,7 +102,6 @@ pub(super) fn force_plates(
     analog: &AnalogView,
     point_unit: Option<f64>,
 ) -> crate::Result<Vec<ForcePlate>> {
-    const G: &str = "FORCE_PLATFORM";
     let used = params.integer(G, "USED", true)?.unwrap_or(0) as usize;
     if used == 0 {
         return Ok(Vec::new());
@@ -119,103 +118,172 @@ pub(super) fn force_plates(
             ),
         ));
     }
-    let need = |name: &str| -> crate::Result<Vec<f64>> {
-        params.numbers(G, name)?.ok_or_else(|| {
+    let table = PlatformTable::read(params, used, point_unit)?;
+    let mut plates = Vec::with_capacity(used);
+    for p in 0..used {
+        let kind = table.kind(p)?;
+        let channels = table.channels(p, kind, analog)?;
+        let mut plate = table.geometry(p, kind, channels, analog.n_samples)?;
+        let signals = table.conversion(p, &plate, analog)?;
+        compute_signals(&mut plate, &signals, analog);
+        plates.push(plate);
+    }
+    Ok(plates)
+}
+
+/// The parameter group of the force platforms.
+const G: &str = "FORCE_PLATFORM";
+
+/// The FORCE_PLATFORM parameters of `used` platforms, lengths in metres per POINT:UNITS unit.
+struct PlatformTable<'a> {
+    params: &'a Parameters,
+    types: Vec<i64>,
+    corners: Vec<f64>,
+    origins: Vec<f64>,
+    /// CHANNEL's dimensions, its rows (channels per platform) and values.
+    channel_dims: Vec<usize>,
+    channel_rows: usize,
+    channel_values: Vec<i64>,
+    cal: Option<Vec<f64>>,
+    cop_poly: Option<Vec<f64>>,
+    metres: f64,
+}
+
+impl<'a> PlatformTable<'a> {
+    /// Reads the group, checking that TYPE, CORNERS, ORIGIN and CHANNEL are present and that
+    /// TYPE, CORNERS and ORIGIN hold `used` platforms.
+    fn read(
+        params: &'a Parameters,
+        used: usize,
+        point_unit: Option<f64>,
+    ) -> crate::Result<PlatformTable<'a>> {
+        let missing = |name: &str| {
             params.error(
                 G,
                 name,
                 format!("missing, but FORCE_PLATFORM:USED is {used}"),
             )
+        };
+        let need = |name: &str| -> crate::Result<Vec<f64>> {
+            params.numbers(G, name)?.ok_or_else(|| missing(name))
+        };
+        let types = params
+            .integers(G, "TYPE", false)?
+            .ok_or_else(|| missing("TYPE"))?;
+        let corners = need("CORNERS")?;
+        let origins = need("ORIGIN")?;
+        let channel_param = params.get(G, "CHANNEL").ok_or_else(|| missing("CHANNEL"))?;
+        let channel_rows = channel_param.dims.first().copied().unwrap_or(1).max(1);
+        let channel_values = params.integers(G, "CHANNEL", false)?.unwrap_or_default();
+        let cal = params.numbers(G, "CAL_MATRIX")?;
+        let cop_poly = params.numbers(G, "FPCOPPOLY")?;
+        let metres = point_unit.ok_or_else(|| {
+            params.error(
+                "POINT",
+                "UNITS",
+                "missing: the force-platform CORNERS and ORIGIN need a length unit",
+            )
+        })?;
+        if types.len() < used || corners.len() < 12 * used || origins.len() < 3 * used {
+            return Err(params.error(
+                G,
+                if types.len() < used { "TYPE" } else if corners.len() < 12 * used { "CORNERS" } else { "ORIGIN" },
+                format!(
+                    "{used} platforms need {used} TYPE, {} CORNERS and {} ORIGIN values; the file has {}, {} and {}",
+                    12 * used,
+                    3 * used,
+                    types.len(),
+                    corners.len(),
+                    origins.len()
+                ),
+            ));
+        }
+        Ok(PlatformTable {
+            params,
+            types,
+            corners,
+            origins,
+            channel_dims: channel_param.dims.clone(),
+            channel_rows,
+            channel_values,
+            cal,
+            cop_poly,
+            metres,
         })
-    };
-    let types = params.integers(G, "TYPE", false)?.ok_or_else(|| {
-        params.error(
-            G,
-            "TYPE",
-            format!("missing, but FORCE_PLATFORM:USED is {used}"),
-        )
-    })?;
-    let corners = need("CORNERS")?;
-    let origins = need("ORIGIN")?;
-    let channel_param = params.get(G, "CHANNEL").ok_or_else(|| {
-        params.error(
-            G,
-            "CHANNEL",
-            format!("missing, but FORCE_PLATFORM:USED is {used}"),
-        )
-    })?;
-    let channel_rows = channel_param.dims.first().copied().unwrap_or(1).max(1);
-    let channel_values = params.integers(G, "CHANNEL", false)?.unwrap_or_default();
-    let cal = params.numbers(G, "CAL_MATRIX")?;
-    let cop_poly = params.numbers(G, "FPCOPPOLY")?;
-    let metres = point_unit.ok_or_else(|| {
-        params.error(
-            "POINT",
-            "UNITS",
-            "missing: the force-platform CORNERS and ORIGIN need a length unit",
-        )
-    })?;
-    if types.len() < used || corners.len() < 12 * used || origins.len() < 3 * used {
-        return Err(params.error(
-            G,
-            if types.len() < used { "TYPE" } else if corners.len() < 12 * used { "CORNERS" } else { "ORIGIN" },
-            format!(
-                "{used} platforms need {used} TYPE, {} CORNERS and {} ORIGIN values; the file has {}, {} and {}",
-                12 * used,
-                3 * used,
-                types.len(),
-                corners.len(),
-                origins.len()
-            ),
-        ));
     }
-    let mut plates = Vec::with_capacity(used);
-    for p in 0..used {
-        let at = |msg: String| Error::Motion {
-            file: params.source.clone(),
+
+    /// An error about platform `p` (0-based).
+    fn error(&self, p: usize, message: String) -> Error {
+        Error::Motion {
+            file: self.params.source.clone(),
             location: format!("force platform {}", p + 1),
-            message: msg,
-        };
-        let kind = match types[p] {
-            k @ 1..=4 => k as u8,
-            k => {
-                return Err(at(format!(
-                    "FORCE_PLATFORM:TYPE {k} is not supported (types 1 to 4 are)"
-                )));
-            }
-        };
+            message,
+        }
+    }
+
+    /// Platform `p`'s TYPE, 1 to 4.
+    fn kind(&self, p: usize) -> crate::Result<u8> {
+        match self.types[p] {
+            k @ 1..=4 => Ok(k as u8),
+            k => Err(self.error(
+                p,
+                format!("FORCE_PLATFORM:TYPE {k} is not supported (types 1 to 4 are)"),
+            )),
+        }
+    }
+
+    /// Platform `p`'s analog channels (0-based): 8 for type 3, else 6.
+    fn channels(&self, p: usize, kind: u8, analog: &AnalogView) -> crate::Result<Vec<usize>> {
         let n_ch = if kind == 3 { 8 } else { 6 };
-        if channel_rows < n_ch || channel_values.len() < channel_rows * (p + 1) {
-            return Err(at(format!(
+        let (rows, values) = (self.channel_rows, &self.channel_values);
+        if rows < n_ch || values.len() < rows * (p + 1) {
+            return Err(self.error(p, format!(
                 "FORCE_PLATFORM:CHANNEL must list {n_ch} channels per platform (dimensions {:?}, {} values)",
-                channel_param.dims,
-                channel_values.len()
+                self.channel_dims,
+                values.len()
             )));
         }
         let mut channels = Vec::with_capacity(n_ch);
         for j in 0..n_ch {
-            let c = channel_values[p * channel_rows + j];
+            let c = values[p * rows + j];
             if c < 1 || c as usize > analog.n_channels {
-                return Err(at(format!(
-                    "FORCE_PLATFORM:CHANNEL entry {} is {c}, outside the {} analog channels",
-                    j + 1,
-                    analog.n_channels
-                )));
+                return Err(self.error(
+                    p,
+                    format!(
+                        "FORCE_PLATFORM:CHANNEL entry {} is {c}, outside the {} analog channels",
+                        j + 1,
+                        analog.n_channels
+                    ),
+                ));
             }
             channels.push(c as usize - 1);
         }
+        Ok(channels)
+    }
+
+    /// Platform `p` without signals: its corners, centre, origin, axes and (type 4)
+    /// calibration matrix.
+    fn geometry(
+        &self,
+        p: usize,
+        kind: u8,
+        channels: Vec<usize>,
+        n_samples: usize,
+    ) -> crate::Result<ForcePlate> {
+        let metres = self.metres;
         let corner = |k: usize| {
             let i = 12 * p + 3 * k;
-            Vec3::new(corners[i], corners[i + 1], corners[i + 2]) * metres
+            Vec3::new(self.corners[i], self.corners[i + 1], self.corners[i + 2]) * metres
         };
         let corners = [corner(0), corner(1), corner(2), corner(3)];
-        let origin = Vec3::new(origins[3 * p], origins[3 * p + 1], origins[3 * p + 2]) * metres;
+        let o = &self.origins;
+        let origin = Vec3::new(o[3 * p], o[3 * p + 1], o[3 * p + 2]) * metres;
         if corners
             .iter()
             .chain([&origin])
             .any(|v| !v.iter().all(|x| x.is_finite()))
         {
-            return Err(at("CORNERS or ORIGIN is not finite".into()));
+            return Err(self.error(p, "CORNERS or ORIGIN is not finite".into()));
         }
         let centre = (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
         // x = c₁ − c₂, y' = c₁ − c₄, z = x × y', y = z × x (ezc3d's construction).
@@ -223,16 +291,17 @@ pub(super) fn force_plates(
         let z = x.cross(&(corners[0] - corners[3]));
         let y = z.cross(&x);
         if !(x.norm() > 0.0 && z.norm() > 0.0) {
-            return Err(at(
+            return Err(self.error(
+                p,
                 "CORNERS do not span a plane (coincident or collinear corners)".into(),
             ));
         }
         let plate_to_lab = Mat3::from_columns(&[x.normalize(), y.normalize(), z.normalize()]);
         let calibration = if kind == 4 {
             // CAL_MATRIX [6, 6, n]: the first index (fastest) is the row.
-            let c = cal.as_deref().unwrap_or(&[]);
+            let c = self.cal.as_deref().unwrap_or(&[]);
             if c.len() < 36 * (p + 1) {
-                return Err(at(format!(
+                return Err(self.error(p, format!(
                     "type 4 needs FORCE_PLATFORM:CAL_MATRIX with 36 values per platform; the file has {}",
                     c.len()
                 )));
@@ -241,6 +310,31 @@ pub(super) fn force_plates(
         } else {
             None
         };
+        Ok(ForcePlate {
+            kind,
+            corners,
+            centre,
+            origin,
+            plate_to_lab,
+            channels,
+            calibration,
+            force: Vec::with_capacity(n_samples),
+            moment: Vec::with_capacity(n_samples),
+            cop: Vec::with_capacity(n_samples),
+            free_moment: Vec::with_capacity(n_samples),
+        })
+    }
+
+    /// How `plate` (platform `p`) turns its channels into a wrench, with the channels' units
+    /// checked: force channels in N; moments in the channel's unit, or N × POINT:UNITS when
+    /// it has none (ezc3d's assumption, also used for the outputs of a calibration matrix).
+    fn conversion(
+        &self,
+        p: usize,
+        plate: &ForcePlate,
+        analog: &AnalogView,
+    ) -> crate::Result<Conversion> {
+        let (kind, channels, metres) = (plate.kind, &plate.channels, self.metres);
         let unit_of = |ch: usize| -> &str {
             analog
                 .units
@@ -248,8 +342,6 @@ pub(super) fn force_plates(
                 .map(String::as_str)
                 .unwrap_or("")
         };
-        // Force channels in N; moments in the channel's unit, or N × POINT:UNITS when it has
-        // none (ezc3d's assumption, also used for the outputs of a calibration matrix).
         let force_ok = |ch: usize| {
             matches!(
                 squash(unit_of(ch)).as_str(),
@@ -260,34 +352,44 @@ pub(super) fn force_plates(
             match unit_of(ch) {
                 u if u.trim().is_empty() || kind == 4 => Ok(metres),
                 u => moment_unit(u).ok_or_else(|| {
-                    at(format!(
-                        "analog channel {} has unit \"{u}\", not a moment unit (N·m, N·mm)",
-                        channels[ch] + 1
-                    ))
+                    self.error(
+                        p,
+                        format!(
+                            "analog channel {} has unit \"{u}\", not a moment unit (N·m, N·mm)",
+                            channels[ch] + 1
+                        ),
+                    )
                 }),
             }
         };
         let force_channels = if kind == 3 { 0..8 } else { 0..3 };
         if let Some(ch) = force_channels.clone().find(|&c| kind != 4 && !force_ok(c)) {
-            return Err(at(format!(
-                "analog channel {} has unit \"{}\", not N",
-                channels[ch] + 1,
-                unit_of(ch)
-            )));
+            return Err(self.error(
+                p,
+                format!(
+                    "analog channel {} has unit \"{}\", not N",
+                    channels[ch] + 1,
+                    unit_of(ch)
+                ),
+            ));
         }
-        let poly: Option<[f64; 12]> = match (&cop_poly, kind) {
+        let poly: Option<[f64; 12]> = match (&self.cop_poly, kind) {
             (Some(v), 3) if v.len() >= 12 * (p + 1) => v[12 * p..12 * (p + 1)].try_into().ok(),
             _ => None,
         };
-        let signals = match kind {
+        let origin = plate.origin;
+        Ok(match kind {
             1 => {
                 let len_scale = match unit_of(3) {
                     u if u.trim().is_empty() => metres,
                     u => length_unit(u).ok_or_else(|| {
-                        at(format!(
-                            "analog channel {} has unit \"{u}\", not a length",
-                            channels[3] + 1
-                        ))
+                        self.error(
+                            p,
+                            format!(
+                                "analog channel {} has unit \"{u}\", not a length",
+                                channels[3] + 1
+                            ),
+                        )
                     })?,
                 };
                 Conversion::Type1 {
@@ -307,40 +409,30 @@ pub(super) fn force_plates(
                 metres,
             },
             _ => Conversion::Type4 {
-                cal: calibration.unwrap_or_else(Matrix6::identity),
+                cal: plate.calibration.unwrap_or_else(Matrix6::identity),
                 moment: moment_scale(3)?,
                 origin: ezc3d_origin(origin),
             },
-        };
-        let mut plate = ForcePlate {
-            kind,
-            corners,
-            centre,
-            origin,
-            plate_to_lab,
-            channels,
-            calibration,
-            force: Vec::with_capacity(analog.n_samples),
-            moment: Vec::with_capacity(analog.n_samples),
-            cop: Vec::with_capacity(analog.n_samples),
-            free_moment: Vec::with_capacity(analog.n_samples),
-        };
-        let mut ch = [0.0; 8];
-        for s in 0..analog.n_samples {
-            let row = &analog.values[s * analog.n_channels..(s + 1) * analog.n_channels];
-            for (j, &c) in plate.channels.iter().enumerate() {
-                ch[j] = row[c];
-            }
-            let w = signals.wrench(&ch);
-            let (force, moment, cop, free) = lab_signals(&w, &plate);
-            plate.force.push(force);
-            plate.moment.push(moment);
-            plate.cop.push(cop);
-            plate.free_moment.push(free);
-        }
-        plates.push(plate);
+        })
     }
-    Ok(plates)
+}
+
+/// The plate's force, moment, centre of pressure and free moment (lab frame) at every
+/// analog sample.
+fn compute_signals(plate: &mut ForcePlate, signals: &Conversion, analog: &AnalogView) {
+    let mut ch = [0.0; 8];
+    for s in 0..analog.n_samples {
+        let row = &analog.values[s * analog.n_channels..(s + 1) * analog.n_channels];
+        for (j, &c) in plate.channels.iter().enumerate() {
+            ch[j] = row[c];
+        }
+        let w = signals.wrench(&ch);
+        let (force, moment, cop, free) = lab_signals(&w, plate);
+        plate.force.push(force);
+        plate.moment.push(moment);
+        plate.cop.push(cop);
+        plate.free_moment.push(free);
+    }
 }
 
 /// The vector from the transducer origin to the surface centre (plate axes): ezc3d negates

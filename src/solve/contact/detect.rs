@@ -159,6 +159,66 @@ pub fn detect(
     qdd: &[f64],
     rate_hz: f64,
 ) -> crate::Result<ContactStates> {
+    let states = ClipStates { q, qd, qdd };
+    check_inputs(model, options, &states, rate_hz)?;
+    let frames = q.len() / model.nq();
+    let np = set.points.len();
+    let o = options;
+    let Kinematics {
+        mut height,
+        velocity,
+        demand,
+    } = lowest_points_and_demand(model, set, &states)?;
+    let floor = match o.floor_height {
+        Some(h) => h,
+        None => percentile(&mut height.clone(), o.floor_percentile),
+    };
+    height.iter_mut().for_each(|h| *h -= floor);
+    let above = above_levels(&height, frames, np, o);
+    let (floor_velocity, treadmill) = floor_velocity(set, o, &above, &velocity);
+    let speed: Vec<f64> = velocity
+        .iter()
+        .map(|v| (v - floor_velocity).norm())
+        .collect();
+    // e_p per frame and point
+    let energy: Vec<f64> = (0..frames * np)
+        .map(|i| 0.5 * ((above[i] / o.height_scale).powi(2) + (speed[i] / o.speed_scale).powi(2)))
+        .collect();
+    let group_contact = decide_groups(set, o, &energy, &demand, rate_hz);
+    // factors within each group in contact, then the double-support ramps
+    let mut factor = group_factors(set, &energy, &group_contact, frames);
+    let longest = ((o.transition_time * rate_hz).round() as usize).max(1);
+    ramp_double_supports(&mut factor, set, &group_contact, frames, longest);
+    let in_contact = factor.iter().map(|&f| f > 0.0).collect();
+    Ok(ContactStates {
+        frames,
+        points: np,
+        factor,
+        in_contact,
+        height,
+        speed,
+        floor,
+        floor_velocity,
+        treadmill,
+        demand,
+        group_contact,
+    })
+}
+
+/// The clip's coordinates, velocities and accelerations (T × nq each, frame-major).
+struct ClipStates<'a> {
+    q: &'a [f64],
+    qd: &'a [f64],
+    qdd: &'a [f64],
+}
+
+/// Checks the options, the rate and the three T × nq arrays.
+fn check_inputs(
+    model: &Model,
+    options: &ContactOptions,
+    states: &ClipStates,
+    rate_hz: f64,
+) -> crate::Result<()> {
     options.validate()?;
     if !(rate_hz > 0.0 && rate_hz.is_finite()) {
         return Err(Error::invalid(
@@ -167,8 +227,9 @@ pub fn detect(
         ));
     }
     let nq = model.nq();
+    let q = states.q;
     check_frames(model, "q", q, nq)?;
-    for (name, x) in [("qd", qd), ("qdd", qdd)] {
+    for (name, x) in [("qd", states.qd), ("qdd", states.qdd)] {
         if x.len() != q.len() {
             return Err(Error::invalid(
                 name,
@@ -176,16 +237,29 @@ pub fn detect(
             ));
         }
     }
-    check_frames(model, "qd", qd, nq)?;
-    check_frames(model, "qdd", qdd, nq)?;
-    let frames = q.len() / nq;
+    check_frames(model, "qd", states.qd, nq)?;
+    check_frames(model, "qdd", states.qdd, nq)
+}
+
+/// The kinematic and dynamic evidence of [`lowest_points_and_demand`].
+struct Kinematics {
+    height: Vec<f64>,
+    velocity: Vec<Vec3>,
+    demand: Vec<f64>,
+}
+
+/// Per frame and point (T × P): the height n·b of the lowest point b = c − r n (not yet
+/// relative to the floor) and its velocity; per frame, the normal force the motion needs
+/// relative to body weight, n·Σ m_b (a_b − g) / (M ‖g‖).
+fn lowest_points_and_demand(
+    model: &Model,
+    set: &ContactSet,
+    states: &ClipStates,
+) -> crate::Result<Kinematics> {
+    let nq = model.nq();
+    let frames = states.q.len() / nq;
     let np = set.points.len();
     let n = set.floor_normal;
-    let (t1, t2) = set.floor_tangents();
-    let o = options;
-
-    // Heights (not yet relative to the floor) and velocities of the lowest points, and the
-    // normal force the motion needs: n·Σ m_b (a_b − g).
     let mut data = Data::new(model);
     let mut height = vec![0.0; frames * np];
     let mut velocity = vec![Vec3::zeros(); frames * np];
@@ -197,9 +271,9 @@ pub fn detect(
         forward_kinematics_acceleration(
             model,
             &mut data,
-            &q[rows.clone()],
-            &qd[rows.clone()],
-            &qdd[rows],
+            &states.q[rows.clone()],
+            &states.qd[rows.clone()],
+            &states.qdd[rows],
         )?;
         for (p, point) in set.points.iter().enumerate() {
             let (rot, _) = data.body_pose(point.body);
@@ -219,62 +293,78 @@ pub fn detect(
             demand[t] = n.dot(&force) / weight;
         }
     }
-    let floor = match o.floor_height {
-        Some(h) => h,
-        None => percentile(&mut height.clone(), o.floor_percentile),
-    };
-    height.iter_mut().for_each(|h| *h -= floor);
-    // each point's resting level, at most max_point_offset above the floor
+    Ok(Kinematics {
+        height,
+        velocity,
+        demand,
+    })
+}
+
+/// (h − μ_p)⁺ per frame and point (T × P), μ_p each point's resting level: the
+/// `floor_percentile` of its own heights above the floor, at most `max_point_offset`.
+fn above_levels(height: &[f64], frames: usize, np: usize, o: &ContactOptions) -> Vec<f64> {
     let level: Vec<f64> = (0..np)
         .map(|p| {
             let mut own: Vec<f64> = (0..frames).map(|t| height[t * np + p]).collect();
             percentile(&mut own, o.floor_percentile).min(o.max_point_offset)
         })
         .collect();
-    let above = |t: usize, p: usize| (height[t * np + p] - level[p]).max(0.0);
+    (0..frames * np)
+        .map(|i| (height[i] - level[i % np]).max(0.0))
+        .collect()
+}
 
-    // The floor's velocity: given, or the stance points' median tangential velocity.
-    let (floor_velocity, treadmill) = match (o.floor_velocity, o.floor_motion) {
-        (Some(v), _) => (v, v.norm() > 0.0),
-        (None, motion) => {
-            let low: Vec<usize> = (0..frames * np)
-                .filter(|&i| above(i / np, i % np) <= o.height_scale)
-                .collect();
-            let estimate = if low.is_empty() {
-                Vec3::zeros()
-            } else {
-                let mut a: Vec<f64> = low.iter().map(|&i| t1.dot(&velocity[i])).collect();
-                let mut b: Vec<f64> = low.iter().map(|&i| t2.dot(&velocity[i])).collect();
-                t1 * percentile(&mut a, 50.0) + t2 * percentile(&mut b, 50.0)
-            };
-            match motion {
-                FloorMotion::Detect if estimate.norm() >= o.belt_speed_min => (estimate, true),
-                FloorMotion::Detect => (Vec3::zeros(), false),
-                FloorMotion::Treadmill { speed: None } => (estimate, true),
-                FloorMotion::Treadmill { speed: Some(s) } => {
-                    // the given speed along the estimated direction of the belt
-                    let direction = if estimate.norm() > 0.0 {
-                        estimate.normalize()
-                    } else {
-                        -t1
-                    };
-                    (direction * s, true)
-                }
-            }
-        }
+/// The floor's velocity and whether it moves: given, or the stance points' median tangential
+/// velocity (the points within σ_h of their level), kept when at least `belt_speed_min` or
+/// when a treadmill is forced.
+fn floor_velocity(
+    set: &ContactSet,
+    o: &ContactOptions,
+    above: &[f64],
+    velocity: &[Vec3],
+) -> (Vec3, bool) {
+    let (t1, t2) = set.floor_tangents();
+    let motion = match (o.floor_velocity, o.floor_motion) {
+        (Some(v), _) => return (v, v.norm() > 0.0),
+        (None, motion) => motion,
     };
-    let speed: Vec<f64> = velocity
-        .iter()
-        .map(|v| (v - floor_velocity).norm())
+    let low: Vec<usize> = (0..above.len())
+        .filter(|&i| above[i] <= o.height_scale)
         .collect();
+    let estimate = if low.is_empty() {
+        Vec3::zeros()
+    } else {
+        let mut a: Vec<f64> = low.iter().map(|&i| t1.dot(&velocity[i])).collect();
+        let mut b: Vec<f64> = low.iter().map(|&i| t2.dot(&velocity[i])).collect();
+        t1 * percentile(&mut a, 50.0) + t2 * percentile(&mut b, 50.0)
+    };
+    match motion {
+        FloorMotion::Detect if estimate.norm() >= o.belt_speed_min => (estimate, true),
+        FloorMotion::Detect => (Vec3::zeros(), false),
+        FloorMotion::Treadmill { speed: None } => (estimate, true),
+        FloorMotion::Treadmill { speed: Some(s) } => {
+            // the given speed along the estimated direction of the belt
+            let direction = if estimate.norm() > 0.0 {
+                estimate.normalize()
+            } else {
+                -t1
+            };
+            (direction * s, true)
+        }
+    }
+}
 
-    // e_p per frame and point
-    let energy: Vec<f64> = (0..frames * np)
-        .map(|i| {
-            let (t, p) = (i / np, i % np);
-            0.5 * ((above(t, p) / o.height_scale).powi(2) + (speed[i] / o.speed_scale).powi(2))
-        })
-        .collect();
+/// Each group's contact state per frame (T × G): the group costs in contact (min_p e_p) and in
+/// the air (−ln(1 − ℓ_g)), the dynamic cost, and Viterbi over the clip.
+fn decide_groups(
+    set: &ContactSet,
+    o: &ContactOptions,
+    energy: &[f64],
+    demand: &[f64],
+    rate_hz: f64,
+) -> Vec<bool> {
+    let frames = demand.len();
+    let np = set.points.len();
     let ng = set.groups().len();
     // group costs in contact / in the air, T × G
     let mut cost_on = vec![COST_CAP; frames * ng];
@@ -304,13 +394,23 @@ pub fn detect(
         trust * 0.5 * (unexplained / o.demand_scale).powi(2)
     };
     let switch = (rate_hz / o.transition_rate).ln().max(0.0);
-    let group_contact = if ng <= MAX_JOINT_GROUPS {
+    if ng <= MAX_JOINT_GROUPS {
         viterbi_joint(frames, ng, &cost_on, &cost_off, &dynamic, switch)
     } else {
         viterbi_separate(frames, ng, &cost_on, &cost_off, &dynamic, switch)
-    };
+    }
+}
 
-    // factors within each group in contact, then the double-support ramps
+/// The point factors (T × P) within each group in contact: ℓ_p / max_q ℓ_q over the group's
+/// points, zero below [`FACTOR_MIN`].
+fn group_factors(
+    set: &ContactSet,
+    energy: &[f64],
+    group_contact: &[bool],
+    frames: usize,
+) -> Vec<f64> {
+    let np = set.points.len();
+    let ng = set.groups().len();
     let mut factor = vec![0.0; frames * np];
     for t in 0..frames {
         for g in 0..ng {
@@ -328,27 +428,23 @@ pub fn detect(
             }
         }
     }
+    factor
+}
+
+/// Ramps each contact's factors in and out with a smoothstep over its double supports (at
+/// most `longest` frames), so that load passes from the trailing to the leading group.
+fn ramp_double_supports(
+    factor: &mut [f64],
+    set: &ContactSet,
+    group_contact: &[bool],
+    frames: usize,
+    longest: usize,
+) {
+    let np = set.points.len();
+    let ng = set.groups().len();
     let others = |t: usize, g: usize| (0..ng).any(|k| k != g && group_contact[t * ng + k]);
-    let intervals = contact_intervals(&group_contact, frames, ng);
-    // The double supports the clip shows whole (a group's contact begins while another's
-    // goes on, and that one ends within it): their median length, at most transition_time,
-    // is the clip's own transfer time, used where the clip's start or end cuts one.
-    let longest = ((o.transition_time * rate_hz).round() as usize).max(1);
-    let mut whole: Vec<usize> = Vec::new();
-    for &(g, start, end) in &intervals {
-        if start > 0 && others(start - 1, g) {
-            let overlap = (start..end).take_while(|&k| others(k, g)).count();
-            if start + overlap < end {
-                whole.push(overlap);
-            }
-        }
-    }
-    whole.sort_unstable();
-    let typical = whole
-        .get(whole.len() / 2)
-        .copied()
-        .unwrap_or(longest)
-        .min(longest);
+    let intervals = contact_intervals(group_contact, frames, ng);
+    let typical = typical_transfer(&intervals, &others, longest);
     for &(g, start, end) in &intervals {
         // the overlap at the interval's start: another group in contact before it began
         // (a transfer onto this group), or at the clip's first frame with this group
@@ -389,20 +485,31 @@ pub fn detect(
             }
         }
     }
-    let in_contact = factor.iter().map(|&f| f > 0.0).collect();
-    Ok(ContactStates {
-        frames,
-        points: np,
-        factor,
-        in_contact,
-        height,
-        speed,
-        floor,
-        floor_velocity,
-        treadmill,
-        demand,
-        group_contact,
-    })
+}
+
+/// The clip's own transfer time (frames): the median length of the double supports the clip
+/// shows whole (a group's contact begins while another's goes on, and that one ends within
+/// it), at most `longest`; used where the clip's start or end cuts one.
+fn typical_transfer(
+    intervals: &[(usize, usize, usize)],
+    others: &dyn Fn(usize, usize) -> bool,
+    longest: usize,
+) -> usize {
+    let mut whole: Vec<usize> = Vec::new();
+    for &(g, start, end) in intervals {
+        if start > 0 && others(start - 1, g) {
+            let overlap = (start..end).take_while(|&k| others(k, g)).count();
+            if start + overlap < end {
+                whole.push(overlap);
+            }
+        }
+    }
+    whole.sort_unstable();
+    whole
+        .get(whole.len() / 2)
+        .copied()
+        .unwrap_or(longest)
+        .min(longest)
 }
 
 /// The contact intervals (group, first frame, end frame exclusive) of a T × G state array.

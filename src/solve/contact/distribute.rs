@@ -125,6 +125,53 @@ impl ContactWorkspace {
         tau: &[f64],
         out: &mut ContactFrame,
     ) -> crate::Result<()> {
+        self.check_inputs(model, set, options, factor, tau, out)?;
+        data.require(model, Stage::Position, "ContactWorkspace::distribute")?;
+        self.place_points(data, set, tau, out);
+        if factor.iter().all(|&f| f == 0.0) {
+            out.residual.copy_from_slice(&self.b);
+            return Ok(());
+        }
+        contact_jacobian(model, data, &self.local, &mut self.jacobian)?;
+        let k = self.build_problem(set, options, factor);
+        let m = k * self.np + self.nb;
+        let problem = QpProblem {
+            a: QpMatrix::Dense(self.a.columns(0, m)),
+            b: &self.b,
+            weights: &self.weights[..m],
+            lower: &self.lower[..m],
+            upper: &self.upper[..m],
+        };
+        let qp = if k == 4 {
+            &mut self.qp_cone
+        } else {
+            &mut self.qp_free
+        };
+        let solution = qp
+            .solve(&problem, &options.qp)
+            .map_err(|e| Error::invalid("contact QP", e.to_string()))?;
+        out.status = solution.status;
+        out.iterations = solution.iterations;
+        for p in 0..self.np {
+            // f_p = Σ_e x_p,e d_e
+            out.forces[p] = (0..k)
+                .map(|e| self.directions[k * p + e] * solution.x[k * p + e])
+                .sum();
+        }
+        self.write_generalized(set, out);
+        Ok(())
+    }
+
+    /// Checks that the workspace, `set`, the options and the arrays fit together.
+    fn check_inputs(
+        &self,
+        model: &Model,
+        set: &ContactSet,
+        options: &ContactOptions,
+        factor: &[f64],
+        tau: &[f64],
+        out: &ContactFrame,
+    ) -> crate::Result<()> {
         let (nq, np, nb) = (self.nq, self.np, self.nb);
         if model.nq() != nq || set.points.len() != np || set.floating_base.len() != nb {
             return Err(Error::invalid(
@@ -157,10 +204,13 @@ impl ContactWorkspace {
                 "sized for another model or set (use ContactFrame::new)",
             ));
         }
-        data.require(model, Stage::Position, "ContactWorkspace::distribute")?;
+        Ok(())
+    }
 
+    /// The contact locations b = c − r n (in their bodies, and in ground into `out.points`),
+    /// b = τ_B, and `out` cleared of the previous frame's forces.
+    fn place_points(&mut self, data: &Data, set: &ContactSet, tau: &[f64], out: &mut ContactFrame) {
         let n = set.floor_normal;
-        let (t1, t2) = set.floor_tangents();
         for (p, point) in set.points.iter().enumerate() {
             let (rot, _) = data.body_pose(point.body);
             // contact location b = c − r n, in the body
@@ -175,14 +225,21 @@ impl ContactWorkspace {
         out.generalized.iter_mut().for_each(|g| *g = 0.0);
         out.status = QpStatus::Solved;
         out.iterations = 0;
-        if factor.iter().all(|&f| f == 0.0) {
-            out.residual.copy_from_slice(&self.b);
-            return Ok(());
-        }
-        contact_jacobian(model, data, &self.local, &mut self.jacobian)?;
+    }
 
+    /// The QP's A, weights and bounds from the Jacobian: k force coordinates per point (3
+    /// without friction, 4 pyramid edges with it), then one slack per floating-base row.
+    /// Returns k.
+    fn build_problem(
+        &mut self,
+        set: &ContactSet,
+        options: &ContactOptions,
+        factor: &[f64],
+    ) -> usize {
+        let (np, nb) = (self.np, self.nb);
+        let n = set.floor_normal;
+        let (t1, t2) = set.floor_tangents();
         let k = if options.friction.is_some() { 4 } else { 3 };
-        let m = k * np + nb;
         for p in 0..np {
             let d = &mut self.directions[k * p..k * (p + 1)];
             match options.friction {
@@ -228,31 +285,13 @@ impl ContactWorkspace {
             self.lower[c] = f64::NEG_INFINITY;
             self.upper[c] = f64::INFINITY;
         }
-        let problem = QpProblem {
-            a: QpMatrix::Dense(self.a.columns(0, m)),
-            b: &self.b,
-            weights: &self.weights[..m],
-            lower: &self.lower[..m],
-            upper: &self.upper[..m],
-        };
-        let qp = if k == 4 {
-            &mut self.qp_cone
-        } else {
-            &mut self.qp_free
-        };
-        let solution = qp
-            .solve(&problem, &options.qp)
-            .map_err(|e| Error::invalid("contact QP", e.to_string()))?;
-        out.status = solution.status;
-        out.iterations = solution.iterations;
-        for p in 0..np {
-            // f_p = Σ_e x_p,e d_e
-            out.forces[p] = (0..k)
-                .map(|e| self.directions[k * p + e] * solution.x[k * p + e])
-                .sum();
-        }
+        k
+    }
+
+    /// J_cᵀλ of the forces in `out`, and the residual τ_B − (J_cᵀλ)_B.
+    fn write_generalized(&self, set: &ContactSet, out: &mut ContactFrame) {
         // J_cᵀ λ
-        for j in 0..nq {
+        for j in 0..self.nq {
             let mut g = 0.0;
             for (p, f) in out.forces.iter().enumerate() {
                 for x in 0..3 {
@@ -264,6 +303,5 @@ impl ContactWorkspace {
         for (r, &j) in set.floating_base.iter().enumerate() {
             out.residual[r] = self.b[r] - out.generalized[j];
         }
-        Ok(())
     }
 }

@@ -499,39 +499,9 @@ impl QpWorkspace {
         self.check_arguments(problem)?;
         let law = PowerLaw::new(settings.exponent);
         let h_reference = self.prepare_columns(problem, &law)?;
-        // μ's bounds relative to h: (μ_min, μ_max), or lower where the unbounded columns
-        // alone make the dual strongly concave (see `unbounded_curvature`)
-        let (mu_min, mu_max) = match law
-            .quadratic
-            .then(|| self.unbounded_curvature(problem, h_reference))
-            .flatten()
-        {
-            Some(kappa) => {
-                let high = settings
-                    .regularization_max
-                    .min(UNBOUNDED_CONTRACTION * kappa / h_reference);
-                (settings.regularization_min.min(high), high)
-            }
-            None => (settings.regularization_min, settings.regularization_max),
-        };
-        let (n, m) = (self.n, self.m);
-
-        let cold = !(settings.warm_start && self.warm);
-        if cold {
-            self.multipliers.fill(0.0);
-        }
-        self.warm = false;
-        // s = Aᵀλ, x = x(s)
-        for i in 0..m {
-            self.s[i] = self.columns.dot(i, &self.multipliers);
-            (self.x[i], self.slope[i]) = law.minimiser(
-                self.s[i],
-                problem.weights[i],
-                problem.lower[i],
-                problem.upper[i],
-                self.slope_reference[i],
-            );
-        }
+        let (mu_min, mu_max) = self.regularization_bounds(problem, settings, &law, h_reference);
+        let n = self.n;
+        let cold = self.start(problem, settings, &law);
         let b_max = problem.b.iter().fold(0.0_f64, |acc, v| acc.max(v.abs()));
         let (mut r_max, mut scale, mut r_norm) = self.update_residual(problem.b, b_max);
         let mut r_norm_previous = f64::INFINITY;
@@ -559,50 +529,12 @@ impl QpWorkspace {
                 break QpStatus::MaxIterations;
             }
 
-            // Newton matrix A D Aᵀ: at a cold start the reference slopes of every column
-            // (at λ = 0 the exact slope is 0 or ∞ for p ≠ 2, and muscles sit on a bound).
-            let use_reference = cold && iterations == 0;
-            self.update_hessian(iterations == 0, use_reference);
-            // A D Aᵀ + μI = L Lᵀ; should rounding make it indefinite, μ is raised (a new ψ)
-            let mut attempts = 0;
-            while !self.factor_newton_matrix(mu) {
-                attempts += 1;
-                if attempts == 8 {
-                    break;
-                }
-                mu = (100.0 * mu).max(f64::MIN_POSITIVE);
-                self.center.copy_from_slice(&self.multipliers);
-            }
-            if attempts == 8 {
+            let Some(slope) = self.newton_direction(iterations == 0, cold, &mut mu) else {
                 break QpStatus::NumericalError;
-            }
-            // ∇ψ = −r − μ(λ − c),  Δ = (A D Aᵀ + μI)⁻¹ ∇ψ
-            for j in 0..n {
-                self.gradient[j] = -self.residual[j] - mu * (self.multipliers[j] - self.center[j]);
-            }
-            self.step.copy_from_slice(&self.gradient);
-            cholesky_solve_in_place(&self.factor, n, &mut self.step);
-            let slope = Slope {
-                psi: dot(&self.gradient, &self.step),
-                step_norm2: dot(&self.step, &self.step),
-                mu,
             };
-            if !(slope.psi > 0.0 && slope.psi.is_finite()) {
-                break QpStatus::NumericalError;
-            }
-            for i in 0..m {
-                self.a_step[i] = self.columns.dot(i, &self.step);
-            }
-
             let accepted = self.line_search(problem, &law, &slope);
             if let Some(t) = accepted {
-                // λ ← λ + tΔ (s, x, D of the trial point are swapped in)
-                for (l, d) in self.multipliers.iter_mut().zip(&self.step) {
-                    *l += t * d;
-                }
-                std::mem::swap(&mut self.s, &mut self.s_trial);
-                std::mem::swap(&mut self.x, &mut self.x_trial);
-                std::mem::swap(&mut self.slope, &mut self.slope_trial);
+                self.take_step(t);
             }
             iterations += 1;
             r_norm_previous = r_norm;
@@ -640,6 +572,106 @@ impl QpWorkspace {
                 .sum(),
             iterations,
         })
+    }
+
+    /// μ's bounds relative to h: (μ_min, μ_max) of the settings, or lower where the unbounded
+    /// columns alone make the dual strongly concave (see [`Self::unbounded_curvature`]).
+    fn regularization_bounds(
+        &mut self,
+        problem: &QpProblem<'_>,
+        settings: &QpSettings,
+        law: &PowerLaw,
+        h_reference: f64,
+    ) -> (f64, f64) {
+        match law
+            .quadratic
+            .then(|| self.unbounded_curvature(problem, h_reference))
+            .flatten()
+        {
+            Some(kappa) => {
+                let high = settings
+                    .regularization_max
+                    .min(UNBOUNDED_CONTRACTION * kappa / h_reference);
+                (settings.regularization_min.min(high), high)
+            }
+            None => (settings.regularization_min, settings.regularization_max),
+        }
+    }
+
+    /// The starting iterate: λ kept from the last solve (a warm start) or 0, s = Aᵀλ and
+    /// x = x(s). Returns whether the start is cold.
+    fn start(&mut self, problem: &QpProblem<'_>, settings: &QpSettings, law: &PowerLaw) -> bool {
+        let cold = !(settings.warm_start && self.warm);
+        if cold {
+            self.multipliers.fill(0.0);
+        }
+        self.warm = false;
+        // s = Aᵀλ, x = x(s)
+        for i in 0..self.m {
+            self.s[i] = self.columns.dot(i, &self.multipliers);
+            (self.x[i], self.slope[i]) = law.minimiser(
+                self.s[i],
+                problem.weights[i],
+                problem.lower[i],
+                problem.upper[i],
+                self.slope_reference[i],
+            );
+        }
+        cold
+    }
+
+    /// The Newton direction of ψ: Δ = (A D Aᵀ + μI)⁻¹ ∇ψ with ∇ψ = −r − μ(λ − c), and AᵀΔ.
+    /// `first`: the first iteration of this solve (A D Aᵀ formed from scratch, from the
+    /// reference slopes when `cold`). Should rounding make the matrix indefinite, μ is raised
+    /// (a new ψ, centred at λ). None when no ascent direction could be formed.
+    fn newton_direction(&mut self, first: bool, cold: bool, mu: &mut f64) -> Option<Slope> {
+        let n = self.n;
+        // Newton matrix A D Aᵀ: at a cold start the reference slopes of every column
+        // (at λ = 0 the exact slope is 0 or ∞ for p ≠ 2, and muscles sit on a bound).
+        let use_reference = cold && first;
+        self.update_hessian(first, use_reference);
+        // A D Aᵀ + μI = L Lᵀ; should rounding make it indefinite, μ is raised (a new ψ)
+        let mut attempts = 0;
+        while !self.factor_newton_matrix(*mu) {
+            attempts += 1;
+            if attempts == 8 {
+                break;
+            }
+            *mu = (100.0 * *mu).max(f64::MIN_POSITIVE);
+            self.center.copy_from_slice(&self.multipliers);
+        }
+        if attempts == 8 {
+            return None;
+        }
+        let mu = *mu;
+        // ∇ψ = −r − μ(λ − c),  Δ = (A D Aᵀ + μI)⁻¹ ∇ψ
+        for j in 0..n {
+            self.gradient[j] = -self.residual[j] - mu * (self.multipliers[j] - self.center[j]);
+        }
+        self.step.copy_from_slice(&self.gradient);
+        cholesky_solve_in_place(&self.factor, n, &mut self.step);
+        let slope = Slope {
+            psi: dot(&self.gradient, &self.step),
+            step_norm2: dot(&self.step, &self.step),
+            mu,
+        };
+        if !(slope.psi > 0.0 && slope.psi.is_finite()) {
+            return None;
+        }
+        for i in 0..self.m {
+            self.a_step[i] = self.columns.dot(i, &self.step);
+        }
+        Some(slope)
+    }
+
+    /// λ ← λ + tΔ, with s, x and D of the line search's trial point swapped in.
+    fn take_step(&mut self, t: f64) {
+        for (l, d) in self.multipliers.iter_mut().zip(&self.step) {
+            *l += t * d;
+        }
+        std::mem::swap(&mut self.s, &mut self.s_trial);
+        std::mem::swap(&mut self.x, &mut self.x_trial);
+        std::mem::swap(&mut self.slope, &mut self.slope_trial);
     }
 
     /// Sizes against the workspace, and every vector entry (A is checked in

@@ -457,18 +457,26 @@ fn an_infeasible_frame_does_not_spoil_the_next_warm_start() {
     );
 }
 
-#[test]
-fn bad_inputs_return_typed_errors() {
+/// The problem the bad-input tests spoil one entry of (4 equations, 8 unknowns), and a
+/// workspace for it.
+fn bad_input_case() -> (Case, QpWorkspace) {
     let mut rng = Rng(8);
-    let case = random_case(&mut rng, 4, 8, 1);
-    let mut ws = QpWorkspace::new(4, 8);
-    let settings = QpSettings::default();
-    let solve = |ws: &mut QpWorkspace, c: &Case, s: &QpSettings| ws.solve(&c.problem(), s).err();
+    (random_case(&mut rng, 4, 8, 1), QpWorkspace::new(4, 8))
+}
 
+/// The error of solving `c`, if any.
+fn solve_error(ws: &mut QpWorkspace, c: &Case, s: &QpSettings) -> Option<QpError> {
+    ws.solve(&c.problem(), s).err()
+}
+
+#[test]
+fn non_finite_entries_of_a_and_b_are_named() {
+    let (case, mut ws) = bad_input_case();
+    let settings = QpSettings::default();
     let mut c = case.clone();
     c.a[(2, 5)] = f64::NAN;
     assert!(matches!(
-        solve(&mut ws, &c, &settings),
+        solve_error(&mut ws, &c, &settings),
         Some(QpError::NonFiniteMatrix {
             row: 2,
             column: 5,
@@ -478,7 +486,7 @@ fn bad_inputs_return_typed_errors() {
     c = case.clone();
     c.a[(0, 3)] = f64::INFINITY;
     assert!(matches!(
-        solve(&mut ws, &c, &settings),
+        solve_error(&mut ws, &c, &settings),
         Some(QpError::NonFiniteMatrix {
             row: 0,
             column: 3,
@@ -488,18 +496,24 @@ fn bad_inputs_return_typed_errors() {
     c = case.clone();
     c.b[1] = f64::NEG_INFINITY;
     assert!(matches!(
-        solve(&mut ws, &c, &settings),
+        solve_error(&mut ws, &c, &settings),
         Some(QpError::NonFinite {
             argument: "b",
             index: 1,
             ..
         })
     ));
+}
+
+#[test]
+fn invalid_weights_and_bounds_are_named_by_index() {
+    let (case, mut ws) = bad_input_case();
+    let settings = QpSettings::default();
     for w in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        c = case.clone();
+        let mut c = case.clone();
         c.weights[4] = w;
         assert!(matches!(
-            solve(&mut ws, &c, &settings),
+            solve_error(&mut ws, &c, &settings),
             Some(QpError::InvalidWeight { index: 4, .. })
         ));
     }
@@ -510,20 +524,33 @@ fn bad_inputs_return_typed_errors() {
         (f64::INFINITY, f64::INFINITY),
         (f64::NEG_INFINITY, f64::NEG_INFINITY),
     ] {
-        c = case.clone();
+        let mut c = case.clone();
         (c.lower[6], c.upper[6]) = (l, u);
         assert!(
             matches!(
-                solve(&mut ws, &c, &settings),
+                solve_error(&mut ws, &c, &settings),
                 Some(QpError::InvalidBounds { index: 6, .. })
             ),
             "[{l}, {u}]"
         );
     }
-    c = case.clone();
+    // The messages name the argument.
+    let message = QpError::InvalidWeight {
+        index: 4,
+        value: 0.0,
+    }
+    .to_string();
+    assert!(message.contains("weights[4]"), "{message}");
+}
+
+#[test]
+fn wrong_sizes_are_named_by_argument() {
+    let (case, mut ws) = bad_input_case();
+    let settings = QpSettings::default();
+    let mut c = case.clone();
     c.b.push(0.0);
     assert!(matches!(
-        solve(&mut ws, &c, &settings),
+        solve_error(&mut ws, &c, &settings),
         Some(QpError::WrongSize {
             argument: "b",
             expected: 4,
@@ -533,27 +560,32 @@ fn bad_inputs_return_typed_errors() {
     c = case.clone();
     c.upper.pop();
     assert!(matches!(
-        solve(&mut ws, &c, &settings),
+        solve_error(&mut ws, &c, &settings),
         Some(QpError::WrongSize {
             argument: "upper",
             ..
         })
     ));
     assert!(matches!(
-        solve(&mut QpWorkspace::new(5, 8), &case, &settings),
+        solve_error(&mut QpWorkspace::new(5, 8), &case, &settings),
         Some(QpError::WrongSize {
             argument: "a (rows)",
             ..
         })
     ));
     assert!(matches!(
-        solve(&mut QpWorkspace::new(4, 9), &case, &settings),
+        solve_error(&mut QpWorkspace::new(4, 9), &case, &settings),
         Some(QpError::WrongSize {
             argument: "a (columns)",
             ..
         })
     ));
+}
 
+#[test]
+fn invalid_settings_are_named_by_field() {
+    let (case, mut ws) = bad_input_case();
+    let settings = QpSettings::default();
     let bad_settings = [
         (
             "exponent",
@@ -611,17 +643,10 @@ fn bad_inputs_return_typed_errors() {
             "{name}"
         );
         assert!(
-            matches!(solve(&mut ws, &case, &s), Some(QpError::InvalidSetting { field, .. }) if field == name)
+            matches!(solve_error(&mut ws, &case, &s), Some(QpError::InvalidSetting { field, .. }) if field == name)
         );
     }
     assert!(QpSettings::default().validate().is_ok());
-    // The messages name the argument.
-    let message = QpError::InvalidWeight {
-        index: 4,
-        value: 0.0,
-    }
-    .to_string();
-    assert!(message.contains("weights[4]"), "{message}");
 }
 
 #[test]
