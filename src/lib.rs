@@ -24,6 +24,7 @@ pub mod io;
 pub mod limits;
 pub(crate) mod linalg;
 pub mod loss;
+pub mod mjcf;
 pub mod model;
 pub mod motion;
 #[cfg(feature = "mujoco")]

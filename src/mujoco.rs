@@ -1,7 +1,7 @@
 //! The same model in MuJoCo, in process (cargo feature `mujoco`), for the cross-checks and
 //! the side-by-side benchmark.
 //!
-//! The model is exported with [`crate::model::mjcf::to_mjcf`] (one MuJoCo joint per full
+//! The model is exported with [`crate::mjcf::to_mjcf`] (one MuJoCo joint per full
 //! coordinate) and loaded into MuJoCo from memory. Quantities are returned in musculo's
 //! full-coordinate order, so that they compare directly with `crba_full`, `rnea_full`,
 //! body poses and full-coordinate Jacobians.
@@ -63,7 +63,7 @@ impl MujocoTwin {
     /// Exports `model` to MJCF and loads it into MuJoCo.
     pub fn new(model: &Model) -> crate::Result<MujocoTwin> {
         check_version(linked_version(), EXPECTED_VERSION)?;
-        let export = crate::model::mjcf::to_mjcf(model);
+        let export = crate::mjcf::to_mjcf(model);
         let mj_model = MjModel::from_xml_string(&export.xml).map_err(|e| Error::Mujoco {
             message: format!("MuJoCo could not load the exported model: {e:?}"),
         })?;

@@ -1,4 +1,4 @@
-//! Robust inverse kinematics (`solve::ik_robust`): a marker that disagrees with the others
+//! Robust inverse kinematics (`solve::ik::robust`): a marker that disagrees with the others
 //! over the clip is down-weighted and named, and the fit of the others stays as it is
 //! without it.
 //!
@@ -18,8 +18,8 @@ use musculo::Model;
 use musculo::dynamics::{self, Data};
 use musculo::model::MotionType;
 use musculo::motion::{self, Motion, ReadOptions};
+use musculo::solve::ik::robust::{self as ik_robust, RobustMarkers};
 use musculo::solve::ik::{self, IkSettings, IkSolution, IkTasks};
-use musculo::solve::ik_robust::{self, RobustMarkers};
 use musculo::spatial::Vec3;
 
 const DIR: &str = "opensim-models/Pipelines/Gait2392_Simbody";

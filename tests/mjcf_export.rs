@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use musculo::Model;
-use musculo::model::mjcf::to_mjcf;
+use musculo::mjcf::to_mjcf;
 use std::process::Command;
 
 fn count(doc: &roxmltree::Document, tag: &str) -> usize {

@@ -176,7 +176,7 @@ fn exported_models_simulate_in_mujoco_with_their_couplings_held() {
     ] {
         let Some(p) = reference_file(rel) else { return };
         let model = Model::from_osim_file(&p).unwrap();
-        let xml = musculo::model::mjcf::to_mjcf(&model).xml;
+        let xml = musculo::mjcf::to_mjcf(&model).xml;
         for actuation in [true, false] {
             let mut mj = MjModel::from_xml_string(&xml).unwrap();
             if !actuation {

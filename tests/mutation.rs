@@ -250,7 +250,7 @@ fn model_reader_survives_mutations() {
 fn model_reader_and_mjcf_export_survive_mutations() {
     let read = |b: &[u8], name: &str| {
         let model = Model::from_osim_str(&text(b), name)?;
-        let export = musculo::model::mjcf::to_mjcf(&model);
+        let export = musculo::mjcf::to_mjcf(&model);
         let bad = export.xml.split(['"', ' ']).find(|w| {
             let w = w.trim_start_matches('-').to_ascii_lowercase();
             w == "nan" || w == "inf" || w == "infinity"

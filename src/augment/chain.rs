@@ -33,8 +33,8 @@ use crate::solve::contact::{
 };
 use crate::solve::external_loads::ExternalLoadSet;
 use crate::solve::filter::HIGHEST_CUTOFF_FRACTION;
+use crate::solve::ik::robust as ik_robust;
 use crate::solve::ik::{self, IkSettings};
-use crate::solve::ik_robust;
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
 use crate::solve::scale_from_clip;
 use crate::solve::static_optimization::{

@@ -16,7 +16,6 @@ pub mod builder;
 mod frames;
 pub mod function;
 mod knots;
-pub mod mjcf;
 pub mod natural_spline;
 mod osim;
 pub(crate) mod reduction;

@@ -36,7 +36,7 @@
 //!
 //! With [`IkSettings::robust`], a marker that disagrees with the others over the whole clip
 //! (mislabelled, swapped, displaced) is down-weighted and the clip solved again
-//! ([`super::ik_robust`]); [`IkSolution::disagreeing`] names it.
+//! ([`robust`]); [`IkSolution::disagreeing`] names it.
 
 use crate::dynamics::Data;
 use crate::dynamics::forward_kinematics::{body_poses_only, motion_subspaces};
@@ -45,12 +45,13 @@ use crate::linalg::dot;
 use crate::model::reduction::NONE;
 use crate::model::{CoordinateRole, Model};
 use crate::motion::Motion;
-use crate::solve::ik_robust::{self, DisagreeingMarker, RobustMarkers};
 use crate::solve::ltl::EliminationTree;
 use crate::spatial::{Force, Mat3, SpatialInertia, Vec3};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use robust::{DisagreeingMarker, RobustMarkers};
 
+pub mod robust;
 mod start;
 pub use start::{StartOutcome, describe as describe_starts};
 
@@ -101,7 +102,7 @@ pub struct IkSettings {
     /// false.
     pub normalize_marker_weights: bool,
     /// Down-weight the markers that disagree with the others over the clip
-    /// ([`super::ik_robust`]). Default None: every task keeps its weight, as an OpenSim setup's
+    /// ([`robust`]). Default None: every task keeps its weight, as an OpenSim setup's
     /// weights must. The augmentation chain and `musculo ik` without a setup (markers matched
     /// by name with weight 1, or a skeleton map's joint centres) turn it on.
     pub robust: Option<RobustMarkers>,
@@ -185,7 +186,7 @@ pub struct IkSolution {
     /// [`IkSettings::robust`] down-weighted it).
     pub marker_weight: Vec<f64>,
     /// The marker tasks that disagreed with the others and were down-weighted (empty without
-    /// [`IkSettings::robust`]); [`ik_robust::warnings`] words them.
+    /// [`IkSettings::robust`]); [`robust::warnings`] words them.
     pub disagreeing: Vec<DisagreeingMarker>,
     /// The starts the first frame was solved from and the objective each reached (see
     /// [`describe_starts`]); empty when the first frame started from a given pose (`initial_q`, or
@@ -848,7 +849,7 @@ pub fn solve_motion_from(
 }
 
 /// With [`IkSettings::robust`]: the clip solved again with the markers that disagree with the
-/// others down-weighted ([`ik_robust`]), the first frame from its previous solution and each
+/// others down-weighted ([`robust`]), the first frame from its previous solution and each
 /// later one from the new solutions of the frames before it (as the first pass), until the
 /// set of such markers stops changing (at most `max_passes` times); the fit figures then leave
 /// them out. Without a disagreeing marker, `solution` as it is.
@@ -869,9 +870,9 @@ fn reweighted(
     // the weight factors of the last solve (all 1 for the first)
     let mut factors: Vec<Option<f64>> = vec![None; nm];
     for pass in 0..=robust.max_passes {
-        let errors = ik_robust::clip_errors(&solution, nm);
-        let mut verdict = ik_robust::disagreement(&errors, &counted, robust);
-        ik_robust::outvoted_only(model, targets, tasks, &solution, &mut verdict)?;
+        let errors = robust::clip_errors(&solution, nm);
+        let mut verdict = robust::disagreement(&errors, &counted, robust);
+        robust::outvoted_only(model, targets, tasks, &solution, &mut verdict)?;
         let same_set = (verdict.iter().zip(&factors)).all(|(a, b)| a.is_some() == b.is_some());
         if same_set || pass == robust.max_passes {
             break;
@@ -894,12 +895,12 @@ fn reweighted(
     if factors.iter().all(Option::is_none) {
         return Ok(solution);
     }
-    let errors = ik_robust::clip_errors(&solution, nm);
+    let errors = robust::clip_errors(&solution, nm);
     let mut others: Vec<f64> = (0..nm)
         .filter(|&i| counted[i] && factors[i].is_none() && errors[i].1 > 0)
         .map(|i| errors[i].0)
         .collect();
-    let others_median = ik_robust::median(&mut others);
+    let others_median = robust::median(&mut others);
     solution.marker_weight = (tasks.markers.iter().zip(&factors))
         .map(|(t, f)| t.weight * f.unwrap_or(1.0))
         .collect();

@@ -7,7 +7,6 @@ pub mod contact;
 pub mod external_loads;
 pub mod filter;
 pub mod ik;
-pub mod ik_robust;
 pub mod ik_tool;
 pub mod inverse_dynamics;
 pub mod kinematics;
@@ -16,3 +15,6 @@ pub mod qp;
 pub mod scale;
 pub mod scale_from_clip;
 pub mod static_optimization;
+
+/// The former path of [`ik::robust`].
+pub use ik::robust as ik_robust;

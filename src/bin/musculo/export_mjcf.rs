@@ -2,7 +2,8 @@
 //! movable transform axis), listing what MJCF cannot express.
 
 use musculo::io::output::name_in_folder;
-use musculo::model::{Model, mjcf};
+use musculo::mjcf;
+use musculo::model::Model;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]

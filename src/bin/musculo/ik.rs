@@ -10,8 +10,9 @@ use musculo::io::output::{OutputSet, name_in_folder};
 use musculo::model::Model;
 use musculo::motion::skeleton::SkeletonMap;
 use musculo::motion::{self, Format, Motion, ReadOptions};
+use musculo::solve::ik::robust as ik_robust;
 use musculo::solve::ik::{self, Bounds, IkSettings, IkSolution, IkTasks};
-use musculo::solve::{ik_robust, ik_tool, scale_from_clip};
+use musculo::solve::{ik_tool, scale_from_clip};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -7,7 +7,7 @@
 //!
 //! The statistic is per marker over the clip, not per frame: a swapped or displaced marker is
 //! wrong in every frame, and one weight per marker keeps each frame an ordinary weighted least
-//! squares, solved by the warm-started frame loop of [`super::ik`] unchanged. Per marker task
+//! squares, solved by the warm-started frame loop of [`super`] unchanged. Per marker task
 //! i, from a fit of the clip,
 //!
 //!   r_i = median over the frames where marker i is present of ‖p_i(q_t) − x_i(t)‖,
@@ -58,7 +58,7 @@
 //! is down-weighted. A marker that is wrong in fewer than half of its frames (a short swap)
 //! keeps a clip median within the others' and is not caught by this clip-level test.
 
-use super::ik::{IkSolution, IkTasks};
+use super::{IkSolution, IkTasks};
 use crate::dynamics::{Data, forward_kinematics, point_jacobian};
 use crate::error::Error;
 use crate::model::Model;

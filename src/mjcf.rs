@@ -16,11 +16,11 @@
 //! muscle curves replace the Hill-type ones (optimal fibre and tendon slack lengths and the
 //! maximum force and velocity are kept).
 
-use super::{
+use crate::dynamics::{self, Data};
+use crate::model::{
     ContactShape, DofKind, ForceElement, GeometryPath, JointStep, Model, PathPointKind, WrapObject,
     WrapShape,
 };
-use crate::dynamics::{self, Data};
 use crate::spatial::{Mat3, Transform, Vec3};
 use nalgebra::{DMatrix, DVector, UnitQuaternion};
 use std::collections::HashMap;
@@ -684,9 +684,9 @@ fn couplings(model: &Model, notes: &mut Vec<String>) -> (String, Vec<Option<[f64
         if let [j] = deps(d) {
             let c = r.independent[*j];
             let exact = (theta0[d] - q0[*j]).abs() < 1e-15
-                && matches!(&model.dofs[d].function, super::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
+                && matches!(&model.dofs[d].function, crate::model::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
                 && model.dofs[d].args == [c];
-            if (exact && reference[*j].is_none_or(|p| !matches!(&model.dofs[p].function, super::Function::Linear(k) if k[0] == 1.0 && k[1] == 0.0)))
+            if (exact && reference[*j].is_none_or(|p| !matches!(&model.dofs[p].function, crate::model::Function::Linear(k) if k[0] == 1.0 && k[1] == 0.0)))
                 || reference[*j].is_none()
             {
                 reference[*j] = Some(d);
@@ -700,7 +700,7 @@ fn couplings(model: &Model, notes: &mut Vec<String>) -> (String, Vec<Option<[f64
                 let _ = writeln!(out, "<joint joint1=\"{name}\" polycoef=\"{} 0 0 0 0\"/>", theta0[d]);
             }
             [j] if reference[*j] == Some(d) => {
-                if matches!(&model.dofs[d].function, super::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
+                if matches!(&model.dofs[d].function, crate::model::Function::Linear(k) if k.len() == 2 && k[0] == 1.0 && k[1] == 0.0)
                     && model.dofs[d].args == [r.independent[*j]]
                 {
                     limits[d] = Some(model.coordinates[r.independent[*j]].range);
