@@ -1,13 +1,14 @@
 //! Checks of the muscles: parameters against physiological ranges, paths over a grid of the
 //! range of motion, the moment-arm signs of agonists, and maximum isometric joint moments.
 
-use super::tables::{ParsedTables, sides};
+use super::tables::{AgonistRow, MomentRow, ParsedTables, sides};
 use super::{Check, CheckOptions, Family, Status, SubjectKind, glob_match};
 use crate::dynamics::{Data, forward_kinematics};
-use crate::model::{CoordinateRole, Model, MotionType};
+use crate::model::{Coordinate, CoordinateRole, Model, MotionType};
 use crate::muscle::hill::{HillMuscle, MuscleKind};
 use crate::muscle::path::{PathData, PathSet, compute_paths};
 use crate::random::SplitMix64;
+use nalgebra::DMatrix;
 
 /// Lengths and moment arms of every muscle path while one independent coordinate sweeps a
 /// grid of its range, the others at their default values.
@@ -18,6 +19,24 @@ struct Sweep {
     length: Vec<f64>,
     /// [point * m + muscle]: r = −∂ℓ/∂q about the swept coordinate.
     arm: Vec<f64>,
+}
+
+/// What the check families read: the muscles' names and force models, their lengths and
+/// moment arms at the default pose, and the sweeps of the coordinates they cross.
+struct Swept<'a> {
+    /// The path names, in path order (m of them).
+    names: Vec<&'a str>,
+    /// The force model of each path (None when its class or parameters are not modelled).
+    forces: Vec<Option<&'a HillMuscle>>,
+    /// n × m moment arms at the default pose.
+    default_arms: DMatrix<f64>,
+    /// Lengths at the default pose (m).
+    default_length: Vec<f64>,
+    /// Per independent coordinate: the sweep over its model range (within the options'
+    /// limits) when some muscle crosses it.
+    sweeps: Vec<Option<Sweep>>,
+    /// Per independent coordinate: the sweep over its physiological range of motion.
+    rom_sweeps: Vec<Option<Sweep>>,
 }
 
 pub(super) fn all(
@@ -44,8 +63,6 @@ pub(super) fn all(
     if set.is_empty() {
         return;
     }
-    let m = set.len();
-    // The force model of each path (None when its class or parameters are not modelled).
     let forces: Vec<Option<&HillMuscle>> = set
         .paths
         .iter()
@@ -56,7 +73,6 @@ pub(super) fn all(
     let mut data = Data::new(model);
     let mut paths = PathData::new(model, &set);
     let q0 = model.default_q();
-    let n = model.nq();
     // The default pose: which coordinates any muscle crosses, and each arm there.
     if let Err(e) = forward_kinematics(model, &mut data, &q0)
         .and_then(|_| compute_paths(model, &data, &set, &mut paths))
@@ -72,10 +88,6 @@ pub(super) fn all(
     }
     let default_arms = paths.moment_arms.clone();
     let default_length = paths.length.clone();
-    // Which coordinates some muscle crosses, and the grids over their model range (paths)
-    // and their physiological range of motion (signs, moments).
-    let mut sweeps: Vec<Option<Sweep>> = Vec::with_capacity(n);
-    let mut rom_sweeps: Vec<Option<Sweep>> = Vec::with_capacity(n);
     let mut ctx = SweepContext {
         model,
         set: &set,
@@ -83,9 +95,43 @@ pub(super) fn all(
         paths: &mut paths,
         q0: &q0,
     };
+    let (sweeps, rom_sweeps) = sweep_crossed(&mut ctx, tables, options, &default_arms, progress);
+    let swept = Swept {
+        names,
+        forces,
+        default_arms,
+        default_length,
+        sweeps,
+        rom_sweeps,
+    };
+    path_checks(model, options, &swept, out);
+    moment_arm_bounds(&mut ctx, tables, options, &swept, out);
+    agonist_signs(model, tables, options, &swept, &q0, out);
+    max_isometric_moments(model, tables, &swept, out);
+}
+
+/// The independent coordinate `j`.
+fn coordinate(model: &Model, j: usize) -> &Coordinate {
+    &model.coordinates[model.reduction.independent[j]]
+}
+
+/// Which coordinates some muscle crosses (a moment arm at the default pose), and the grids
+/// over their model range (paths) and their physiological range of motion (signs, moments);
+/// `progress(j + 1, n)` after each coordinate.
+fn sweep_crossed(
+    ctx: &mut SweepContext,
+    tables: &ParsedTables,
+    options: &CheckOptions,
+    default_arms: &DMatrix<f64>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> (Vec<Option<Sweep>>, Vec<Option<Sweep>>) {
+    let model = ctx.model;
+    let (n, m) = (model.nq(), ctx.set.len());
+    let mut sweeps: Vec<Option<Sweep>> = Vec::with_capacity(n);
+    let mut rom_sweeps: Vec<Option<Sweep>> = Vec::with_capacity(n);
     for j in 0..n {
         let crossed = (0..m).any(|k| default_arms[(j, k)].abs() > 1e-12);
-        let c = &model.coordinates[model.reduction.independent[j]];
+        let c = coordinate(model, j);
         let limit = match c.motion_type {
             MotionType::Translational => options.max_translation,
             _ => options.max_rotation,
@@ -101,72 +147,89 @@ pub(super) fn all(
         }
         progress(j + 1, n);
     }
-    let qname = |j: usize| {
-        model.coordinates[model.reduction.independent[j]]
-            .name
-            .as_str()
-    };
+    (sweeps, rom_sweeps)
+}
 
-    // Paths: finite positive lengths; finite, continuous moment arms.
-    for k in 0..m {
-        let mut min_length = default_length[k];
-        let mut where_min = "the default pose".to_string();
-        let mut nonfinite = !default_length[k].is_finite();
-        let mut jump: Option<(f64, usize, f64, f64)> = None;
-        let mut crossed = Vec::new();
-        for (j, s) in sweeps.iter().enumerate() {
-            let Some(s) = s else { continue };
-            if !(0..s.q.len())
-                .any(|i| s.arm[i * m + k].abs() > 1e-12 || !s.arm[i * m + k].is_finite())
-            {
-                continue;
+/// One muscle's path over the sweeps: its shortest length and where, whether any length or
+/// arm is not finite, its largest arm change between neighbouring grid points of a
+/// rotational coordinate, and the coordinates it crosses.
+struct PathExtremes<'a> {
+    min_length: f64,
+    where_min: String,
+    nonfinite: bool,
+    /// (|Δr|, coordinate, q before, q after)
+    jump: Option<(f64, usize, f64, f64)>,
+    crossed: Vec<&'a str>,
+}
+
+/// Muscle `k`'s [`PathExtremes`] over the default pose and the sweeps.
+fn path_extremes<'a>(model: &'a Model, swept: &Swept, k: usize) -> PathExtremes<'a> {
+    let m = swept.names.len();
+    let mut e = PathExtremes {
+        min_length: swept.default_length[k],
+        where_min: "the default pose".to_string(),
+        nonfinite: !swept.default_length[k].is_finite(),
+        jump: None,
+        crossed: Vec::new(),
+    };
+    for (j, s) in swept.sweeps.iter().enumerate() {
+        let Some(s) = s else { continue };
+        if !(0..s.q.len()).any(|i| s.arm[i * m + k].abs() > 1e-12 || !s.arm[i * m + k].is_finite())
+        {
+            continue;
+        }
+        let qname = coordinate(model, j).name.as_str();
+        e.crossed.push(qname);
+        for i in 0..s.q.len() {
+            let (l, r) = (s.length[i * m + k], s.arm[i * m + k]);
+            if !l.is_finite() || !r.is_finite() {
+                e.nonfinite = true;
+            } else if l < e.min_length {
+                e.min_length = l;
+                e.where_min = format!("{} = {:.4}", qname, s.q[i]);
             }
-            crossed.push(qname(j));
-            for i in 0..s.q.len() {
-                let (l, r) = (s.length[i * m + k], s.arm[i * m + k]);
-                if !l.is_finite() || !r.is_finite() {
-                    nonfinite = true;
-                } else if l < min_length {
-                    min_length = l;
-                    where_min = format!("{} = {:.4}", qname(j), s.q[i]);
-                }
-            }
-            let rotational = model.coordinates[model.reduction.independent[j]].motion_type
-                != MotionType::Translational;
-            if rotational {
-                for i in 1..s.q.len() {
-                    let d = (s.arm[i * m + k] - s.arm[(i - 1) * m + k]).abs();
-                    if d.is_finite() && jump.is_none_or(|(b, ..)| d > b) {
-                        jump = Some((d, j, s.q[i - 1], s.q[i]));
-                    }
+        }
+        if coordinate(model, j).motion_type != MotionType::Translational {
+            for i in 1..s.q.len() {
+                let d = (s.arm[i * m + k] - s.arm[(i - 1) * m + k]).abs();
+                if d.is_finite() && e.jump.is_none_or(|(b, ..)| d > b) {
+                    e.jump = Some((d, j, s.q[i - 1], s.q[i]));
                 }
             }
         }
+    }
+    e
+}
+
+/// Paths: finite positive lengths; finite, continuous moment arms (two checks per muscle).
+fn path_checks(model: &Model, options: &CheckOptions, swept: &Swept, out: &mut Vec<Check>) {
+    for (k, name) in swept.names.iter().enumerate() {
+        let e = path_extremes(model, swept, k);
         out.push(Check {
             family: Family::Paths,
             name: "length finite > 0".into(),
             subject_kind: SubjectKind::Muscle,
-            subject: names[k].into(),
-            status: if !nonfinite && min_length > 0.0 {
+            subject: (*name).into(),
+            status: if !e.nonfinite && e.min_length > 0.0 {
                 Status::Pass
             } else {
                 Status::Fail
             },
-            value: Some(min_length),
+            value: Some(e.min_length),
             unit: "m",
             limit: "> 0, finite".into(),
-            message: if nonfinite {
+            message: if e.nonfinite {
                 "non-finite length or moment arm on the grid".into()
             } else {
-                format!("shortest at {where_min}")
+                format!("shortest at {}", e.where_min)
             },
         });
-        out.push(match jump {
+        out.push(match e.jump {
             None => Check {
                 family: Family::Paths,
                 name: "moment-arm continuity".into(),
                 subject_kind: SubjectKind::Muscle,
-                subject: names[k].into(),
+                subject: (*name).into(),
                 status: Status::Skip,
                 value: None,
                 unit: "m",
@@ -177,7 +240,7 @@ pub(super) fn all(
                 family: Family::Paths,
                 name: "moment-arm continuity".into(),
                 subject_kind: SubjectKind::Muscle,
-                subject: names[k].into(),
+                subject: (*name).into(),
                 status: if d <= options.max_moment_arm_jump {
                     Status::Pass
                 } else {
@@ -188,26 +251,26 @@ pub(super) fn all(
                 limit: format!("≤ {} between grid points", options.max_moment_arm_jump),
                 message: format!(
                     "largest change about {} between {:.1}° and {:.1}° (crosses {})",
-                    qname(j),
+                    coordinate(model, j).name,
                     a.to_degrees(),
                     b.to_degrees(),
-                    crossed.join(", ")
+                    e.crossed.join(", ")
                 ),
             },
         });
     }
+}
 
-    moment_arm_bounds(
-        &mut ctx,
-        tables,
-        options,
-        &rom_sweeps,
-        &default_arms,
-        &names,
-        out,
-    );
-
-    // Agonist signs.
+/// Agonist signs: per row of `agonist_signs.csv`, per side when it has `{side}`, every
+/// muscle its patterns match against the sign of its direction.
+fn agonist_signs(
+    model: &Model,
+    tables: &ParsedTables,
+    options: &CheckOptions,
+    swept: &Swept,
+    q0: &[f64],
+    out: &mut Vec<Check>,
+) {
     for row in &tables.agonists {
         // `{side}` in the muscles or the coordinate (ercspn_{side} → lumbar_extension).
         let has_side =
@@ -239,81 +302,116 @@ pub(super) fn all(
             else {
                 continue;
             };
-            for k in (0..m).filter(|&k| patterns.iter().any(|p| glob_match(p, names[k]))) {
+            let matched = (0..swept.names.len())
+                .filter(|&k| patterns.iter().any(|p| glob_match(p, swept.names[k])));
+            for k in matched {
                 if seen.contains(&(ci, k)) {
                     continue;
                 }
                 seen.push((ci, k));
-                let name = format!("{} about {coordinate}", row.direction);
-                let limit = format!(
-                    "{} wherever |r| > {} m",
-                    if sign > 0.0 { "r > 0" } else { "r < 0" },
-                    options.sign_threshold
-                );
-                let CoordinateRole::Independent(j) = coord.role else {
-                    out.push(Check {
-                        family: Family::AgonistSigns,
-                        name,
-                        subject_kind: SubjectKind::Muscle,
-                        subject: names[k].into(),
-                        status: Status::Skip,
-                        value: None,
-                        unit: "m",
-                        limit,
-                        message: format!("{coordinate} is locked or dependent"),
-                    });
-                    continue;
+                let agonist = Agonist {
+                    row,
+                    coordinate: &coordinate,
+                    role: coord.role,
+                    sign,
+                    muscle: k,
                 };
-                let r0 = default_arms[(j, k)];
-                let mut values = vec![(q0[j], r0)];
-                if let Some(s) = &rom_sweeps[j] {
-                    values.extend((0..s.q.len()).map(|i| (s.q[i], s.arm[i * m + k])));
-                }
-                let t = options.sign_threshold;
-                let wrong: Vec<f64> = values
-                    .iter()
-                    .filter(|(_, r)| !(sign * r >= -t))
-                    .map(|(q, _)| *q)
-                    .collect();
-                let right = values.iter().filter(|(_, r)| sign * r > t).count();
-                let status = if wrong.is_empty() && right > 0 {
-                    Status::Pass
-                } else {
-                    Status::Fail
-                };
-                let message = if !wrong.is_empty() {
-                    format!(
-                        "wrong sign at {} of {} poses ({} = {} deg)",
-                        wrong.len(),
-                        values.len(),
-                        coordinate,
-                        wrong
-                            .iter()
-                            .map(|q| format!("{:.0}", q.to_degrees()))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    )
-                } else if right == 0 {
-                    "moment arm below the threshold everywhere: does not act".into()
-                } else {
-                    format!("right sign at {right} of {} poses", values.len())
-                };
-                out.push(Check {
-                    family: Family::AgonistSigns,
-                    name,
-                    subject_kind: SubjectKind::Muscle,
-                    subject: names[k].into(),
-                    status,
-                    value: Some(r0),
-                    unit: "m",
-                    limit,
-                    message,
-                });
+                out.push(agonist_sign_check(&agonist, options, swept, q0));
             }
         }
     }
+}
 
-    // Maximum isometric moments per coordinate direction.
+/// One muscle of an agonist row, about one coordinate (its side's, when the row has sides).
+struct Agonist<'a> {
+    row: &'a AgonistRow,
+    coordinate: &'a str,
+    role: CoordinateRole,
+    /// +1 when the direction is the coordinate's positive one, else −1.
+    sign: f64,
+    muscle: usize,
+}
+
+/// The agonist's moment arm has the direction's sign wherever it exceeds the threshold, at
+/// the default pose and over the coordinate's physiological-range sweep, and exceeds it
+/// somewhere.
+fn agonist_sign_check(a: &Agonist, options: &CheckOptions, swept: &Swept, q0: &[f64]) -> Check {
+    let (k, sign, coordinate) = (a.muscle, a.sign, a.coordinate);
+    let m = swept.names.len();
+    let name = format!("{} about {coordinate}", a.row.direction);
+    let limit = format!(
+        "{} wherever |r| > {} m",
+        if sign > 0.0 { "r > 0" } else { "r < 0" },
+        options.sign_threshold
+    );
+    let CoordinateRole::Independent(j) = a.role else {
+        return Check {
+            family: Family::AgonistSigns,
+            name,
+            subject_kind: SubjectKind::Muscle,
+            subject: swept.names[k].into(),
+            status: Status::Skip,
+            value: None,
+            unit: "m",
+            limit,
+            message: format!("{coordinate} is locked or dependent"),
+        };
+    };
+    let r0 = swept.default_arms[(j, k)];
+    let mut values = vec![(q0[j], r0)];
+    if let Some(s) = &swept.rom_sweeps[j] {
+        values.extend((0..s.q.len()).map(|i| (s.q[i], s.arm[i * m + k])));
+    }
+    let t = options.sign_threshold;
+    let wrong: Vec<f64> = values
+        .iter()
+        .filter(|(_, r)| !(sign * r >= -t))
+        .map(|(q, _)| *q)
+        .collect();
+    let right = values.iter().filter(|(_, r)| sign * r > t).count();
+    let status = if wrong.is_empty() && right > 0 {
+        Status::Pass
+    } else {
+        Status::Fail
+    };
+    let message = if !wrong.is_empty() {
+        format!(
+            "wrong sign at {} of {} poses ({} = {} deg)",
+            wrong.len(),
+            values.len(),
+            coordinate,
+            wrong
+                .iter()
+                .map(|q| format!("{:.0}", q.to_degrees()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    } else if right == 0 {
+        "moment arm below the threshold everywhere: does not act".into()
+    } else {
+        format!("right sign at {right} of {} poses", values.len())
+    };
+    Check {
+        family: Family::AgonistSigns,
+        name,
+        subject_kind: SubjectKind::Muscle,
+        subject: swept.names[k].into(),
+        status,
+        value: Some(r0),
+        unit: "m",
+        limit,
+        message,
+    }
+}
+
+/// Maximum isometric moments per coordinate direction of `max_isometric_moments.csv` (each
+/// side of a `{side}` row), over the coordinate's physiological-range sweep.
+fn max_isometric_moments(
+    model: &Model,
+    tables: &ParsedTables,
+    swept: &Swept,
+    out: &mut Vec<Check>,
+) {
     for row in &tables.moments {
         for (coordinate, _) in sides(&row.coordinate) {
             let Some(ci) = model.coordinate_index(&coordinate) else {
@@ -324,85 +422,113 @@ pub(super) fn all(
             else {
                 continue;
             };
-            let subject = format!("{coordinate} {}", row.direction);
-            let limit = format!("[{}, {}]", row.min_nm, row.max_nm);
-            let skip = |message: String| Check {
-                family: Family::MaxIsometricMoments,
-                name: "max isometric moment".into(),
-                subject_kind: SubjectKind::Direction,
-                subject: subject.clone(),
-                status: Status::Skip,
-                value: None,
-                unit: "N m",
-                limit: limit.clone(),
-                message,
-            };
-            let CoordinateRole::Independent(j) = coord.role else {
-                out.push(skip(format!("{coordinate} is locked or dependent")));
-                continue;
-            };
-            let Some(s) = &rom_sweeps[j] else {
-                out.push(skip("no muscle crosses the coordinate".into()));
-                continue;
-            };
-            let mut best = (0.0, f64::NAN, 0usize);
-            let mut unmodelled = Vec::new();
-            for i in 0..s.q.len() {
-                let mut total = 0.0;
-                let mut count = 0;
-                for k in 0..m {
-                    let r = s.arm[i * m + k];
-                    if !(sign * r > 0.0) {
-                        continue;
-                    }
-                    let Some(h) = forces[k] else {
-                        if i == 0 {
-                            unmodelled.push(names[k]);
-                        }
-                        continue;
-                    };
-                    let f = h.isometric_force(s.length[i * m + k]);
-                    if f.is_finite() && f > 0.0 {
-                        total += sign * r * f;
-                        count += 1;
-                    }
-                }
-                if total > best.0 {
-                    best = (total, s.q[i], count);
-                }
-            }
-            if best.0 == 0.0 {
-                out.push(skip(format!(
-                    "no muscle acts in {} about {coordinate}",
-                    row.direction
-                )));
-                continue;
-            }
-            let mut message = format!(
-                "at {coordinate} = {:.0}°, {} muscles",
-                best.1.to_degrees(),
-                best.2
-            );
-            if !unmodelled.is_empty() {
-                message += &format!("; without force model: {}", unmodelled.join(", "));
-            }
-            out.push(Check {
-                family: Family::MaxIsometricMoments,
-                name: "max isometric moment".into(),
-                subject_kind: SubjectKind::Direction,
-                subject,
-                status: if (row.min_nm..=row.max_nm).contains(&best.0) {
-                    Status::Pass
-                } else {
-                    Status::Fail
-                },
-                value: Some(best.0),
-                unit: "N m",
-                limit,
-                message,
-            });
+            out.push(max_isometric_moment_check(
+                row,
+                &coordinate,
+                coord.role,
+                sign,
+                swept,
+            ));
         }
     }
+}
+
+/// The largest moment the muscles acting in the direction (`sign`) of `coordinate` (of
+/// `role`) produce at full activation over its sweep, against the row's range.
+fn max_isometric_moment_check(
+    row: &MomentRow,
+    coordinate: &str,
+    role: CoordinateRole,
+    sign: f64,
+    swept: &Swept,
+) -> Check {
+    let subject = format!("{coordinate} {}", row.direction);
+    let limit = format!("[{}, {}]", row.min_nm, row.max_nm);
+    let skip = |message: String| Check {
+        family: Family::MaxIsometricMoments,
+        name: "max isometric moment".into(),
+        subject_kind: SubjectKind::Direction,
+        subject: subject.clone(),
+        status: Status::Skip,
+        value: None,
+        unit: "N m",
+        limit: limit.clone(),
+        message,
+    };
+    let CoordinateRole::Independent(j) = role else {
+        return skip(format!("{coordinate} is locked or dependent"));
+    };
+    let Some(s) = &swept.rom_sweeps[j] else {
+        return skip("no muscle crosses the coordinate".into());
+    };
+    let (best, unmodelled) = strongest_pose(s, sign, swept);
+    if best.0 == 0.0 {
+        return skip(format!(
+            "no muscle acts in {} about {coordinate}",
+            row.direction
+        ));
+    }
+    let mut message = format!(
+        "at {coordinate} = {:.0}°, {} muscles",
+        best.1.to_degrees(),
+        best.2
+    );
+    if !unmodelled.is_empty() {
+        message += &format!("; without force model: {}", unmodelled.join(", "));
+    }
+    Check {
+        family: Family::MaxIsometricMoments,
+        name: "max isometric moment".into(),
+        subject_kind: SubjectKind::Direction,
+        subject,
+        status: if (row.min_nm..=row.max_nm).contains(&best.0) {
+            Status::Pass
+        } else {
+            Status::Fail
+        },
+        value: Some(best.0),
+        unit: "N m",
+        limit,
+        message,
+    }
+}
+
+/// Over the sweep `s`: the largest Σ_k sign r_k F_k of the muscles with sign r_k > 0 and a
+/// finite positive isometric force F_k, as (moment, q, muscles counted); and the muscles
+/// with sign r > 0 at the first grid point that have no force model.
+fn strongest_pose<'a>(
+    s: &Sweep,
+    sign: f64,
+    swept: &Swept<'a>,
+) -> ((f64, f64, usize), Vec<&'a str>) {
+    let m = swept.names.len();
+    let mut best = (0.0, f64::NAN, 0usize);
+    let mut unmodelled = Vec::new();
+    for i in 0..s.q.len() {
+        let mut total = 0.0;
+        let mut count = 0;
+        for k in 0..m {
+            let r = s.arm[i * m + k];
+            if !(sign * r > 0.0) {
+                continue;
+            }
+            let Some(h) = swept.forces[k] else {
+                if i == 0 {
+                    unmodelled.push(swept.names[k]);
+                }
+                continue;
+            };
+            let f = h.isometric_force(s.length[i * m + k]);
+            if f.is_finite() && f > 0.0 {
+                total += sign * r * f;
+                count += 1;
+            }
+        }
+        if total > best.0 {
+            best = (total, s.q[i], count);
+        }
+    }
+    (best, unmodelled)
 }
 
 /// |r| of every muscle about every rotational coordinate it crosses against the bound of
@@ -414,68 +540,117 @@ fn moment_arm_bounds(
     ctx: &mut SweepContext,
     tables: &ParsedTables,
     options: &CheckOptions,
-    rom_sweeps: &[Option<Sweep>],
-    default_arms: &nalgebra::DMatrix<f64>,
-    names: &[&str],
+    swept: &Swept,
     out: &mut Vec<Check>,
 ) {
     let model = ctx.model;
-    let (n, m) = (model.nq(), names.len());
-    let coordinate = |j: usize| &model.coordinates[model.reduction.independent[j]];
-    let rotational = |j: usize| coordinate(j).motion_type != MotionType::Translational;
-    // bound[j * m + k]: the table's bound on muscle k about coordinate j.
-    let bound: Vec<Option<f64>> = (0..n)
-        .flat_map(|j| (0..m).map(move |k| (j, k)))
-        .map(|(j, k)| {
-            if !rotational(j) {
-                return None;
-            }
-            tables
-                .moment_arm_bound(names[k], &coordinate(j).name)
-                .map(|(b, _)| b)
-        })
-        .collect();
-    // worst[k]: (|r| / bound, |r|, coordinate, where in words)
-    let mut worst: Vec<Option<(f64, f64, usize, String)>> = vec![None; m];
-    let mut crossed = vec![false; m];
-    let mut consider = |k: usize, j: usize, r: f64, at: &dyn Fn() -> String| {
+    let mut bounds = ArmBounds::new(model, tables, &swept.names);
+    bounds.over_sweeps(model, swept);
+    if options.random_poses > 0 {
+        out.push(bounds.over_random_poses(ctx, tables, options, &swept.default_arms));
+    }
+    bounds.checks(model, &swept.names, out);
+}
+
+fn rotational(model: &Model, j: usize) -> bool {
+    coordinate(model, j).motion_type != MotionType::Translational
+}
+
+/// The bounds of `moment_arm_bounds.csv` on every muscle and rotational coordinate, and the
+/// largest |r| / bound of each muscle over the poses considered so far.
+struct ArmBounds {
+    m: usize,
+    /// bound[j * m + k]: the table's bound on muscle k about coordinate j.
+    bound: Vec<Option<f64>>,
+    /// worst[k]: (|r| / bound, |r|, coordinate, where in words)
+    worst: Vec<Option<(f64, f64, usize, String)>>,
+    /// crossed[k]: muscle k had a finite nonzero moment arm about a rotational coordinate.
+    crossed: Vec<bool>,
+}
+
+impl ArmBounds {
+    fn new(model: &Model, tables: &ParsedTables, names: &[&str]) -> ArmBounds {
+        let (n, m) = (model.nq(), names.len());
+        let bound: Vec<Option<f64>> = (0..n)
+            .flat_map(|j| (0..m).map(move |k| (j, k)))
+            .map(|(j, k)| {
+                if !rotational(model, j) {
+                    return None;
+                }
+                tables
+                    .moment_arm_bound(names[k], &coordinate(model, j).name)
+                    .map(|(b, _)| b)
+            })
+            .collect();
+        ArmBounds {
+            m,
+            bound,
+            worst: vec![None; m],
+            crossed: vec![false; m],
+        }
+    }
+
+    /// Muscle `k`'s arm `r` about coordinate `j` at the pose `at` describes.
+    fn consider(&mut self, k: usize, j: usize, r: f64, at: &dyn Fn() -> String) {
         // Non-finite moment arms fail the paths family (sweeps) or the random-pose check.
         if !(r.abs() > 1e-12 && r.is_finite()) {
             return;
         }
-        crossed[k] = true;
-        let Some(b) = bound[j * m + k] else { return };
+        self.crossed[k] = true;
+        let Some(b) = self.bound[j * self.m + k] else {
+            return;
+        };
         let ratio = r.abs() / b;
-        if worst[k].as_ref().is_none_or(|w| ratio > w.0) {
-            worst[k] = Some((ratio, r.abs(), j, at()));
+        if self.worst[k].as_ref().is_none_or(|w| ratio > w.0) {
+            self.worst[k] = Some((ratio, r.abs(), j, at()));
         }
-    };
-    for j in (0..n).filter(|&j| rotational(j)) {
-        for k in 0..m {
-            consider(k, j, default_arms[(j, k)], &|| "the default pose".into());
-        }
-        if let Some(s) = &rom_sweeps[j] {
-            for i in 0..s.q.len() {
-                for k in 0..m {
-                    let at = || {
-                        format!(
-                            "{} = {:.1}° (others at default)",
-                            coordinate(j).name,
-                            s.q[i].to_degrees()
-                        )
-                    };
-                    consider(k, j, s.arm[i * m + k], &at);
+    }
+
+    /// The arms at the default pose and over each rotational coordinate's
+    /// physiological-range sweep.
+    fn over_sweeps(&mut self, model: &Model, swept: &Swept) {
+        let m = self.m;
+        for j in (0..model.nq()).filter(|&j| rotational(model, j)) {
+            for k in 0..m {
+                self.consider(k, j, swept.default_arms[(j, k)], &|| {
+                    "the default pose".into()
+                });
+            }
+            if let Some(s) = &swept.rom_sweeps[j] {
+                for i in 0..s.q.len() {
+                    for k in 0..m {
+                        let at = || {
+                            format!(
+                                "{} = {:.1}° (others at default)",
+                                coordinate(model, j).name,
+                                s.q[i].to_degrees()
+                            )
+                        };
+                        self.consider(k, j, s.arm[i * m + k], &at);
+                    }
                 }
             }
         }
     }
-    if options.random_poses > 0 {
+
+    /// The arms at `options.random_poses` seeded random poses: every crossed rotational
+    /// coordinate drawn uniformly from its physiological range, the rest at default. Returns
+    /// the check that every pose could be computed.
+    fn over_random_poses(
+        &mut self,
+        ctx: &mut SweepContext,
+        tables: &ParsedTables,
+        options: &CheckOptions,
+        default_arms: &DMatrix<f64>,
+    ) -> Check {
+        let model = ctx.model;
+        let (n, m) = (model.nq(), self.m);
         // The physiological box of every crossed rotational coordinate; the rest at default.
         let boxes: Vec<Option<[f64; 2]>> = (0..n)
             .map(|j| {
-                let c = coordinate(j);
+                let c = coordinate(model, j);
                 let crossed = (0..m).any(|k| default_arms[(j, k)].abs() > 1e-12);
-                if !rotational(j) || !crossed {
+                if !rotational(model, j) || !crossed {
                     return None;
                 }
                 let lim = options.max_rotation;
@@ -508,11 +683,13 @@ fn moment_arm_bounds(
                         // the coordinates this muscle crosses
                         let pose_text: Vec<String> = (0..n)
                             .filter(|&i| boxes[i].is_some() && default_arms[(i, k)].abs() > 1e-12)
-                            .map(|i| format!("{} {:.1}°", coordinate(i).name, q[i].to_degrees()))
+                            .map(|i| {
+                                format!("{} {:.1}°", coordinate(model, i).name, q[i].to_degrees())
+                            })
                             .collect();
                         format!("random pose {pose} ({})", pose_text.join(", "))
                     };
-                    consider(k, j, r, &at);
+                    self.consider(k, j, r, &at);
                 }
             }
         }
@@ -523,51 +700,56 @@ fn moment_arm_bounds(
                 options.random_poses
             ),
         };
-        out.push(model_check(
+        model_check(
             Family::MomentArmBounds,
             "random poses computable",
             model,
             failures == 0,
             message,
-        ));
+        )
     }
-    for k in 0..m {
-        let subject = names[k].to_string();
-        out.push(match &worst[k] {
-            Some((ratio, r, j, at)) => {
-                let b = bound[j * m + k].unwrap_or(f64::NAN);
-                Check {
+
+    /// One check per muscle: its largest |r| / bound, or a skip when nothing bounds it.
+    fn checks(self, model: &Model, names: &[&str], out: &mut Vec<Check>) {
+        let m = self.m;
+        for (k, worst) in self.worst.iter().enumerate() {
+            let subject = names[k].to_string();
+            out.push(match worst {
+                Some((ratio, r, j, at)) => {
+                    let b = self.bound[j * m + k].unwrap_or(f64::NAN);
+                    Check {
+                        family: Family::MomentArmBounds,
+                        name: "moment-arm magnitude".into(),
+                        subject_kind: SubjectKind::Muscle,
+                        subject,
+                        status: if *ratio <= 1.0 {
+                            Status::Pass
+                        } else {
+                            Status::Fail
+                        },
+                        value: Some(*r),
+                        unit: "m",
+                        limit: format!("≤ {b} about {}", coordinate(model, *j).name),
+                        message: format!("largest |r| / bound at {at}"),
+                    }
+                }
+                None => Check {
                     family: Family::MomentArmBounds,
                     name: "moment-arm magnitude".into(),
                     subject_kind: SubjectKind::Muscle,
                     subject,
-                    status: if *ratio <= 1.0 {
-                        Status::Pass
-                    } else {
-                        Status::Fail
-                    },
-                    value: Some(*r),
+                    status: Status::Skip,
+                    value: None,
                     unit: "m",
-                    limit: format!("≤ {b} about {}", coordinate(*j).name),
-                    message: format!("largest |r| / bound at {at}"),
-                }
-            }
-            None => Check {
-                family: Family::MomentArmBounds,
-                name: "moment-arm magnitude".into(),
-                subject_kind: SubjectKind::Muscle,
-                subject,
-                status: Status::Skip,
-                value: None,
-                unit: "m",
-                limit: String::new(),
-                message: if crossed[k] {
-                    "moment_arm_bounds.csv bounds none of the coordinates it crosses".into()
-                } else {
-                    "crosses no rotational coordinate".into()
+                    limit: String::new(),
+                    message: if self.crossed[k] {
+                        "moment_arm_bounds.csv bounds none of the coordinates it crosses".into()
+                    } else {
+                        "crosses no rotational coordinate".into()
+                    },
                 },
-            },
-        });
+            });
+        }
     }
 }
 

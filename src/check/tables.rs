@@ -36,14 +36,25 @@ impl Tables {
 
     /// Parses the tables; an error names the table and line.
     pub fn parse(&self) -> crate::Result<ParsedTables> {
-        let ranges = rows(
-            "muscle_parameter_ranges.csv",
-            &self.parameter_ranges,
-            &["parameter", "min", "max", "unit", "source"],
-        )?
+        let ranges = parse_ranges(&self.parameter_ranges)?;
+        let directions = parse_directions(&self.coordinate_directions)?;
+        Ok(ParsedTables {
+            ranges,
+            agonists: parse_agonists(&self.agonist_signs, &directions)?,
+            moments: parse_moments(&self.max_isometric_moments, &directions)?,
+            range_of_motion: parse_range_of_motion(&self.range_of_motion, &directions)?,
+            moment_arm_bounds: parse_moment_arm_bounds(&self.moment_arm_bounds)?,
+            directions,
+        })
+    }
+}
+
+/// `muscle_parameter_ranges.csv`: min ≤ max, parameters among [`PARAMETERS`].
+fn parse_ranges(text: &str) -> crate::Result<Vec<ParameterRange>> {
+    let t = "muscle_parameter_ranges.csv";
+    rows(t, text, &["parameter", "min", "max", "unit", "source"])?
         .into_iter()
         .map(|(line, f)| {
-            let t = "muscle_parameter_ranges.csv";
             let (min, max) = (number(t, line, &f[1])?, number(t, line, &f[2])?);
             if !(min <= max) {
                 return Err(table_err(t, line, format!("min {min} exceeds max {max}")));
@@ -63,13 +74,13 @@ impl Tables {
                 source: f[4].clone(),
             })
         })
-        .collect::<crate::Result<Vec<_>>>()?;
+        .collect()
+}
 
-        let directions = rows(
-            "coordinate_directions.csv",
-            &self.coordinate_directions,
-            &["coordinate", "direction", "sign", "source"],
-        )?
+/// `coordinate_directions.csv`: signs `+`, `-`, `wider` or `narrower`.
+fn parse_directions(text: &str) -> crate::Result<Vec<DirectionRow>> {
+    let t = "coordinate_directions.csv";
+    rows(t, text, &["coordinate", "direction", "sign", "source"])?
         .into_iter()
         .map(|(line, f)| {
             let sign = match f[2].as_str() {
@@ -79,7 +90,7 @@ impl Tables {
                 "narrower" => DirectionSign::NarrowerSide,
                 other => {
                     return Err(table_err(
-                        "coordinate_directions.csv",
+                        t,
                         line,
                         format!("sign must be +, -, wider or narrower, found `{other}`"),
                     ));
@@ -92,31 +103,39 @@ impl Tables {
                 source: f[3].clone(),
             })
         })
-        .collect::<crate::Result<Vec<_>>>()?;
+        .collect()
+}
 
-        let known_direction = |t: &str, line: usize, coordinate: &str, direction: &str| {
-            if directions
-                .iter()
-                .any(|d| d.coordinate == coordinate && d.direction == direction)
-            {
-                Ok(())
-            } else {
-                Err(table_err(
-                    t,
-                    line,
-                    format!("`{coordinate}` `{direction}` is not in coordinate_directions.csv"),
-                ))
-            }
-        };
+/// An error unless `coordinate` `direction` is a row of `directions`; `t` and `line` name
+/// the row that refers to it.
+fn known_direction(
+    directions: &[DirectionRow],
+    t: &str,
+    line: usize,
+    coordinate: &str,
+    direction: &str,
+) -> crate::Result<()> {
+    if directions
+        .iter()
+        .any(|d| d.coordinate == coordinate && d.direction == direction)
+    {
+        Ok(())
+    } else {
+        Err(table_err(
+            t,
+            line,
+            format!("`{coordinate}` `{direction}` is not in coordinate_directions.csv"),
+        ))
+    }
+}
 
-        let agonists = rows(
-            "agonist_signs.csv",
-            &self.agonist_signs,
-            &["muscles", "coordinate", "direction", "source"],
-        )?
+/// `agonist_signs.csv`: `|`-separated muscle patterns, a known coordinate direction.
+fn parse_agonists(text: &str, directions: &[DirectionRow]) -> crate::Result<Vec<AgonistRow>> {
+    let t = "agonist_signs.csv";
+    rows(t, text, &["muscles", "coordinate", "direction", "source"])?
         .into_iter()
         .map(|(line, f)| {
-            known_direction("agonist_signs.csv", line, &f[1], &f[2])?;
+            known_direction(directions, t, line, &f[1], &f[2])?;
             Ok(AgonistRow {
                 muscles: f[0].split('|').map(|p| p.trim().to_string()).collect(),
                 coordinate: f[1].clone(),
@@ -124,44 +143,46 @@ impl Tables {
                 source: f[3].clone(),
             })
         })
-        .collect::<crate::Result<Vec<_>>>()?;
+        .collect()
+}
 
-        let moments = rows(
-            "max_isometric_moments.csv",
-            &self.max_isometric_moments,
-            &["coordinate", "direction", "min_nm", "max_nm", "source"],
-        )?
-        .into_iter()
-        .map(|(line, f)| {
-            let t = "max_isometric_moments.csv";
-            known_direction(t, line, &f[0], &f[1])?;
-            let (min_nm, max_nm) = (number(t, line, &f[2])?, number(t, line, &f[3])?);
-            if !(0.0 <= min_nm && min_nm <= max_nm) {
-                return Err(table_err(
-                    t,
-                    line,
-                    format!("need 0 <= min_nm <= max_nm, found {min_nm}, {max_nm}"),
-                ));
-            }
-            Ok(MomentRow {
-                coordinate: f[0].clone(),
-                direction: f[1].clone(),
-                min_nm,
-                max_nm,
-                source: f[4].clone(),
-            })
+/// `max_isometric_moments.csv`: a known coordinate direction, 0 ≤ min_nm ≤ max_nm.
+fn parse_moments(text: &str, directions: &[DirectionRow]) -> crate::Result<Vec<MomentRow>> {
+    let t = "max_isometric_moments.csv";
+    rows(
+        t,
+        text,
+        &["coordinate", "direction", "min_nm", "max_nm", "source"],
+    )?
+    .into_iter()
+    .map(|(line, f)| {
+        known_direction(directions, t, line, &f[0], &f[1])?;
+        let (min_nm, max_nm) = (number(t, line, &f[2])?, number(t, line, &f[3])?);
+        if !(0.0 <= min_nm && min_nm <= max_nm) {
+            return Err(table_err(
+                t,
+                line,
+                format!("need 0 <= min_nm <= max_nm, found {min_nm}, {max_nm}"),
+            ));
+        }
+        Ok(MomentRow {
+            coordinate: f[0].clone(),
+            direction: f[1].clone(),
+            min_nm,
+            max_nm,
+            source: f[4].clone(),
         })
-        .collect::<crate::Result<Vec<_>>>()?;
+    })
+    .collect()
+}
 
-        let range_of_motion = rows(
-            "range_of_motion.csv",
-            &self.range_of_motion,
-            &["coordinate", "direction", "max_deg", "source"],
-        )?
+/// `range_of_motion.csv`: a known coordinate direction, max_deg in [0, 360].
+fn parse_range_of_motion(text: &str, directions: &[DirectionRow]) -> crate::Result<Vec<RomRow>> {
+    let t = "range_of_motion.csv";
+    rows(t, text, &["coordinate", "direction", "max_deg", "source"])?
         .into_iter()
         .map(|(line, f)| {
-            let t = "range_of_motion.csv";
-            known_direction(t, line, &f[0], &f[1])?;
+            known_direction(directions, t, line, &f[0], &f[1])?;
             let max_deg = number(t, line, &f[2])?;
             if !(0.0..=360.0).contains(&max_deg) {
                 return Err(table_err(
@@ -177,16 +198,16 @@ impl Tables {
                 source: f[3].clone(),
             })
         })
-        .collect::<crate::Result<Vec<_>>>()?;
+        .collect()
+}
 
-        let moment_arm_bounds = rows(
-            "moment_arm_bounds.csv",
-            &self.moment_arm_bounds,
-            &["muscles", "coordinates", "max_m", "source"],
-        )?
+/// `moment_arm_bounds.csv`: `|`-separated non-empty muscle and coordinate patterns, a
+/// positive max_m.
+fn parse_moment_arm_bounds(text: &str) -> crate::Result<Vec<MomentArmBoundRow>> {
+    let t = "moment_arm_bounds.csv";
+    rows(t, text, &["muscles", "coordinates", "max_m", "source"])?
         .into_iter()
         .map(|(line, f)| {
-            let t = "moment_arm_bounds.csv";
             let max_m = number(t, line, &f[2])?;
             if !(max_m > 0.0) {
                 return Err(table_err(
@@ -209,17 +230,7 @@ impl Tables {
                 source: f[3].clone(),
             })
         })
-        .collect::<crate::Result<Vec<_>>>()?;
-
-        Ok(ParsedTables {
-            ranges,
-            directions,
-            agonists,
-            moments,
-            range_of_motion,
-            moment_arm_bounds,
-        })
-    }
+        .collect()
 }
 
 /// The muscle parameters the range table may name.

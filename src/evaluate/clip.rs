@@ -94,6 +94,71 @@ pub fn evaluate_clip(
     options: &EvaluateOptions,
 ) -> crate::Result<ClipMetrics> {
     options.validate()?;
+    let rate = check_frames(name, frames, reference, control)?;
+    let clip = ClipModel::new(model, name, frames)?;
+    let sums = frame_pass(&clip, control, capacity, options)?;
+    let contact = contact_metrics(&clip.set, &sums.lowest, &sums.support, rate, options);
+    let (el_residual, el_residual_from_q) = residuals(model, frames)?;
+    let (range_share, range_worst) = beyond_range(model, &frames.q, &clip.joints, options);
+    let (t_count, mass) = (frames.frames, clip.mass);
+    let mut metrics = ClipMetrics {
+        clip: name.to_string(),
+        frames: t_count,
+        rate_hz: rate,
+        body_mass: mass,
+        support_fraction: contact.support_fraction,
+        skate: contact.skate,
+        skate_speed: contact.skate_speed,
+        float: contact.float,
+        float_max: contact.float_max,
+        penetrate: contact.penetrate,
+        penetrate_max: contact.penetrate_max,
+        el_residual,
+        el_residual_from_q,
+        range_share,
+        range_worst,
+        layout_fit_error: frames.layout_error,
+        ..ClipMetrics::default()
+    };
+    let a = &sums.actuation;
+    if a.samples > 0 {
+        metrics.actuation_excess = Some(a.excess / a.samples as f64 / mass);
+        metrics.actuation_over = Some(a.over as f64 / a.samples as f64);
+        metrics.actuation_peak = Some(a.peak);
+    }
+    if clip.with_forces && a.tau_abs > 0.0 {
+        metrics.reserve_share = Some(a.reserve_abs / a.tau_abs);
+    }
+    if clip.with_act {
+        let e: f64 = frames
+            .muscle_act
+            .iter()
+            .map(|a| (a - 1.0).max(0.0) + (-a).max(0.0))
+            .sum();
+        metrics.activation_excess = Some(e / frames.muscle_act.len() as f64);
+    }
+    if let Some(reference) = reference {
+        reference_errors(&clip, reference, &mut metrics);
+    }
+    if control.is_some() {
+        let c = &sums.control;
+        metrics.trajectory_failed = Some(c.failed > 0);
+        if c.samples > 0 {
+            metrics.location_failure = Some(c.failed as f64 / c.samples as f64);
+            metrics.trajectory_error = Some(c.sum / c.samples as f64);
+        }
+    }
+    Ok(metrics)
+}
+
+/// The frame rate of the clip, after checking it has ≥ 2 frames, as many as its reference
+/// and its control signal.
+fn check_frames(
+    name: &str,
+    frames: &TensorFrames,
+    reference: Option<&TensorFrames>,
+    control: Option<&Control>,
+) -> crate::Result<f64> {
     let bad = |m: String| crate::Error::invalid("clip", format!("{name}: {m}"));
     let t_count = frames.frames;
     if t_count < 2 {
@@ -116,29 +181,118 @@ pub fn evaluate_clip(
             c.frames
         )));
     }
-    let n = model.nq();
-    // the model's contact spheres (gait2392-like feet without them get the standard points)
-    let set = crate::augment::chain::contact_set(model)?;
-    let normal = set.floor_normal;
-    let np = set.points.len();
-    let mass = model.total_mass();
-    let weight = mass * model.gravity.norm();
-    if let Some(why) = model.weightless() {
-        return Err(bad(why));
+    Ok(rate)
+}
+
+/// The clip with what the metrics need of its model: the contact spheres, the muscles, the
+/// joint coordinates, the body mass and weight.
+struct ClipModel<'a> {
+    model: &'a Model,
+    frames: &'a TensorFrames,
+    /// The model's contact spheres (gait2392-like feet without them get the standard points).
+    set: ContactSet,
+    muscles: MuscleSet,
+    /// The independent coordinates outside the floating base.
+    joints: Vec<usize>,
+    /// Body mass (kg) and weight (N).
+    mass: f64,
+    weight: f64,
+    /// The file has muscle forces / activations of every muscle.
+    with_forces: bool,
+    with_act: bool,
+}
+
+impl<'a> ClipModel<'a> {
+    /// Refuses a weightless model.
+    fn new(model: &'a Model, name: &str, frames: &'a TensorFrames) -> crate::Result<Self> {
+        let n = model.nq();
+        let set = crate::augment::chain::contact_set(model)?;
+        let mass = model.total_mass();
+        let weight = mass * model.gravity.norm();
+        if let Some(why) = model.weightless() {
+            return Err(crate::Error::invalid("clip", format!("{name}: {why}")));
+        }
+        let muscles = MuscleSet::new(model)?;
+        let m = muscles.muscles.len();
+        let joints: Vec<usize> = (0..n).filter(|j| !set.floating_base.contains(j)).collect();
+        let t_count = frames.frames;
+        Ok(ClipModel {
+            model,
+            frames,
+            with_forces: m > 0 && frames.muscle_force.len() == t_count * m,
+            with_act: m > 0 && frames.muscle_act.len() == t_count * m,
+            set,
+            muscles,
+            joints,
+            mass,
+            weight,
+        })
     }
-    let muscles = MuscleSet::new(model)?;
-    let m = muscles.muscles.len();
-    let joints: Vec<usize> = (0..n).filter(|j| !set.floating_base.contains(j)).collect();
-    let with_forces = m > 0 && frames.muscle_force.len() == t_count * m;
-    let with_act = m > 0 && frames.muscle_act.len() == t_count * m;
+}
+
+/// The joint actuation beyond the muscles' capacity and the reserves, summed over the
+/// frames and joint coordinates.
+#[derive(Default)]
+struct ActuationSums {
+    /// Σ max(0, |τ_j| − C_j) over the samples with some capacity, their count, how many
+    /// exceed it, and the largest |τ_j| / C_j.
+    excess: f64,
+    over: usize,
+    peak: f64,
+    samples: usize,
+    /// Σ |τ_j − Σ_k r_jk F_k| and Σ |τ_j| (with muscle forces and per-frame capacity).
+    reserve_abs: f64,
+    tau_abs: f64,
+}
+
+/// The distances of the controlled joint centres from their targets.
+#[derive(Default)]
+struct ControlSums {
+    samples: usize,
+    /// Samples farther than the control threshold.
+    failed: usize,
+    /// Σ distance (m).
+    sum: f64,
+}
+
+/// What one pass over the frames gathers.
+struct FrameSums {
+    /// [f * np + p]: the lowest point b_p of contact sphere p in frame f (ground).
+    lowest: Vec<Vec3>,
+    /// Per frame: the motion needs an external force above the support threshold.
+    support: Vec<bool>,
+    actuation: ActuationSums,
+    control: ControlSums,
+}
+
+/// The muscles' state in the per-frame pass: path data and isometric forces.
+struct MuscleScratch {
+    paths: PathData,
+    f_iso: Vec<f64>,
+}
+
+/// Every frame's kinematics (q, q̇, q̈), then its support, the spheres' lowest points, the
+/// actuation against capacity and the control targets' errors.
+fn frame_pass(
+    clip: &ClipModel,
+    control: Option<&Control>,
+    capacity: Capacity,
+    options: &EvaluateOptions,
+) -> crate::Result<FrameSums> {
+    let (model, frames, set) = (clip.model, clip.frames, &clip.set);
+    let (t_count, n, np) = (frames.frames, model.nq(), set.points.len());
+    let normal = set.floor_normal;
     let mut data = Data::new(model);
-    let mut paths = PathData::new(model, &muscles.paths);
-    let mut f_iso = vec![0.0; m];
-    let mut lowest = vec![Vec3::zeros(); t_count * np];
-    let mut support = vec![false; t_count];
-    let (mut excess, mut over, mut peak, mut samples) = (0.0, 0usize, 0.0f64, 0usize);
-    let (mut reserve_abs, mut tau_abs) = (0.0, 0.0);
-    let (mut control_samples, mut control_failed, mut control_sum) = (0usize, 0usize, 0.0);
+    let mut scratch = MuscleScratch {
+        paths: PathData::new(model, &clip.muscles.paths),
+        f_iso: vec![0.0; clip.muscles.muscles.len()],
+    };
+    let mut sums = FrameSums {
+        lowest: vec![Vec3::zeros(); t_count * np],
+        support: vec![false; t_count],
+        actuation: ActuationSums::default(),
+        control: ControlSums::default(),
+    };
     for f in 0..t_count {
         let r = f * n..(f + 1) * n;
         dynamics::forward_kinematics_acceleration(
@@ -146,76 +300,133 @@ pub fn evaluate_clip(
             &mut data,
             &frames.q[r.clone()],
             &frames.qd[r.clone()],
-            &frames.qdd[r.clone()],
+            &frames.qdd[r],
         )?;
         // F = Σ m_b a_b − M g, the external force the motion needs
-        let mut force = -model.gravity * mass;
+        let mut force = -model.gravity * clip.mass;
         for (b, body) in model.bodies.iter().enumerate().skip(1) {
             if body.mass > 0.0 {
                 force += data.point_acceleration(b, &body.com_in_body).1 * body.mass;
             }
         }
-        support[f] = normal.dot(&force) > options.support_threshold * weight;
+        sums.support[f] = normal.dot(&force) > options.support_threshold * clip.weight;
         // b_p = c_p − r_p n
         for (p, point) in set.points.iter().enumerate() {
-            lowest[f * np + p] =
+            sums.lowest[f * np + p] =
                 data.point_position(point.body, &point.location_in_body) - normal * point.radius;
         }
-        if m > 0 && !joints.is_empty() {
-            let per_frame = matches!(capacity, Capacity::PerFrame);
-            if per_frame {
-                compute_paths(model, &data, &muscles.paths, &mut paths)?;
-                isometric_forces(&muscles, &paths, &mut f_iso);
-            }
-            let (q, tau) = (&frames.q[r.clone()], &frames.tau[r.clone()]);
-            for &j in &joints {
-                // C±_j, and beyond it max(0, |τ_j| − C^{sign τ_j}_j)
-                let (up, down) = match capacity {
-                    Capacity::PerFrame => capacity_at(&paths, &f_iso, j),
-                    Capacity::Curves(curves) => curves.at(j, q[j]).unwrap_or((0.0, 0.0)),
-                };
-                let capacity = if tau[j] >= 0.0 { up } else { down };
-                if up + down > 0.0 {
-                    samples += 1;
-                    let beyond = tau[j].abs() - capacity;
-                    if beyond > 0.0 {
-                        over += 1;
-                        excess += beyond;
-                    }
-                    if capacity > 0.0 {
-                        peak = peak.max(tau[j].abs() / capacity);
-                    }
-                }
-                if with_forces && per_frame {
-                    // reserve_j = τ_j − Σ_k r_jk F_k
-                    let forces = &frames.muscle_force[f * m..(f + 1) * m];
-                    let carried: f64 = (0..m).map(|k| paths.moment_arms[(j, k)] * forces[k]).sum();
-                    reserve_abs += (tau[j] - carried).abs();
-                    tau_abs += tau[j].abs();
-                }
-            }
+        if !clip.muscles.muscles.is_empty() && !clip.joints.is_empty() {
+            actuation_at(clip, f, &data, &mut scratch, capacity, &mut sums.actuation)?;
         }
         if let Some(c) = control {
-            for (j, joint) in model.joints.iter().enumerate() {
-                let i = f * model.joints.len() + j;
-                if !c.mask[i] {
-                    continue;
-                }
-                let p = data.point_position(joint.child_body, &joint.child_offset.pos);
-                let target = Vec3::new(
-                    c.joint_pos[3 * i],
-                    c.joint_pos[3 * i + 1],
-                    c.joint_pos[3 * i + 2],
-                );
-                let e = (p - target).norm();
-                control_samples += 1;
-                control_sum += e;
-                if e > options.control_threshold {
-                    control_failed += 1;
-                }
-            }
+            control_at(model, &data, c, f, options, &mut sums.control);
         }
     }
+    Ok(sums)
+}
+
+/// Frame `f` (its kinematics in `data`): per joint coordinate the capacity C±_j (from the
+/// paths or the strength curves) and the torque beyond it, and with per-frame capacity and
+/// muscle forces the reserve τ_j − Σ_k r_jk F_k.
+fn actuation_at(
+    clip: &ClipModel,
+    f: usize,
+    data: &Data,
+    scratch: &mut MuscleScratch,
+    capacity: Capacity,
+    sums: &mut ActuationSums,
+) -> crate::Result<()> {
+    let (model, frames) = (clip.model, clip.frames);
+    let (n, m) = (model.nq(), clip.muscles.muscles.len());
+    let r = f * n..(f + 1) * n;
+    let per_frame = matches!(capacity, Capacity::PerFrame);
+    if per_frame {
+        compute_paths(model, data, &clip.muscles.paths, &mut scratch.paths)?;
+        isometric_forces(&clip.muscles, &scratch.paths, &mut scratch.f_iso);
+    }
+    let (q, tau) = (&frames.q[r.clone()], &frames.tau[r]);
+    for &j in &clip.joints {
+        // C±_j, and beyond it max(0, |τ_j| − C^{sign τ_j}_j)
+        let (up, down) = match capacity {
+            Capacity::PerFrame => capacity_at(&scratch.paths, &scratch.f_iso, j),
+            Capacity::Curves(curves) => curves.at(j, q[j]).unwrap_or((0.0, 0.0)),
+        };
+        let capacity = if tau[j] >= 0.0 { up } else { down };
+        if up + down > 0.0 {
+            sums.samples += 1;
+            let beyond = tau[j].abs() - capacity;
+            if beyond > 0.0 {
+                sums.over += 1;
+                sums.excess += beyond;
+            }
+            if capacity > 0.0 {
+                sums.peak = sums.peak.max(tau[j].abs() / capacity);
+            }
+        }
+        if clip.with_forces && per_frame {
+            // reserve_j = τ_j − Σ_k r_jk F_k
+            let forces = &frames.muscle_force[f * m..(f + 1) * m];
+            let carried: f64 = (0..m)
+                .map(|k| scratch.paths.moment_arms[(j, k)] * forces[k])
+                .sum();
+            sums.reserve_abs += (tau[j] - carried).abs();
+            sums.tau_abs += tau[j].abs();
+        }
+    }
+    Ok(())
+}
+
+/// Frame `f` (its kinematics in `data`): the distance of each controlled joint centre from
+/// its target.
+fn control_at(
+    model: &Model,
+    data: &Data,
+    c: &Control,
+    f: usize,
+    options: &EvaluateOptions,
+    sums: &mut ControlSums,
+) {
+    for (j, joint) in model.joints.iter().enumerate() {
+        let i = f * model.joints.len() + j;
+        if !c.mask[i] {
+            continue;
+        }
+        let p = data.point_position(joint.child_body, &joint.child_offset.pos);
+        let target = Vec3::new(
+            c.joint_pos[3 * i],
+            c.joint_pos[3 * i + 1],
+            c.joint_pos[3 * i + 2],
+        );
+        let e = (p - target).norm();
+        sums.samples += 1;
+        sums.sum += e;
+        if e > options.control_threshold {
+            sums.failed += 1;
+        }
+    }
+}
+
+/// The metrics of the contact spheres' heights and horizontal motion.
+struct ContactMetrics {
+    support_fraction: f64,
+    skate: f64,
+    skate_speed: f64,
+    float: f64,
+    float_max: f64,
+    penetrate: f64,
+    penetrate_max: f64,
+}
+
+/// Support, skating, floating and penetration from the spheres' `lowest` points and the
+/// frames' `support`.
+fn contact_metrics(
+    set: &ContactSet,
+    lowest: &[Vec3],
+    support: &[bool],
+    rate: f64,
+    options: &EvaluateOptions,
+) -> ContactMetrics {
+    let (t_count, np, normal) = (support.len(), set.points.len(), set.floor_normal);
     // raw heights n·b_p, the lowest per frame, the clip's ground level g (the 5th percentile
     // of the lowest heights over the supported frames, all frames without support) and the
     // floor (given, or g)
@@ -247,32 +458,8 @@ pub fn evaluate_clip(
         float_max = float_max.max(v);
     }
     let depth: Vec<f64> = h_min.iter().map(|h| (-h).max(0.0)).collect();
-    let (skate, skate_speed) = skating(&set, &lowest, ground, &support, rate, options);
-    // a layout-only file without contact forces has no residual (the ground's forces missing)
-    let el_residual = if frames.layout_error.is_some() && frames.contact_force.is_empty() {
-        None
-    } else {
-        Some(median(&residual_of(model, frames)?.frame_relative))
-    };
-    // the same residual with q̇, q̈ differentiated from q alone
-    let el_residual_from_q = match el_residual {
-        Some(_) => {
-            let (qd, qdd) = differentiate(&frames.q, &frames.time, n);
-            let from_q = TensorFrames {
-                qd,
-                qdd,
-                ..frames.clone()
-            };
-            Some(median(&residual_of(model, &from_q)?.frame_relative))
-        }
-        None => None,
-    };
-    let (range_share, range_worst) = beyond_range(model, &frames.q, &joints, options);
-    let mut metrics = ClipMetrics {
-        clip: name.to_string(),
-        frames: t_count,
-        rate_hz: rate,
-        body_mass: mass,
+    let (skate, skate_speed) = skating(set, lowest, ground, support, rate, options);
+    ContactMetrics {
         support_fraction: supported as f64 / t_count as f64,
         skate,
         skate_speed,
@@ -284,67 +471,60 @@ pub fn evaluate_clip(
         float_max,
         penetrate: depth.iter().sum::<f64>() / t_count as f64,
         penetrate_max: depth.iter().fold(0.0, |a, b| a.max(*b)),
-        el_residual,
-        el_residual_from_q,
-        range_share,
-        range_worst,
-        layout_fit_error: frames.layout_error,
-        ..ClipMetrics::default()
+    }
+}
+
+/// The median relative Euler–Lagrange residual of the clip, and the same with q̇, q̈
+/// differentiated from q alone; none for a layout-only file without contact forces (the
+/// ground's forces missing).
+fn residuals(model: &Model, frames: &TensorFrames) -> crate::Result<(Option<f64>, Option<f64>)> {
+    if frames.layout_error.is_some() && frames.contact_force.is_empty() {
+        return Ok((None, None));
+    }
+    let el_residual = median(&residual_of(model, frames)?.frame_relative);
+    let (qd, qdd) = differentiate(&frames.q, &frames.time, model.nq());
+    let from_q = TensorFrames {
+        qd,
+        qdd,
+        ..frames.clone()
     };
-    if samples > 0 {
-        metrics.actuation_excess = Some(excess / samples as f64 / mass);
-        metrics.actuation_over = Some(over as f64 / samples as f64);
-        metrics.actuation_peak = Some(peak);
-    }
-    if with_forces && tau_abs > 0.0 {
-        metrics.reserve_share = Some(reserve_abs / tau_abs);
-    }
-    if with_act {
-        let e: f64 = frames
-            .muscle_act
-            .iter()
-            .map(|a| (a - 1.0).max(0.0) + (-a).max(0.0))
-            .sum();
-        metrics.activation_excess = Some(e / frames.muscle_act.len() as f64);
-    }
-    if let Some(reference) = reference {
-        // RMS of τ_j − τ_j,ref over frames and joint coordinates, per kg
-        if !joints.is_empty() {
-            let mut s = 0.0;
-            for f in 0..t_count {
-                for &j in &joints {
-                    let d = frames.tau[f * n + j] - reference.tau[f * n + j];
-                    s += d * d;
-                }
+    let from_q = median(&residual_of(model, &from_q)?.frame_relative);
+    Ok((Some(el_residual), Some(from_q)))
+}
+
+/// The errors against a reference clip: joint actuation (RMS per kg) and contact force
+/// (per body weight), into `metrics`.
+fn reference_errors(clip: &ClipModel, reference: &TensorFrames, metrics: &mut ClipMetrics) {
+    let (frames, set, joints) = (clip.frames, &clip.set, &clip.joints);
+    let (t_count, n) = (frames.frames, clip.model.nq());
+    // RMS of τ_j − τ_j,ref over frames and joint coordinates, per kg
+    if !joints.is_empty() {
+        let mut s = 0.0;
+        for f in 0..t_count {
+            for &j in joints {
+                let d = frames.tau[f * n + j] - reference.tau[f * n + j];
+                s += d * d;
             }
-            metrics.actuation_error = Some((s / (t_count * joints.len()) as f64).sqrt() / mass);
         }
-        let groups = set.groups().len();
-        if let (Some(a), Some(b)) = (group_forces(frames, &set), group_forces(reference, &set)) {
-            // mean over frames of Σ_g ‖F_g − F_g,ref‖ / body weight
-            let total: f64 = (0..t_count)
-                .map(|f| {
-                    (0..groups)
-                        .map(|g| {
-                            let i = 3 * (f * groups + g);
-                            let d = |v: &[f64]| Vec3::new(v[i], v[i + 1], v[i + 2]);
-                            (d(&a) - d(&b)).norm()
-                        })
-                        .sum::<f64>()
-                        / weight
-                })
-                .sum();
-            metrics.contact_force_error = Some(total / t_count as f64);
-        }
+        metrics.actuation_error = Some((s / (t_count * joints.len()) as f64).sqrt() / clip.mass);
     }
-    if control.is_some() {
-        metrics.trajectory_failed = Some(control_failed > 0);
-        if control_samples > 0 {
-            metrics.location_failure = Some(control_failed as f64 / control_samples as f64);
-            metrics.trajectory_error = Some(control_sum / control_samples as f64);
-        }
+    let groups = set.groups().len();
+    if let (Some(a), Some(b)) = (group_forces(frames, set), group_forces(reference, set)) {
+        // mean over frames of Σ_g ‖F_g − F_g,ref‖ / body weight
+        let total: f64 = (0..t_count)
+            .map(|f| {
+                (0..groups)
+                    .map(|g| {
+                        let i = 3 * (f * groups + g);
+                        let d = |v: &[f64]| Vec3::new(v[i], v[i + 1], v[i + 2]);
+                        (d(&a) - d(&b)).norm()
+                    })
+                    .sum::<f64>()
+                    / clip.weight
+            })
+            .sum();
+        metrics.contact_force_error = Some(total / t_count as f64);
     }
-    Ok(metrics)
 }
 
 /// T × G × 3 ground force per contact group of `set`: the file's `grf` when it has one for

@@ -272,330 +272,43 @@ impl Trc {
     /// Parses `.trc` text; `source` names it in errors.
     pub fn parse(text: &str, source: &str) -> crate::Result<Trc> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let err = |line: usize, element: String, message: String| Error::Model {
-            file: source.to_string(),
-            line: u32::try_from(line).unwrap_or(u32::MAX),
-            element,
-            message,
-        };
+        let p = TrcParser { source };
         let mut lines = text
             .lines()
             .enumerate()
             .map(|(i, l)| (i + 1, l.trim_end_matches('\r')));
-
-        // Line 1: PathFileType 4 (X/Y/Z) name
-        let (l1, first) = lines
-            .next()
-            .ok_or_else(|| err(1, "header".into(), "the file is empty".into()))?;
-        let mut words = first.split_whitespace();
-        if words.next() != Some("PathFileType") {
-            return Err(err(
-                l1,
-                "header".into(),
-                "the first line must start with `PathFileType`".into(),
-            ));
-        }
-        let path_file_name = words.skip(2).collect::<Vec<_>>().join(" ");
-
-        // Lines 2–3: keys and values.
-        let (lk, keys) = lines
-            .next()
-            .ok_or_else(|| err(l1, "header".into(), "no header keys line".into()))?;
-        let (lv, vals) = lines
-            .next()
-            .ok_or_else(|| err(lk, "header".into(), "no header values line".into()))?;
-        let keys: Vec<&str> = fields(keys).into_iter().filter(|k| !k.is_empty()).collect();
-        let vals: Vec<&str> = fields(vals).into_iter().filter(|k| !k.is_empty()).collect();
-        if keys.len() != vals.len() {
-            return Err(err(
-                lv,
-                "header".into(),
-                format!(
-                    "{} header keys (line {lk}) but {} values",
-                    keys.len(),
-                    vals.len()
-                ),
-            ));
-        }
-        let value = |key: &str| keys.iter().position(|k| *k == key).map(|i| vals[i]);
-        let header_err = |key: &str, message: String| err(lv, format!("header \"{key}\""), message);
-        let number = |key: &str| -> crate::Result<Option<f64>> {
-            value(key)
-                .map(|v| {
-                    v.parse::<f64>()
-                        .ok()
-                        .filter(|x| x.is_finite())
-                        .ok_or_else(|| header_err(key, format!("`{v}` is not a number")))
-                })
-                .transpose()
+        let (l1, path_file_name) = p.path_file_type(&mut lines)?;
+        let header = p.header(&mut lines, l1)?;
+        let (ll, markers) = p.marker_names(&mut lines, &header)?;
+        let xyz = p.coordinate_labels(&mut lines, ll, &markers)?;
+        let columns = TrcColumns {
+            markers: &markers,
+            xyz: &xyz,
         };
-        let count = |key: &str| -> crate::Result<Option<usize>> {
-            value(key)
-                .map(|v| {
-                    v.parse::<usize>()
-                        .map_err(|_| header_err(key, format!("`{v}` is not a count")))
-                })
-                .transpose()
-        };
-        let required = |key: &str| header_err(key, "missing from the header".into());
-        let data_rate = number("DataRate")?.ok_or_else(|| required("DataRate"))?;
-        if data_rate <= 0.0 {
-            return Err(header_err(
-                "DataRate",
-                format!("{data_rate} is not a positive rate"),
-            ));
-        }
-        let camera_rate = number("CameraRate")?.unwrap_or(data_rate);
-        let orig_data_rate = number("OrigDataRate")?.unwrap_or(data_rate);
-        let num_frames = count("NumFrames")?.ok_or_else(|| required("NumFrames"))?;
-        let num_markers = count("NumMarkers")?.ok_or_else(|| required("NumMarkers"))?;
-        let units_text = value("Units").ok_or_else(|| required("Units"))?;
-        let units = LengthUnit::parse(units_text).ok_or_else(|| {
-            header_err(
-                "Units",
-                format!("unknown unit `{units_text}` (mm, cm or m)"),
-            )
-        })?;
-        let orig_data_start_frame = match value("OrigDataStartFrame") {
-            Some(v) => v.parse::<i64>().map_err(|_| {
-                header_err("OrigDataStartFrame", format!("`{v}` is not an integer"))
-            })?,
-            None => 1,
-        };
-        let orig_num_frames = count("OrigNumFrames")?;
-
-        // Line 4: Frame# Time marker names.
-        let (ll, label_line) = lines
-            .next()
-            .ok_or_else(|| err(lv, "header".into(), "no marker names line".into()))?;
-        let labels: Vec<&str> = fields(label_line)
-            .into_iter()
-            .filter(|k| !k.is_empty())
-            .collect();
-        if labels.first() != Some(&"Frame#") || labels.get(1) != Some(&"Time") {
-            return Err(err(
-                ll,
-                "header".into(),
-                "the marker names line must start with `Frame#` and `Time`".into(),
-            ));
-        }
-        let markers: Vec<String> = labels[2..].iter().map(|s| s.to_string()).collect();
-        if markers.len() != num_markers {
-            return Err(err(
-                ll,
-                "header \"NumMarkers\"".into(),
-                format!(
-                    "NumMarkers (line {lv}) is {num_markers}, but line {ll} names {} markers",
-                    markers.len()
-                ),
-            ));
-        }
-        for (i, name) in markers.iter().enumerate() {
-            if let Some(j) = markers[..i].iter().position(|o| o == name) {
-                return Err(err(
-                    ll,
-                    format!("marker \"{name}\""),
-                    format!(
-                        "duplicate marker name (markers {} and {}, from 1)",
-                        j + 1,
-                        i + 1
-                    ),
-                ));
-            }
-        }
-
-        // Line 5: X1 Y1 Z1 …
-        let (lx, xyz_line) = lines
-            .next()
-            .ok_or_else(|| err(ll, "header".into(), "no X1 Y1 Z1 line".into()))?;
-        let xyz: Vec<&str> = fields(xyz_line)
-            .into_iter()
-            .filter(|k| !k.is_empty())
-            .collect();
-        if xyz.len() != 3 * num_markers {
-            return Err(err(
-                lx,
-                "header".into(),
-                format!(
-                    "{} coordinate labels for {num_markers} markers (3 each)",
-                    xyz.len()
-                ),
-            ));
-        }
-        for (k, label) in xyz.iter().enumerate() {
-            let axis = ["X", "Y", "Z"][k % 3];
-            if !label.starts_with(axis) {
-                return Err(err(
-                    lx,
-                    format!("marker \"{}\" (column {label})", markers[k / 3]),
-                    format!("expected a label starting with {axis}"),
-                ));
-            }
-        }
-
-        // Data rows.
-        let nm = markers.len();
-        let expected = 2 + 3 * nm;
-        let per_metre = units.per_metre();
-        let column_name = |c: usize| -> String {
-            match c {
-                0 => "column \"Frame#\"".into(),
-                1 => "column \"Time\"".into(),
-                c if c < expected => {
-                    format!(
-                        "marker \"{}\" (column {})",
-                        markers[(c - 2) / 3],
-                        xyz[c - 2]
-                    )
-                }
-                c => format!("column {} (beyond the last marker)", c + 1),
-            }
-        };
-        // NumFrames is not taken on trust for the capacity: a frame is at least a line of
-        // two bytes, a marker in it at least three (three empty fields).
-        let rows = num_frames.min(text.len() / 2 + 1);
-        let mut frame_numbers = Vec::with_capacity(rows);
-        let mut time: Vec<f64> = Vec::with_capacity(rows);
-        let mut positions = Vec::with_capacity(rows.saturating_mul(nm).min(text.len() / 3 + 1));
-        let mut previous_line = 0;
-        let mut rows_in_file = 0;
-        let mut warnings = Vec::new();
-        // Two frames closer than this are one sample (module documentation).
-        let repeat_tolerance = crate::io::storage::REPEAT_TOLERANCE / data_rate;
-        for (line, raw) in lines {
-            if raw.trim().is_empty() {
-                continue;
-            }
-            let mut f = fields(raw);
-            while f.len() > expected && f.last().is_some_and(|s| s.is_empty()) {
-                f.pop();
-            }
-            if f.len() != expected {
-                let c = f.len().min(expected);
-                return Err(err(
-                    line,
-                    column_name(c),
-                    format!(
-                        "the row has {} values, expected {expected} (Frame#, Time and 3 for \
-                         each of {nm} markers)",
-                        f.len()
-                    ),
-                ));
-            }
-            let frame = f[0].parse::<i64>().map_err(|_| {
-                err(
-                    line,
-                    column_name(0),
-                    format!("`{}` is not a frame number", f[0]),
-                )
-            })?;
-            let t = f[1]
-                .parse::<f64>()
-                .ok()
-                .filter(|t| t.is_finite())
-                .ok_or_else(|| {
-                    err(
-                        line,
-                        column_name(1),
-                        format!("`{}` is not a finite time", f[1]),
-                    )
-                })?;
-            rows_in_file += 1;
-            if let Some(&t_prev) = time.last()
-                && (t - t_prev).abs() <= repeat_tolerance
-            {
-                let within = if t == t_prev {
-                    String::new()
-                } else {
-                    format!(" (within {:.1e} s)", (t - t_prev).abs())
-                };
-                warnings.push(crate::io::FileWarning {
-                    file: source.to_string(),
-                    line: u32::try_from(line).unwrap_or(u32::MAX),
-                    element: column_name(1),
-                    message: format!(
-                        "time {t} repeats the time on line {previous_line}{within}: frame left out"
-                    ),
-                });
-                continue;
-            }
-            if let Some(&t_prev) = time.last()
-                && t <= t_prev
-            {
-                return Err(err(
-                    line,
-                    column_name(1),
-                    format!(
-                        "time {t} does not exceed the time {t_prev} on line {previous_line}; \
-                         time must increase strictly"
-                    ),
-                ));
-            }
-            frame_numbers.push(frame);
-            time.push(t);
-            for m in 0..nm {
-                let c = 2 + 3 * m;
-                let parts = [f[c], f[c + 1], f[c + 2]];
-                let missing = parts
-                    .iter()
-                    .any(|s| s.is_empty() || s.eq_ignore_ascii_case("nan"));
-                if missing {
-                    positions.push(Vec3::repeat(f64::NAN));
-                    continue;
-                }
-                let mut p = Vec3::zeros();
-                for k in 0..3 {
-                    p[k] = parts[k]
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .ok_or_else(|| {
-                            err(
-                                line,
-                                column_name(c + k),
-                                format!("`{}` is not a number", parts[k]),
-                            )
-                        })?
-                        / per_metre;
-                    if !(p[k].abs() <= MAX_MARKER_COORDINATE) {
-                        return Err(err(
-                            line,
-                            column_name(c + k),
-                            format!(
-                                "`{}` {} is {} m from the origin, beyond \
-                                 ±{MAX_MARKER_COORDINATE:e} m, which no capture volume reaches: \
-                                 a typing or unit error",
-                                parts[k],
-                                units.symbol(),
-                                short_number(p[k])
-                            ),
-                        ));
-                    }
-                }
-                positions.push(p);
-            }
-            previous_line = line;
-        }
-        if rows_in_file != num_frames {
-            return Err(err(
-                lv,
+        let rows = p.data_rows(lines, text.len(), &header, &columns)?;
+        if rows.in_file != header.num_frames {
+            return Err(p.err(
+                header.line,
                 "header \"NumFrames\"".into(),
-                format!("NumFrames is {num_frames}, but the file has {rows_in_file} data rows"),
+                format!(
+                    "NumFrames is {}, but the file has {} data rows",
+                    header.num_frames, rows.in_file
+                ),
             ));
         }
         Ok(Trc {
             path_file_name,
-            data_rate,
-            camera_rate,
-            units,
-            orig_data_rate,
-            orig_data_start_frame,
-            orig_num_frames: orig_num_frames.unwrap_or(num_frames),
+            data_rate: header.data_rate,
+            camera_rate: header.camera_rate,
+            units: header.units,
+            orig_data_rate: header.orig_data_rate,
+            orig_data_start_frame: header.orig_data_start_frame,
+            orig_num_frames: header.orig_num_frames.unwrap_or(header.num_frames),
             markers,
-            frame_numbers,
-            time,
-            positions,
-            warnings,
+            frame_numbers: rows.frame_numbers,
+            time: rows.time,
+            positions: rows.positions,
+            warnings: rows.warnings,
         })
     }
 
@@ -668,6 +381,423 @@ impl Trc {
             .unwrap_or_default();
         let text = self.to_file_string(&file_name)?;
         crate::io::output::write_file_atomic(path, text.as_bytes())
+    }
+}
+
+/// The reader of one `.trc` text: its stages in file order, and errors naming `source`.
+struct TrcParser<'s> {
+    source: &'s str,
+}
+
+/// The header keys and values (lines 2–3).
+struct TrcHeader {
+    /// The line of the header values.
+    line: usize,
+    data_rate: f64,
+    camera_rate: f64,
+    orig_data_rate: f64,
+    num_frames: usize,
+    num_markers: usize,
+    units: LengthUnit,
+    orig_data_start_frame: i64,
+    orig_num_frames: Option<usize>,
+}
+
+/// The data columns' names: the markers (line 4) and their coordinate labels (line 5).
+struct TrcColumns<'a> {
+    markers: &'a [String],
+    xyz: &'a [&'a str],
+}
+
+impl TrcColumns<'_> {
+    /// Fields in a data row: Frame#, Time and 3 per marker.
+    fn expected(&self) -> usize {
+        2 + 3 * self.markers.len()
+    }
+
+    /// Column `c` of a data row, in words.
+    fn name(&self, c: usize) -> String {
+        match c {
+            0 => "column \"Frame#\"".into(),
+            1 => "column \"Time\"".into(),
+            c if c < self.expected() => {
+                format!(
+                    "marker \"{}\" (column {})",
+                    self.markers[(c - 2) / 3],
+                    self.xyz[c - 2]
+                )
+            }
+            c => format!("column {} (beyond the last marker)", c + 1),
+        }
+    }
+}
+
+/// The data rows kept, and how many the file has (repeated times included).
+struct TrcRows {
+    frame_numbers: Vec<i64>,
+    time: Vec<f64>,
+    positions: Vec<Vec3>,
+    warnings: Vec<crate::io::FileWarning>,
+    in_file: usize,
+}
+
+impl TrcParser<'_> {
+    fn err(&self, line: usize, element: String, message: String) -> Error {
+        Error::Model {
+            file: self.source.to_string(),
+            line: u32::try_from(line).unwrap_or(u32::MAX),
+            element,
+            message,
+        }
+    }
+
+    /// Line 1: `PathFileType 4 (X/Y/Z) name`; returns its line and the name.
+    fn path_file_type<'t>(
+        &self,
+        lines: &mut impl Iterator<Item = (usize, &'t str)>,
+    ) -> crate::Result<(usize, String)> {
+        let (l1, first) = lines
+            .next()
+            .ok_or_else(|| self.err(1, "header".into(), "the file is empty".into()))?;
+        let mut words = first.split_whitespace();
+        if words.next() != Some("PathFileType") {
+            return Err(self.err(
+                l1,
+                "header".into(),
+                "the first line must start with `PathFileType`".into(),
+            ));
+        }
+        Ok((l1, words.skip(2).collect::<Vec<_>>().join(" ")))
+    }
+
+    /// Lines 2–3: the header keys and their values, read by name (`l1`: the first line's).
+    fn header<'t>(
+        &self,
+        lines: &mut impl Iterator<Item = (usize, &'t str)>,
+        l1: usize,
+    ) -> crate::Result<TrcHeader> {
+        let (lk, keys) = lines
+            .next()
+            .ok_or_else(|| self.err(l1, "header".into(), "no header keys line".into()))?;
+        let (lv, vals) = lines
+            .next()
+            .ok_or_else(|| self.err(lk, "header".into(), "no header values line".into()))?;
+        let keys: Vec<&str> = fields(keys).into_iter().filter(|k| !k.is_empty()).collect();
+        let vals: Vec<&str> = fields(vals).into_iter().filter(|k| !k.is_empty()).collect();
+        if keys.len() != vals.len() {
+            return Err(self.err(
+                lv,
+                "header".into(),
+                format!(
+                    "{} header keys (line {lk}) but {} values",
+                    keys.len(),
+                    vals.len()
+                ),
+            ));
+        }
+        let value = |key: &str| keys.iter().position(|k| *k == key).map(|i| vals[i]);
+        let header_err =
+            |key: &str, message: String| self.err(lv, format!("header \"{key}\""), message);
+        let number = |key: &str| -> crate::Result<Option<f64>> {
+            value(key)
+                .map(|v| {
+                    v.parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite())
+                        .ok_or_else(|| header_err(key, format!("`{v}` is not a number")))
+                })
+                .transpose()
+        };
+        let count = |key: &str| -> crate::Result<Option<usize>> {
+            value(key)
+                .map(|v| {
+                    v.parse::<usize>()
+                        .map_err(|_| header_err(key, format!("`{v}` is not a count")))
+                })
+                .transpose()
+        };
+        let required = |key: &str| header_err(key, "missing from the header".into());
+        let data_rate = number("DataRate")?.ok_or_else(|| required("DataRate"))?;
+        if data_rate <= 0.0 {
+            return Err(header_err(
+                "DataRate",
+                format!("{data_rate} is not a positive rate"),
+            ));
+        }
+        let camera_rate = number("CameraRate")?.unwrap_or(data_rate);
+        let orig_data_rate = number("OrigDataRate")?.unwrap_or(data_rate);
+        let num_frames = count("NumFrames")?.ok_or_else(|| required("NumFrames"))?;
+        let num_markers = count("NumMarkers")?.ok_or_else(|| required("NumMarkers"))?;
+        let units_text = value("Units").ok_or_else(|| required("Units"))?;
+        let units = LengthUnit::parse(units_text).ok_or_else(|| {
+            header_err(
+                "Units",
+                format!("unknown unit `{units_text}` (mm, cm or m)"),
+            )
+        })?;
+        let orig_data_start_frame = match value("OrigDataStartFrame") {
+            Some(v) => v.parse::<i64>().map_err(|_| {
+                header_err("OrigDataStartFrame", format!("`{v}` is not an integer"))
+            })?,
+            None => 1,
+        };
+        let orig_num_frames = count("OrigNumFrames")?;
+        Ok(TrcHeader {
+            line: lv,
+            data_rate,
+            camera_rate,
+            orig_data_rate,
+            num_frames,
+            num_markers,
+            units,
+            orig_data_start_frame,
+            orig_num_frames,
+        })
+    }
+
+    /// Line 4: `Frame# Time` and the marker names, as many as NumMarkers, unique; returns
+    /// its line and the names.
+    fn marker_names<'t>(
+        &self,
+        lines: &mut impl Iterator<Item = (usize, &'t str)>,
+        header: &TrcHeader,
+    ) -> crate::Result<(usize, Vec<String>)> {
+        let (lv, num_markers) = (header.line, header.num_markers);
+        let (ll, label_line) = lines
+            .next()
+            .ok_or_else(|| self.err(lv, "header".into(), "no marker names line".into()))?;
+        let labels: Vec<&str> = fields(label_line)
+            .into_iter()
+            .filter(|k| !k.is_empty())
+            .collect();
+        if labels.first() != Some(&"Frame#") || labels.get(1) != Some(&"Time") {
+            return Err(self.err(
+                ll,
+                "header".into(),
+                "the marker names line must start with `Frame#` and `Time`".into(),
+            ));
+        }
+        let markers: Vec<String> = labels[2..].iter().map(|s| s.to_string()).collect();
+        if markers.len() != num_markers {
+            return Err(self.err(
+                ll,
+                "header \"NumMarkers\"".into(),
+                format!(
+                    "NumMarkers (line {lv}) is {num_markers}, but line {ll} names {} markers",
+                    markers.len()
+                ),
+            ));
+        }
+        for (i, name) in markers.iter().enumerate() {
+            if let Some(j) = markers[..i].iter().position(|o| o == name) {
+                return Err(self.err(
+                    ll,
+                    format!("marker \"{name}\""),
+                    format!(
+                        "duplicate marker name (markers {} and {}, from 1)",
+                        j + 1,
+                        i + 1
+                    ),
+                ));
+            }
+        }
+        Ok((ll, markers))
+    }
+
+    /// Line 5: `X1 Y1 Z1 …`, three labels per marker starting with X, Y and Z (`ll`: the
+    /// marker names' line).
+    fn coordinate_labels<'t>(
+        &self,
+        lines: &mut impl Iterator<Item = (usize, &'t str)>,
+        ll: usize,
+        markers: &[String],
+    ) -> crate::Result<Vec<&'t str>> {
+        let num_markers = markers.len();
+        let (lx, xyz_line) = lines
+            .next()
+            .ok_or_else(|| self.err(ll, "header".into(), "no X1 Y1 Z1 line".into()))?;
+        let xyz: Vec<&str> = fields(xyz_line)
+            .into_iter()
+            .filter(|k| !k.is_empty())
+            .collect();
+        if xyz.len() != 3 * num_markers {
+            return Err(self.err(
+                lx,
+                "header".into(),
+                format!(
+                    "{} coordinate labels for {num_markers} markers (3 each)",
+                    xyz.len()
+                ),
+            ));
+        }
+        for (k, label) in xyz.iter().enumerate() {
+            let axis = ["X", "Y", "Z"][k % 3];
+            if !label.starts_with(axis) {
+                return Err(self.err(
+                    lx,
+                    format!("marker \"{}\" (column {label})", markers[k / 3]),
+                    format!("expected a label starting with {axis}"),
+                ));
+            }
+        }
+        Ok(xyz)
+    }
+
+    /// The data rows (blank lines skipped): frame number, strictly increasing time (a time
+    /// within the repeat tolerance of the previous one is left out with a warning) and the
+    /// markers' positions in metres. `text_len` bounds the capacity reserved.
+    fn data_rows<'t>(
+        &self,
+        lines: impl Iterator<Item = (usize, &'t str)>,
+        text_len: usize,
+        header: &TrcHeader,
+        columns: &TrcColumns,
+    ) -> crate::Result<TrcRows> {
+        let nm = columns.markers.len();
+        let expected = columns.expected();
+        // NumFrames is not taken on trust for the capacity: a frame is at least a line of
+        // two bytes, a marker in it at least three (three empty fields).
+        let capacity = header.num_frames.min(text_len / 2 + 1);
+        let mut rows = TrcRows {
+            frame_numbers: Vec::with_capacity(capacity),
+            time: Vec::with_capacity(capacity),
+            positions: Vec::with_capacity(capacity.saturating_mul(nm).min(text_len / 3 + 1)),
+            warnings: Vec::new(),
+            in_file: 0,
+        };
+        let mut previous_line = 0;
+        // Two frames closer than this are one sample (module documentation).
+        let repeat_tolerance = crate::io::storage::REPEAT_TOLERANCE / header.data_rate;
+        for (line, raw) in lines {
+            if raw.trim().is_empty() {
+                continue;
+            }
+            let mut f = fields(raw);
+            while f.len() > expected && f.last().is_some_and(|s| s.is_empty()) {
+                f.pop();
+            }
+            if f.len() != expected {
+                let c = f.len().min(expected);
+                return Err(self.err(
+                    line,
+                    columns.name(c),
+                    format!(
+                        "the row has {} values, expected {expected} (Frame#, Time and 3 for \
+                         each of {nm} markers)",
+                        f.len()
+                    ),
+                ));
+            }
+            let frame = f[0].parse::<i64>().map_err(|_| {
+                self.err(
+                    line,
+                    columns.name(0),
+                    format!("`{}` is not a frame number", f[0]),
+                )
+            })?;
+            let t = f[1]
+                .parse::<f64>()
+                .ok()
+                .filter(|t| t.is_finite())
+                .ok_or_else(|| {
+                    self.err(
+                        line,
+                        columns.name(1),
+                        format!("`{}` is not a finite time", f[1]),
+                    )
+                })?;
+            rows.in_file += 1;
+            if let Some(&t_prev) = rows.time.last()
+                && (t - t_prev).abs() <= repeat_tolerance
+            {
+                let within = if t == t_prev {
+                    String::new()
+                } else {
+                    format!(" (within {:.1e} s)", (t - t_prev).abs())
+                };
+                rows.warnings.push(crate::io::FileWarning {
+                    file: self.source.to_string(),
+                    line: u32::try_from(line).unwrap_or(u32::MAX),
+                    element: columns.name(1),
+                    message: format!(
+                        "time {t} repeats the time on line {previous_line}{within}: frame left out"
+                    ),
+                });
+                continue;
+            }
+            if let Some(&t_prev) = rows.time.last()
+                && t <= t_prev
+            {
+                return Err(self.err(
+                    line,
+                    columns.name(1),
+                    format!(
+                        "time {t} does not exceed the time {t_prev} on line {previous_line}; \
+                         time must increase strictly"
+                    ),
+                ));
+            }
+            rows.frame_numbers.push(frame);
+            rows.time.push(t);
+            for m in 0..nm {
+                let position = self.marker_position(&f, m, line, header.units, columns)?;
+                rows.positions.push(position);
+            }
+            previous_line = line;
+        }
+        Ok(rows)
+    }
+
+    /// Marker `m`'s position (m) in the row `f` on `line`, in `units`: NaN when a field is
+    /// empty or `NaN` (missing); an error when a field is not a number or beyond
+    /// ±[`MAX_MARKER_COORDINATE`] m.
+    fn marker_position(
+        &self,
+        f: &[&str],
+        m: usize,
+        line: usize,
+        units: LengthUnit,
+        columns: &TrcColumns,
+    ) -> crate::Result<Vec3> {
+        let c = 2 + 3 * m;
+        let parts = [f[c], f[c + 1], f[c + 2]];
+        let missing = parts
+            .iter()
+            .any(|s| s.is_empty() || s.eq_ignore_ascii_case("nan"));
+        if missing {
+            return Ok(Vec3::repeat(f64::NAN));
+        }
+        let per_metre = units.per_metre();
+        let mut p = Vec3::zeros();
+        for k in 0..3 {
+            p[k] = parts[k]
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    self.err(
+                        line,
+                        columns.name(c + k),
+                        format!("`{}` is not a number", parts[k]),
+                    )
+                })?
+                / per_metre;
+            if !(p[k].abs() <= MAX_MARKER_COORDINATE) {
+                return Err(self.err(
+                    line,
+                    columns.name(c + k),
+                    format!(
+                        "`{}` {} is {} m from the origin, beyond \
+                         ±{MAX_MARKER_COORDINATE:e} m, which no capture volume reaches: \
+                         a typing or unit error",
+                        parts[k],
+                        units.symbol(),
+                        short_number(p[k])
+                    ),
+                ));
+            }
+        }
+        Ok(p)
     }
 }
 
