@@ -69,7 +69,7 @@ pub struct ClipQuality {
     /// The largest, over the joint coordinates, of the coordinate's peak |reserve| over its
     /// peak |joint moment| (OpenSim's "peak reserve torque / peak joint torque"); 0 without
     /// muscles. Coordinates whose peak joint moment stays below the reserve's optimal force
-    /// ([`ChainOptions::reserve_optimal_force`], 1 N·m) are left out: there the reserve's
+    /// ([`ChainOptions::reserve_optimal_force`](super::chain::ChainOptions::reserve_optimal_force), 1 N·m) are left out: there the reserve's
     /// control stays below 1, where static optimization's cost x² prices it like a muscle's
     /// activation, and a share of a few hundredths of a N·m (the default model's forearm
     /// rotation: 0.04 of 0.008 N·m) says nothing about the muscles' strength.
@@ -99,7 +99,7 @@ pub struct ClipQuality {
     #[serde(default)]
     pub full_activation_share: f64,
     /// Excitation samples that inverse activation dynamics had to clamp to the excitation
-    /// range by more than [`CLAMP_REPORTED`]: where static optimization's activations change
+    /// range by more than [`CLAMP_REPORTED`](super::chain::CLAMP_REPORTED): where static optimization's activations change
     /// faster than activation dynamics allow.
     pub clamped_excitations: usize,
     /// Fraction of frames with at least one contact.
