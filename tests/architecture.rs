@@ -120,11 +120,11 @@ fn blank(src: &str) -> String {
             let len = if next == Some(b'\\') {
                 b[i + 2..].iter().position(|&c| c == b'\'').map(|k| k + 3)
             } else {
-                let ch = std::str::from_utf8(&b[i + 1..(i + 5).min(b.len())])
-                    .ok()
-                    .or_else(|| std::str::from_utf8(&b[i + 1..(i + 2).min(b.len())]).ok())
-                    .and_then(|s| s.chars().next());
-                ch.map(|ch| ch.len_utf8())
+                // `'` is ASCII, so the character after it starts at i + 1
+                src[i + 1..]
+                    .chars()
+                    .next()
+                    .map(|ch| ch.len_utf8())
                     .filter(|&n| b.get(i + 1 + n) == Some(&b'\''))
                     .map(|n| n + 2)
             };

@@ -174,7 +174,7 @@ fn polynomial_third_derivative(c: &[f64], x: f64) -> f64 {
 }
 
 pub use super::knots::MIN_KNOT_GAP_FRACTION;
-pub(crate) use super::knots::{check_knot_spacing, check_xy};
+use super::knots::check_xy;
 
 /// Index k of the interval [x_k, x_{k+1}] holding t, for x[0] ≤ t ≤ x[n-1].
 #[inline]

@@ -2,7 +2,8 @@
 
 use super::xml::{Ctx, XNode, child, elements};
 use crate::error::Error;
-use crate::model::function::{Function, PiecewiseLinear, SimmSpline, check_knot_spacing};
+use crate::model::function::{Function, PiecewiseLinear, SimmSpline};
+use crate::model::knots::{check_knot_spacing, check_xy};
 use crate::model::natural_spline::NaturalSpline;
 
 /// Tags of the function elements musculo reads.
@@ -49,7 +50,7 @@ pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
             .vec_opt(node, "y")?
             .ok_or_else(|| ctx.err(node, "missing <y>"))?;
         // the constructors check lengths, finiteness and order first (their messages)
-        crate::model::function::check_xy(&x, &y, 1).map_err(|m| ctx.err(node, m))?;
+        check_xy(&x, &y, 1).map_err(|m| ctx.err(node, m))?;
         check_knot_spacing(&x).map_err(|m| ctx.err(node, m))?;
         Ok((x, y))
     };
