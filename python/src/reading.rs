@@ -33,10 +33,12 @@ pub(crate) fn motion_from_array(
 }
 
 /// `length_unit` as Python gives it: a unit name ("m", "cm", "mm", "in") or metres per file
-/// unit, as a string ("0.056444") or a number (0.056444).
+/// unit, as a string ("0.056444") or a number (0.056444). A bool is caught before the number
+/// (Python's bool is an int, so `True` would otherwise read as 1 m per unit) and refused.
 #[derive(Clone, Debug, FromPyObject)]
 pub(crate) enum LengthUnitArg {
     Name(String),
+    Flag(bool),
     Metres(f64),
 }
 
@@ -49,6 +51,15 @@ pub(crate) fn length_unit_of(
         // form: the same value), so that both forms accept the same range.
         let text = match u {
             LengthUnitArg::Name(name) => name.clone(),
+            LengthUnitArg::Flag(flag) => {
+                return Err(musculo::Error::InvalidArgument {
+                    argument: "length_unit",
+                    message: format!(
+                        "{}: a bool is not a length unit; use m, cm, mm, in or a number",
+                        if *flag { "True" } else { "False" }
+                    ),
+                });
+            }
             LengthUnitArg::Metres(metres) => metres.to_string(),
         };
         musculo::motion::LengthUnit::parse(&text).ok_or_else(|| musculo::Error::InvalidArgument {

@@ -573,7 +573,7 @@ def test_length_unit_is_a_unit_name_or_metres_per_unit_as_text_or_number():
         with pytest.raises(musculo.MusculoError, match="body height"):
             musculo.read_motion(BVH, length_unit=metres)
     # both forms accept the same range (1e-6 to 1e3 m per unit)
-    for bad in (0.0, -0.05, 1e4, float("nan"), "1e4"):
+    for bad in (0.0, -0.05, 1e4, float("nan"), "1e4", True, False):
         with pytest.raises(musculo.MusculoError, match="length_unit"):
             musculo.read_motion(BVH, length_unit=bad)
     with pytest.raises(TypeError):
