@@ -419,12 +419,9 @@ fn gait2392_fails_only_explained_checks() {
 }
 
 #[test]
-fn rajagopal2016_fails_only_explained_checks_in_a_few_seconds() {
+fn rajagopal2016_fails_only_explained_checks() {
     let Some(model) = load(RAJAGOPAL) else { return };
-    let start = std::time::Instant::now();
     let report = run(&model);
-    let seconds = start.elapsed().as_secs_f64();
-    assert!(seconds < 5.0, "{seconds} s");
     let failed = failures(&report);
     let coords: BTreeSet<_> = failed
         .iter()
@@ -448,37 +445,26 @@ fn rajagopal2016_fails_only_explained_checks_in_a_few_seconds() {
         assert_eq!(report.summary(f).fail, 0, "{f:?}: {failed:?}");
     }
     assert!(report.summary(Family::AgonistSigns).pass >= 50);
-    // Stronger than the upper end of the adult ranges in these directions (MRI volumes and
-    // a specific tension of 60 N/cm²), within them elsewhere; no lumbar or arm muscles.
-    let strong: BTreeSet<_> = failed
-        .iter()
-        .filter(|(f, ..)| *f == Family::MaxIsometricMoments)
-        .map(|(.., s)| s.clone())
-        .collect();
-    let mut expected = BTreeSet::new();
-    for side in ["r", "l"] {
-        for d in [
-            format!("hip_flexion_{side} extension"),
-            format!("hip_adduction_{side} adduction"),
-            format!("knee_angle_{side} extension"),
-            format!("knee_angle_{side} flexion"),
-            format!("ankle_angle_{side} plantarflexion"),
-        ] {
-            expected.insert(d);
-        }
-    }
-    assert_eq!(strong, expected);
-    for c in report
+    // MRI volumes and a specific tension of 60 N/cm² (Rajagopal 2016): stronger than the
+    // voluntary means of young men in the hip, knee and ankle, yet within the full-activation
+    // envelope (1.5 × the voluntary ranges' upper ends) in every direction; never weaker
+    // than the envelope's lower end.
+    let moments: Vec<_> = report
         .checks
         .iter()
-        .filter(|c| c.family == Family::MaxIsometricMoments)
-    {
-        if c.status == Status::Fail {
-            // Too strong by less than a factor 1.5, never too weak.
-            let v = c.value.unwrap();
-            assert!(v > 0.0 && v < 1.5 * 450.0, "{c:?}");
-        }
+        .filter(|c| c.family == Family::MaxIsometricMoments && c.status != Status::Skip)
+        .collect();
+    assert!(moments.len() >= 16, "{}", moments.len());
+    for c in &moments {
+        assert_eq!(c.status, Status::Pass, "{c:?}");
     }
+    let knee_extension = moments
+        .iter()
+        .find(|c| c.subject == "knee_angle_r extension")
+        .and_then(|c| c.value)
+        .unwrap();
+    // above the old voluntary envelope's 400 N·m, below 1.5 × 400
+    assert!(knee_extension > 400.0 && knee_extension < 600.0, "{knee_extension}");
     assert_eq!(
         status(
             &report,
