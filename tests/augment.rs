@@ -1098,11 +1098,26 @@ fn ik_marker_error_names_each_marker_and_shows_a_displaced_one() {
             out.quality.ik_markers.clone(),
             a.shape.clone(),
             a.values.clone(),
+            out.quality.ik_rmse_by_marker.clone(),
         )
     };
-    let (names, shape, plain) = errors(&clip);
+    let (names, shape, plain, rmse) = errors(&clip);
     let k = names.len();
     assert_eq!(shape, [clip.time.len(), k]);
+    // the manifest's per-marker RMSE is the RMS of the array's column
+    assert_eq!(rmse.len(), k);
+    for (i, r) in rmse.iter().enumerate() {
+        let column: Vec<f64> = (plain.iter().skip(i).step_by(k))
+            .map(|&e| e as f64)
+            .filter(|e| e.is_finite())
+            .collect();
+        let rms = (column.iter().map(|e| e * e).sum::<f64>() / column.len() as f64).sqrt();
+        assert!(
+            (r.unwrap() - rms).abs() < 1e-6,
+            "{}: {r:?} vs {rms}",
+            names[i]
+        );
+    }
     assert!(k >= 30, "{k} markers");
     // the names are the model's markers that the file has, as IK pairs them
     for name in &names {
@@ -1114,7 +1129,11 @@ fn ik_marker_error_names_each_marker_and_shows_a_displaced_one() {
     for f in 40..60 {
         displaced.positions[f * clip.names.len() + column].x += 0.05;
     }
-    let (_, _, shifted) = errors(&displaced);
+    let (_, _, shifted, shifted_rmse) = errors(&displaced);
+    assert!(
+        shifted_rmse[moved].unwrap() > rmse[moved].unwrap() + 0.001,
+        "{shifted_rmse:?} vs {rmse:?}"
+    );
     let at = |e: &[f32], f: usize, i: usize| e[f * k + i] as f64;
     let mut own = f64::INFINITY;
     let mut others = 0.0f64;

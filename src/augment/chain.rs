@@ -702,6 +702,8 @@ impl Chain {
         quality.ik_markers = (clip.tasks.markers.iter())
             .map(|t| model.markers[t.marker].name.clone())
             .collect();
+        quality.ik_rmse_by_marker =
+            rmse_by_column(&clip.solution.marker_error, clip.tasks.markers.len());
         if !self.options.muscles {
             quality.so_unsolved_frames = 0;
             quality.reserve_share = 0.0;
@@ -1043,6 +1045,22 @@ fn vertical_support_demand(model: &Model, data: &Data) -> f64 {
         .map(|j| data.body_force[j.child_body].lin)
         .sum();
     vertical(model, needed)
+}
+
+/// Per column of a row-major frames × `columns` array: the RMS over the column's finite
+/// values, √(Σ e² / n); none where the column has none.
+fn rmse_by_column(values: &[f64], columns: usize) -> Vec<Option<f64>> {
+    let mut sum = vec![0.0; columns];
+    let mut count = vec![0usize; columns];
+    for row in values.chunks_exact(columns.max(1)) {
+        for (k, &e) in row.iter().enumerate().filter(|(_, e)| e.is_finite()) {
+            sum[k] += e * e;
+            count[k] += 1;
+        }
+    }
+    (sum.iter().zip(&count))
+        .map(|(s, &n)| (n > 0).then(|| (s / n as f64).sqrt()))
+        .collect()
 }
 
 /// Every emitted value finite (NaN only in `ik_marker_error`, where a target was missing):
@@ -1686,6 +1704,7 @@ impl FrameArrays {
             ik_frames_at_bound: ik.frames_at_limit(),
             ik_frames_at_bound_share: ik.frames_at_limit() as f64 / frames.max(1) as f64,
             ik_markers: Vec::new(),
+            ik_rmse_by_marker: Vec::new(),
             residual_force_max_bw: force / weight,
             residual_force_rms_bw: force_rms / weight,
             residual_moment_max: moment,

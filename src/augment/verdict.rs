@@ -42,6 +42,11 @@ pub struct ClipQuality {
     /// `ik_marker_error`.
     #[serde(default)]
     pub ik_markers: Vec<String>,
+    /// Per IK marker (in the order of [`ClipQuality::ik_markers`]): the RMS over the frames
+    /// with a target of its error ‖model marker − target‖ (m); none for a marker with no
+    /// target in any frame (`null` in the manifest).
+    #[serde(default)]
+    pub ik_rmse_by_marker: Vec<Option<f64>>,
     /// Share of the frames (of [`ClipQuality::frames`]) that ended IK with a coordinate at its
     /// bound.
     #[serde(default)]
