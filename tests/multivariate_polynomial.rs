@@ -99,6 +99,25 @@ fn coupled_shoulder_poses_match_opensim() {
     }
 }
 
+#[test]
+fn a_constant_multivariate_axis_is_a_fixed_offset() {
+    // all but the constant term zero: the axis is a fixed translation of 0.01 along y
+    let from = "<coefficients>0.01 -0.02 0.015 0.03 -0.01 0.005</coefficients>";
+    assert!(MODEL.contains(from));
+    let xml = MODEL.replacen(from, "<coefficients>0.01 0 0 0 0 0</coefficients>", 1);
+    let (model, reference) = (load(&xml).unwrap(), load(MODEL).unwrap());
+    assert_eq!(model.n_full(), reference.n_full() - 1);
+    let humerus = model.body_index("humerus").unwrap();
+    let mut data = Data::new(&model);
+    let mut rng = Rng::new(3);
+    for _ in 0..5 {
+        let q = [rng.uniform(-1.0, 2.0), rng.uniform(-1.2, 0.8), 0.3];
+        dynamics::forward_kinematics(&model, &mut data, &q).unwrap();
+        let pos = data.body_pose(humerus).1;
+        assert_close(pos.y, 1.41, 1e-15, "humerus origin height");
+    }
+}
+
 /// θ at q (full coordinates).
 fn theta(model: &Model, data: &mut Data, q: &[f64]) -> Vec<f64> {
     dynamics::forward_kinematics(model, data, q).unwrap();

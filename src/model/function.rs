@@ -110,6 +110,11 @@ impl Function {
                 let (v, d1, d2) = f.eval1(x);
                 (s * v, s * d1, s * d2)
             }
+            // a constant polynomial of any dimension is its constant term (as for a
+            // LinearFunction of several arguments above, a fixed axis is evaluated at 0)
+            Function::MultivariatePolynomial(p) if p.is_constant() => {
+                (p.coefficients()[0], 0.0, 0.0)
+            }
             Function::MultivariatePolynomial(p) => {
                 let (mut d1, mut d2) = ([0.0], [0.0]);
                 let v = p.eval(&[x], &mut d1, &mut d2);
@@ -961,6 +966,13 @@ mod tests {
         let (mut g, mut h) = ([0.0; 1], [0.0; 1]);
         assert!(p.eval(&[1.0], &mut g, &mut h).is_nan());
         assert!(Function::MultivariatePolynomial(p).eval1(0.5).0.is_nan());
+        // a constant of several arguments is its constant term, whatever the arguments
+        let p = MultivariatePolynomial::new(2, 2, vec![0.25, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+        assert!(p.is_constant());
+        assert_eq!(
+            Function::MultivariatePolynomial(p).eval1(0.0),
+            (0.25, 0.0, 0.0)
+        );
     }
 
     #[test]
