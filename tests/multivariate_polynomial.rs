@@ -293,7 +293,12 @@ fn refused(xml: &str) -> String {
 fn bad_multivariate_polynomials_are_refused_clearly() {
     let coupler = "<coefficients>0.1 0.3 -0.2 0.05 0.6 0.15 -0.1 -0.12 0.08 0.03</coefficients>";
     assert!(MODEL.contains(coupler));
-    let cases: [(&str, &str, &[&str]); 8] = [
+    let cases: [(&str, &str, &[&str]); 9] = [
+        (
+            "<dimension>2</dimension>\n                <order>2</order>",
+            "<order>2</order>",
+            &["translation2", "missing <dimension>"],
+        ),
         (
             coupler,
             "<coefficients>0.1 0.3 -0.2 0.05 0.6 0.15 -0.1 -0.12 0.08</coefficients>",

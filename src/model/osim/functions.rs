@@ -139,6 +139,12 @@ pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
                 }
                 Ok(v as usize) // saturates; an absurd value fails the checks below
             };
+            if child(node, "dimension").is_none() {
+                return Err(ctx.err(
+                    node,
+                    "missing <dimension> (OpenSim's default, 0, is a function of no coordinate)",
+                ));
+            }
             let (dimension, order) = (count("dimension")?, count("order")?);
             let c = ctx.vec_opt(node, "coefficients")?.unwrap_or_default();
             MultivariatePolynomial::new(dimension, order, c)
