@@ -11,7 +11,10 @@
 //!
 //! What MJCF cannot express is approximated where possible and always listed in
 //! [`MjcfExport::notes`]: couplings between full coordinates become joint equality
-//! constraints with quartic polynomials (splines are fitted), conditional and moving path
+//! constraints with quartic polynomials (splines are fitted), except that an axis depending on
+//! several independent coordinates (through a coupler or a `MultivariatePolynomialFunction`
+//! of several coordinates) is left free, as an equality couples two joints only; conditional
+//! and moving path
 //! points become fixed sites, ellipsoid and torus wrap objects are left out, and MuJoCo's
 //! muscle curves replace the Hill-type ones (optimal fibre and tendon slack lengths and the
 //! maximum force and velocity are kept).

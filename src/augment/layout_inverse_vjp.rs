@@ -32,7 +32,8 @@
 //! relative rotation R_j, times the same rotation without ε₁ transposed, has as vee of its
 //! ε₁, ε₁ε₂, ε₁ε₃ and ε₁ε₂ε₃ parts A_j u, ∂(A_j u)·v, ∂(A_j u)·w and ∂²(A_j u)[v, w] (the
 //! root centres likewise from their positions). Coordinate functions enter with their first
-//! three derivatives (OpenSim's functions of several arguments are linear).
+//! three derivatives (for several arguments: value, gradient, Hessian and the third
+//! derivative along the three infinitesimal directions).
 //!
 //! The joint positions of joints other than the roots are not read by the fit and get a zero
 //! gradient; so do the torques of coordinates outside K.
@@ -878,8 +879,8 @@ struct JointKinematics {
     /// derivative of A the reverse pass needs is a contraction of these.
     offset: Vec<usize>,
     table_len: usize,
-    /// Scratch: the nodes' hyper-dual values, and the arguments, gradient and Hessian of a
-    /// function of several arguments.
+    /// Scratch: the nodes' hyper-dual values, and the arguments, gradient, Hessian and the
+    /// three infinitesimal directions of a function of several arguments.
     value: RefCell<Vec<Hyper>>,
     args: RefCell<Vec<f64>>,
 }
@@ -940,7 +941,7 @@ impl JointKinematics {
             offset,
             table_len,
             value: RefCell::new(vec![Hyper::default(); r.nodes.len()]),
-            args: RefCell::new(vec![0.0; 2 * k + k * k]),
+            args: RefCell::new(vec![0.0; 5 * k + k * k]),
         }
     }
 
@@ -986,13 +987,19 @@ impl JointKinematics {
                         let f3 = function.third_derivative1(x);
                         value[args[0]].apply([f0, f1, f2, f3]) * *scale
                     } else {
-                        // functions of several arguments: value, gradient and Hessian (the
-                        // linear ones OpenSim has carry no third-order term)
+                        // functions of several arguments: with h_a the argument's
+                        // infinitesimal part, f(x + h) = f + Σ_a f_a h_a + ½ Σ_ab f_ab h_a h_b
+                        // + ⅙ Σ_abc f_abc h_a h_b h_c; each factor of the cubic term gives one
+                        // of ε₁, ε₂, ε₃ (ε_i² = 0), so it is D³f[h¹, h², h³] ε₁ε₂ε₃ with h^m
+                        // the ε_m parts of the arguments.
                         let k = args.len();
                         let mut args_scratch = self.args.borrow_mut();
                         let (x, rest) = args_scratch.split_at_mut(k);
                         let (g, rest) = rest.split_at_mut(k);
-                        let hs = &mut rest[..k * k];
+                        let (hs, rest) = rest.split_at_mut(k * k);
+                        let (h1, rest) = rest.split_at_mut(k);
+                        let (h2, rest) = rest.split_at_mut(k);
+                        let h3 = &mut rest[..k];
                         for (xa, &a) in x.iter_mut().zip(args) {
                             *xa = value[a].0[0];
                         }
@@ -1007,6 +1014,13 @@ impl JointKinematics {
                                 hb.0[0] = 0.0;
                                 out = out + ha * hb * (0.5 * hs[a * k + b]);
                             }
+                        }
+                        if !function.third_order_vanishes() {
+                            for (a, &arg) in args.iter().enumerate() {
+                                let h = value[arg].0;
+                                (h1[a], h2[a], h3[a]) = (h[1], h[2], h[4]);
+                            }
+                            out.0[7] += function.third_directional(x, h1, h2, h3);
                         }
                         out * *scale
                     }
@@ -1090,68 +1104,81 @@ mod tests {
     #[test]
     fn layout_gradient_matches_finite_differences() {
         for (name, model) in crate::reference::test_models() {
-            let n = model.nq();
-            let layout = JointLayout::new(&model, 0);
-            let (t, rate) = (6, 20.0);
-            let x = crate::reference::layout_motion(&model, t, rate, &[], 1.0)
-                .0
-                .to_vec();
-            let base = coordinates_from_layout(&model, &layout, &layout_clip(t, rate, &x)).unwrap();
-            let misfit = base.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v));
-            assert!(
-                misfit > 1e-3,
-                "{name}: the disturbed layout is consistent ({misfit})"
-            );
-            let mut rng = SplitMix64(11);
-            let cot: Vec<Vec<f64>> = (0..4)
-                .map(|_| (0..t * n).map(|_| rng.uniform(-1.0, 1.0)).collect())
-                .collect();
-            let functional = |c: &LayoutCoordinates| -> f64 {
-                [&c.q, &c.qd, &c.qdd, &c.tau]
-                    .iter()
-                    .zip(&cot)
-                    .map(|(v, g)| dot(v, g))
-                    .sum()
+            check_layout_gradient(name, &model);
+        }
+    }
+
+    /// The same on a shoulder whose translations follow a coordinate coupled to two
+    /// coordinates by a cubic multivariate polynomial (third derivatives of a function of
+    /// several arguments in the hyper-dual kinematics).
+    #[test]
+    fn layout_gradient_matches_finite_differences_with_a_multivariate_coupler() {
+        let xml = include_str!("../../tests/data/multivariate_coupler.osim");
+        let model = Model::from_osim_str(xml, "multivariate_coupler.osim").unwrap();
+        check_layout_gradient("multivariate_coupler", &model);
+    }
+
+    fn check_layout_gradient(name: &str, model: &Model) {
+        let n = model.nq();
+        let layout = JointLayout::new(model, 0);
+        let (t, rate) = (6, 20.0);
+        let x = crate::reference::layout_motion(model, t, rate, &[], 1.0)
+            .0
+            .to_vec();
+        let base = coordinates_from_layout(model, &layout, &layout_clip(t, rate, &x)).unwrap();
+        let misfit = base.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v));
+        assert!(
+            misfit > 1e-3,
+            "{name}: the disturbed layout is consistent ({misfit})"
+        );
+        let mut rng = SplitMix64(11);
+        let cot: Vec<Vec<f64>> = (0..4)
+            .map(|_| (0..t * n).map(|_| rng.uniform(-1.0, 1.0)).collect())
+            .collect();
+        let functional = |c: &LayoutCoordinates| -> f64 {
+            [&c.q, &c.qd, &c.qdd, &c.tau]
+                .iter()
+                .zip(&cot)
+                .map(|(v, g)| dot(v, g))
+                .sum()
+        };
+        let grad = coordinates_from_layout_vjp(
+            model,
+            &layout,
+            &layout_clip(t, rate, &x),
+            &base,
+            &CoordinateGradient {
+                q: &cot[0],
+                qd: &cot[1],
+                qdd: &cot[2],
+                tau: &cot[3],
+            },
+        )
+        .unwrap();
+        let blocks = [
+            ("joint_pos", &grad.joint_pos),
+            ("joint_rot", &grad.joint_rot),
+            ("joint_vel", &grad.joint_vel),
+            ("joint_acc", &grad.joint_acc),
+            ("joint_torque", &grad.joint_torque),
+        ];
+        for (b, (block, g)) in blocks.iter().enumerate() {
+            let dir: Vec<f64> = (0..g.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            let h = 1e-5;
+            let at = |s: f64| {
+                let mut y = x.clone();
+                for (v, d) in y[b].iter_mut().zip(&dir) {
+                    *v += s * d;
+                }
+                functional(
+                    &coordinates_from_layout(model, &layout, &layout_clip(t, rate, &y)).unwrap(),
+                )
             };
-            let grad = coordinates_from_layout_vjp(
-                &model,
-                &layout,
-                &layout_clip(t, rate, &x),
-                &base,
-                &CoordinateGradient {
-                    q: &cot[0],
-                    qd: &cot[1],
-                    qdd: &cot[2],
-                    tau: &cot[3],
-                },
-            )
-            .unwrap();
-            let blocks = [
-                ("joint_pos", &grad.joint_pos),
-                ("joint_rot", &grad.joint_rot),
-                ("joint_vel", &grad.joint_vel),
-                ("joint_acc", &grad.joint_acc),
-                ("joint_torque", &grad.joint_torque),
-            ];
-            for (b, (block, g)) in blocks.iter().enumerate() {
-                let dir: Vec<f64> = (0..g.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
-                let h = 1e-5;
-                let at = |s: f64| {
-                    let mut y = x.clone();
-                    for (v, d) in y[b].iter_mut().zip(&dir) {
-                        *v += s * d;
-                    }
-                    functional(
-                        &coordinates_from_layout(&model, &layout, &layout_clip(t, rate, &y))
-                            .unwrap(),
-                    )
-                };
-                let fd = (at(h) - at(-h)) / (2.0 * h);
-                let exact = dot(g, &dir);
-                let rel = (fd - exact).abs() / exact.abs().max(1e-300);
-                eprintln!("{name} {block}: {exact:.9e} vs differences {fd:.9e} ({rel:.1e})");
-                assert!(rel < 1e-6, "{name} {block}: {exact} vs {fd} ({rel:.1e})");
-            }
+            let fd = (at(h) - at(-h)) / (2.0 * h);
+            let exact = dot(g, &dir);
+            let rel = (fd - exact).abs() / exact.abs().max(1e-300);
+            eprintln!("{name} {block}: {exact:.9e} vs differences {fd:.9e} ({rel:.1e})");
+            assert!(rel < 1e-6, "{name} {block}: {exact} vs {fd} ({rel:.1e})");
         }
     }
 }

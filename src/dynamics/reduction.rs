@@ -156,9 +156,11 @@ pub(crate) fn theta_acceleration(model: &Model, data: &mut Data, qdd: Option<&[f
 /// ```
 ///
 /// and with respect to q̇_k (u(·) = ∂(·)/∂q̇_k): u(ṅ) = ∂n/∂q_k and
-/// u(n̈) = Σ_a g_a u(c̈_a) + 2 Σ_ab g_ab u(ċ_a) ċ_b. Functions of several arguments are
-/// linear or constant (only `LinearFunction`, `Constant` and multiples of them take several
-/// arguments), so g_abc is non-zero only for one-argument functions: g‴ = s f‴.
+/// u(n̈) = Σ_a g_a u(c̈_a) + 2 Σ_ab g_ab u(ċ_a) ċ_b. For a one-argument function the
+/// third-order term is g‴ t(c) ċ² with g‴ = s f‴; for several arguments it is
+/// s D³f[ċ, ċ, t(c)], the function's third derivative along the argument rates (twice) and
+/// tangents, zero unless the function has third derivatives (a multivariate polynomial of
+/// order ≥ 3).
 #[derive(Clone, Debug)]
 pub(crate) struct ReductionTangents {
     /// Φ (n_full × n), ∂θ̇/∂q, ∂θ̈/∂q and ∂θ̈/∂q̇.
@@ -175,6 +177,8 @@ pub(crate) struct ReductionTangents {
     t_val: Vec<f64>,
     t_vel: Vec<f64>,
     t_acc: Vec<f64>,
+    /// Arguments, rates and tangents of one function of several arguments (3 × max_args).
+    scratch: Vec<f64>,
     /// The nodes that depend on q_k, in evaluation order:
     /// `k_nodes[k_nodes_start[k]..k_nodes_start[k + 1]]`; all other tangents of direction k
     /// are zero. Likewise the full coordinates that depend on q_k.
@@ -209,6 +213,7 @@ impl ReductionTangents {
             t_val: vec![0.0; nodes],
             t_vel: vec![0.0; nodes],
             t_acc: vec![0.0; nodes],
+            scratch: vec![0.0; 3 * r.max_args],
             k_nodes_start,
             k_nodes,
             k_full_start,
@@ -267,6 +272,7 @@ impl ReductionTangents {
             t_val,
             t_vel,
             t_acc,
+            scratch,
             k_nodes_start,
             k_nodes,
             k_full_start,
@@ -274,6 +280,7 @@ impl ReductionTangents {
             ..
         } = self;
         let nd = NodeDerivatives {
+            val: &data.node_value,
             vel: &data.node_vel,
             acc: node_acc,
             grad: &data.node_grad,
@@ -285,6 +292,7 @@ impl ReductionTangents {
             val: t_val,
             vel: t_vel,
             acc: t_acc,
+            scratch,
         };
         for k in 0..model.nq() {
             let t_grad = &mut grad_q[k * ne..(k + 1) * ne];
@@ -343,6 +351,7 @@ fn third_derivatives(model: &Model, data: &Data, node_g3: &mut [f64]) {
 
 /// Every node's ṅ, n̈, ∂n/∂q and its function's derivatives g_a, g_ab, g‴ at the current state.
 struct NodeDerivatives<'a> {
+    val: &'a [f64],
     vel: &'a [f64],
     acc: &'a [f64],
     grad: &'a [f64],
@@ -357,6 +366,8 @@ struct Tangent<'a> {
     val: &'a mut [f64],
     vel: &'a mut [f64],
     acc: &'a mut [f64],
+    /// Scratch for the third-order term of a function of several arguments.
+    scratch: &'a mut [f64],
 }
 
 /// Direction q_k: t(n), t(ṅ), t(n̈) and t(∂n/∂q) (into `t_grad`) of the nodes that depend on
@@ -403,7 +414,8 @@ fn tangents_along_q(
 
 /// Direction q_k at function node i (type-level formulas above [`ReductionTangents`]):
 /// t(n) = Σ_a g_a t(c_a), t(ṅ) = Σ_a g_a t(ċ_a) + Σ_ab g_ab t(c_b) ċ_a,
-/// t(n̈) = Σ_a g_a t(c̈_a) + Σ_ab g_ab (t(c_b) c̈_a + t(ċ_a) ċ_b + ċ_a t(ċ_b)) + g‴ t(c) ċ²,
+/// t(n̈) = Σ_a g_a t(c̈_a) + Σ_ab g_ab (t(c_b) c̈_a + t(ċ_a) ċ_b + ċ_a t(ċ_b)) + g‴ t(c) ċ²
+/// (one argument) or + s D³f[ċ, ċ, t(c)] (several),
 /// t(∂n/∂q) = Σ_a (g_a t(∂c_a/∂q) + Σ_b g_ab t(c_b) ∂c_a/∂q) through the scatter plan.
 #[inline]
 fn function_tangent_along_q(
@@ -434,6 +446,20 @@ fn function_tangent_along_q(
     if nargs == 1 {
         let c = args[0];
         tacc += nd.g3[i] * t.val[c] * node_vel[c] * node_vel[c];
+    } else if let NodeKind::Function {
+        function, scale, ..
+    } = &r.nodes[i]
+        && !function.third_order_vanishes()
+    {
+        let (x, rest) = t.scratch.split_at_mut(nargs);
+        let (rate, rest) = rest.split_at_mut(nargs);
+        let tangent = &mut rest[..nargs];
+        for (ai, &a) in args.iter().enumerate() {
+            x[ai] = nd.val[a];
+            rate[ai] = node_vel[a];
+            tangent[ai] = t.val[a];
+        }
+        tacc += scale * function.third_directional(x, rate, rate, tangent);
     }
     t.val[i] = tv;
     t.vel[i] = tvel;

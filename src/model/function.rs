@@ -1,9 +1,11 @@
 //! Scalar functions of coordinates, as OpenSim defines them: `Constant`, `LinearFunction`,
 //! `PolynomialFunction`, `SimmSpline` (= `NaturalCubicSpline`, which OpenSim reads as a
-//! `SimmSpline`), `PiecewiseLinearFunction`, `GCVSpline` and `MultiplierFunction`.
+//! `SimmSpline`), `PiecewiseLinearFunction`, `GCVSpline`, `MultiplierFunction` and
+//! `MultivariatePolynomialFunction`.
 //!
 //! Every function returns its value and its first and second partial derivatives, which the
-//! coordinate reduction needs for Φ and Φ̇q̇.
+//! coordinate reduction needs for Φ and Φ̇q̇, and its third derivative along three directions
+//! (for the derivatives of Φ̇q̇).
 
 use super::natural_spline::NaturalSpline;
 
@@ -26,6 +28,9 @@ pub enum Function {
     GcvSpline(NaturalSpline),
     /// OpenSim `MultiplierFunction`: f = scale · g.
     Multiplier(Box<Function>, f64),
+    /// OpenSim `MultivariatePolynomialFunction`: a polynomial of `dimension` arguments whose
+    /// terms have total degree at most `order`.
+    MultivariatePolynomial(MultivariatePolynomial),
 }
 
 /// How many arguments a function accepts.
@@ -42,6 +47,7 @@ impl Function {
             Function::Constant(_) => Arity::Any,
             Function::Linear(c) => Arity::Exactly(c.len().saturating_sub(1)),
             Function::Multiplier(f, _) => f.arity(),
+            Function::MultivariatePolynomial(p) => Arity::Exactly(p.dimension()),
             _ => Arity::Exactly(1),
         }
     }
@@ -56,6 +62,7 @@ impl Function {
             Function::PiecewiseLinear(_) => "PiecewiseLinearFunction",
             Function::GcvSpline(_) => "GCVSpline",
             Function::Multiplier(_, _) => "MultiplierFunction",
+            Function::MultivariatePolynomial(_) => "MultivariatePolynomialFunction",
         }
     }
 
@@ -64,7 +71,21 @@ impl Function {
         match self {
             Function::Constant(_) => true,
             Function::Multiplier(f, s) => *s == 0.0 || f.is_constant(),
+            Function::MultivariatePolynomial(p) => p.is_constant(),
             _ => false,
+        }
+    }
+
+    /// True when every third partial derivative is zero everywhere (a `Constant`, a
+    /// `LinearFunction`, a `PiecewiseLinearFunction`, a multivariate polynomial of order ≤ 2,
+    /// or a multiple of one), so that [`Function::third_directional`] can be skipped.
+    pub fn third_order_vanishes(&self) -> bool {
+        match self {
+            Function::Constant(_) | Function::Linear(_) | Function::PiecewiseLinear(_) => true,
+            Function::Polynomial(c) => c.len() <= 3,
+            Function::Multiplier(f, s) => *s == 0.0 || f.third_order_vanishes(),
+            Function::MultivariatePolynomial(p) => p.order() <= 2,
+            Function::SimmSpline(_) | Function::GcvSpline(_) => false,
         }
     }
 
@@ -89,6 +110,16 @@ impl Function {
                 let (v, d1, d2) = f.eval1(x);
                 (s * v, s * d1, s * d2)
             }
+            // a constant polynomial of any dimension is its constant term (as for a
+            // LinearFunction of several arguments above, a fixed axis is evaluated at 0)
+            Function::MultivariatePolynomial(p) if p.is_constant() => {
+                (p.coefficients()[0], 0.0, 0.0)
+            }
+            Function::MultivariatePolynomial(p) => {
+                let (mut d1, mut d2) = ([0.0], [0.0]);
+                let v = p.eval(&[x], &mut d1, &mut d2);
+                (v, d1[0], d2[0])
+            }
         }
     }
 
@@ -103,6 +134,23 @@ impl Function {
             Function::SimmSpline(s) => s.third_derivative(x),
             Function::GcvSpline(s) => s.derivative(x, 3),
             Function::Multiplier(f, s) => s * f.third_derivative1(x),
+            Function::MultivariatePolynomial(p) => {
+                p.third_directional(&[x], &[1.0], &[1.0], &[1.0])
+            }
+        }
+    }
+
+    /// D³f(x)[u, v, w] = Σ_abc ∂³f/∂x_a∂x_b∂x_c u_a v_b w_c, the third derivative of a
+    /// function of `x.len()` arguments along three directions; f‴(x) u v w for one argument.
+    /// The caller guarantees that `x` matches `arity()` and the directions have its length.
+    pub fn third_directional(&self, x: &[f64], u: &[f64], v: &[f64], w: &[f64]) -> f64 {
+        match (self, x.len()) {
+            (Function::Constant(_) | Function::Linear(_), _) => 0.0,
+            (Function::Multiplier(f, s), _) => s * f.third_directional(x, u, v, w),
+            (Function::MultivariatePolynomial(p), _) => p.third_directional(x, u, v, w),
+            (_, 1) => self.third_derivative1(x[0]) * u[0] * v[0] * w[0],
+            // Unreachable for functions validated against their arity at model load.
+            _ => f64::NAN,
         }
     }
 
@@ -131,6 +179,7 @@ impl Function {
                 hess.iter_mut().for_each(|h| *h *= s);
                 s * v
             }
+            (Function::MultivariatePolynomial(p), k) if k == p.dimension() => p.eval(x, grad, hess),
             (_, 1) => {
                 let (v, d1, d2) = self.eval1(x[0]);
                 grad[0] = d1;
@@ -357,6 +406,246 @@ impl PiecewiseLinear {
     }
 }
 
+/// Largest `dimension` of a [`MultivariatePolynomial`] musculo reads: a coordinate coupled to
+/// more coordinates than this is no musculoskeletal model, and the limit keeps a typing error
+/// in a file from allocating a huge exponent table.
+pub const MAX_POLYNOMIAL_DIMENSION: usize = 32;
+
+/// OpenSim's `MultivariatePolynomialFunction` of n = `dimension` arguments and total degree at
+/// most `order`:
+///
+/// ```text
+/// f(x) = Σ_t c_t Π_i x_i^(e_ti),   over every exponent vector e_t with Σ_i e_ti ≤ order,
+/// ```
+///
+/// C(n + order, order) terms. The coefficients are in OpenSim's order: the exponent vectors
+/// (e_0, …, e_{n−1}) ascending lexicographically, the last argument's exponent varying
+/// fastest. For n = 2, order 2: 1, x₁, x₁², x₀, x₀x₁, x₀² (so c_1 multiplies the *last*
+/// argument; the reverse of the univariate `PolynomialFunction`, which starts at the highest
+/// power).
+///
+/// Derivatives are exact, term by term, with the falling powers
+/// ∂ᵐ(xᵉ)/∂xᵐ = e (e − 1) … (e − m + 1) x^(e − m) (zero for m > e): a partial derivative of a
+/// term by the multiset of arguments {a, b, …} is Π_i ∂^(m_i) x_i^(e_ti) with m_i how many
+/// times i appears. (OpenSim 4.6 itself evaluates only first derivatives of this function.)
+#[derive(Clone, Debug, PartialEq)]
+pub struct MultivariatePolynomial {
+    dimension: usize,
+    order: usize,
+    coefficients: Vec<f64>,
+    /// e_ti at t · dimension + i, in the coefficients' order.
+    exponents: Vec<u32>,
+}
+
+impl MultivariatePolynomial {
+    /// Checks `dimension` (1 to [`MAX_POLYNOMIAL_DIMENSION`]), the number of coefficients
+    /// (C(dimension + order, order)) and their finiteness.
+    pub fn new(dimension: usize, order: usize, coefficients: Vec<f64>) -> Result<Self, String> {
+        if dimension == 0 {
+            return Err("<dimension> must be at least 1".into());
+        }
+        if dimension > MAX_POLYNOMIAL_DIMENSION {
+            return Err(format!(
+                "<dimension> {dimension} exceeds the {MAX_POLYNOMIAL_DIMENSION} arguments musculo reads"
+            ));
+        }
+        let n = coefficients.len();
+        // C(dimension + order, order) ≥ order + 1: an order ≥ n is too large, and is only
+        // counted (in `order` steps) when small
+        let count = if order < n.max(1000) {
+            term_count(dimension, order)
+        } else {
+            None
+        };
+        match count {
+            Some(t) if t == n => {}
+            Some(t) => {
+                return Err(format!(
+                    "<coefficients> has {n} values; dimension {dimension} and order {order} \
+                     need C({dimension} + {order}, {order}) = {t}"
+                ));
+            }
+            None => {
+                return Err(format!(
+                    "<coefficients> has {n} values; dimension {dimension} and order {order} \
+                     need C({dimension} + {order}, {order}), more than that"
+                ));
+            }
+        }
+        if let Some(i) = coefficients.iter().position(|c| !c.is_finite()) {
+            return Err(format!(
+                "<coefficients> value {i} (counting from 0) is {}",
+                coefficients[i]
+            ));
+        }
+        let exponents = exponent_table(dimension, order);
+        debug_assert_eq!(exponents.len(), n * dimension);
+        Ok(MultivariatePolynomial {
+            dimension,
+            order,
+            coefficients,
+            exponents,
+        })
+    }
+
+    pub fn dimension(&self) -> usize {
+        self.dimension
+    }
+
+    pub fn order(&self) -> usize {
+        self.order
+    }
+
+    /// The coefficients, in OpenSim's order (see the type's description).
+    pub fn coefficients(&self) -> &[f64] {
+        &self.coefficients
+    }
+
+    /// The exponents (e_t0, …, e_t,n−1) of term t.
+    pub fn exponents(&self, t: usize) -> &[u32] {
+        &self.exponents[t * self.dimension..(t + 1) * self.dimension]
+    }
+
+    /// True when every non-constant term has a zero coefficient.
+    pub fn is_constant(&self) -> bool {
+        self.coefficients[1..].iter().all(|&c| c == 0.0)
+    }
+
+    /// ∂^(m_0 + …) f / ∂x_0^(m_0) … of term t without its coefficient: Π_i ∂^(m_i) x_i^(e_ti),
+    /// with `m(i)` the order in argument i.
+    #[inline]
+    fn term_derivative(&self, t: usize, x: &[f64], m: impl Fn(usize) -> u32) -> f64 {
+        let mut p = 1.0;
+        for (i, &e) in self.exponents(t).iter().enumerate() {
+            let mi = m(i);
+            if mi > e {
+                return 0.0;
+            }
+            p *= falling_power(x[i], e, mi);
+        }
+        p
+    }
+
+    /// Value at x, gradient into `grad` (length n) and Hessian into `hess` (n×n, row-major):
+    /// term by term, f = Σ_t c_t Π_i x_i^(e_ti), f_a = Σ_t c_t ∂_a(…), f_ab = Σ_t c_t ∂_ab(…).
+    /// NaN everywhere when the lengths do not match the dimension.
+    pub fn eval(&self, x: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64 {
+        let n = self.dimension;
+        if x.len() != n || grad.len() != n || hess.len() != n * n {
+            grad.fill(f64::NAN);
+            hess.fill(f64::NAN);
+            return f64::NAN;
+        }
+        grad.fill(0.0);
+        hess.fill(0.0);
+        let mut v = 0.0;
+        for (t, &c) in self.coefficients.iter().enumerate() {
+            if c == 0.0 {
+                continue;
+            }
+            v += c * self.term_derivative(t, x, |_| 0);
+            for a in 0..n {
+                if self.exponents(t)[a] == 0 {
+                    continue;
+                }
+                grad[a] += c * self.term_derivative(t, x, |i| u32::from(i == a));
+                for b in a..n {
+                    let h =
+                        c * self.term_derivative(t, x, |i| u32::from(i == a) + u32::from(i == b));
+                    hess[a * n + b] += h;
+                    if b != a {
+                        hess[b * n + a] += h;
+                    }
+                }
+            }
+        }
+        v
+    }
+
+    /// D³f(x)[u, v, w] = Σ_t c_t Σ_abc ∂_abc(Π_i x_i^(e_ti)) u_a v_b w_c; NaN when the lengths
+    /// do not match the dimension.
+    pub fn third_directional(&self, x: &[f64], u: &[f64], v: &[f64], w: &[f64]) -> f64 {
+        let n = self.dimension;
+        if [x.len(), u.len(), v.len(), w.len()] != [n; 4] {
+            return f64::NAN;
+        }
+        if self.order < 3 {
+            return 0.0;
+        }
+        let mut d = 0.0;
+        for (t, &c) in self.coefficients.iter().enumerate() {
+            if c == 0.0 || self.exponents(t).iter().sum::<u32>() < 3 {
+                continue;
+            }
+            for a in 0..n {
+                for b in 0..n {
+                    for k in 0..n {
+                        let weight = u[a] * v[b] * w[k];
+                        if weight == 0.0 {
+                            continue;
+                        }
+                        let m =
+                            |i: usize| u32::from(i == a) + u32::from(i == b) + u32::from(i == k);
+                        d += c * weight * self.term_derivative(t, x, m);
+                    }
+                }
+            }
+        }
+        d
+    }
+}
+
+/// ∂ᵐ(xᵉ)/∂xᵐ = e (e − 1) … (e − m + 1) x^(e − m), for m ≤ e.
+#[inline]
+fn falling_power(x: f64, e: u32, m: u32) -> f64 {
+    let mut k = 1.0;
+    for j in 0..m {
+        k *= f64::from(e - j);
+    }
+    // e − m ≤ order, which the coefficient count bounds
+    k * x.powi((e - m) as i32)
+}
+
+/// C(dimension + order, order), the number of terms, computed as the running product
+/// C(n + j, j) = C(n + j − 1, j − 1) (n + j) / j; None when it overflows.
+fn term_count(dimension: usize, order: usize) -> Option<usize> {
+    let mut c: usize = 1;
+    for j in 1..=order {
+        // C(n + j − 1, j − 1) (n + j) is divisible by j
+        c = c.checked_mul(dimension.checked_add(j)?)? / j;
+    }
+    Some(c)
+}
+
+/// The exponent vectors of every term in OpenSim's order: (e_0, …, e_{n−1}) ascending
+/// lexicographically with Σ e_i ≤ order (the last exponent varies fastest), flattened. The
+/// successor of e increases the last e_i for which e_0 + … + e_i < order and zeroes those
+/// after it; there is none after (order, 0, …, 0).
+fn exponent_table(dimension: usize, order: usize) -> Vec<u32> {
+    // order < the number of terms, itself a length in memory
+    let order = u32::try_from(order).unwrap_or(u32::MAX);
+    let mut table = Vec::new();
+    let mut e = vec![0u32; dimension];
+    loop {
+        table.extend_from_slice(&e);
+        let mut prefix: u32 = e.iter().sum();
+        let mut next = None;
+        for i in (0..dimension).rev() {
+            // prefix = e_0 + … + e_i here
+            if prefix < order {
+                next = Some(i);
+                break;
+            }
+            prefix -= e[i];
+        }
+        let Some(i) = next else {
+            return table;
+        };
+        e[i] += 1;
+        e[i + 1..].fill(0);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -510,6 +799,180 @@ mod tests {
         assert_eq!(v, 3.0 * (2.0 - 4.0 + 0.5));
         assert_eq!(g, [6.0, -3.0]);
         assert_eq!(h, [0.0; 4]);
+    }
+
+    /// A small deterministic generator of numbers in [−1, 1).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        }
+    }
+
+    fn random_polynomial(rng: &mut Lcg, dimension: usize, order: usize) -> MultivariatePolynomial {
+        let n = term_count(dimension, order).unwrap();
+        MultivariatePolynomial::new(dimension, order, (0..n).map(|_| rng.next()).collect()).unwrap()
+    }
+
+    #[test]
+    fn multivariate_polynomial_terms_are_in_opensims_order() {
+        // OpenSim 4.6's own table for three arguments (X, Y, Z) and order 3, checked with
+        // its Python API (a unit coefficient at index t evaluated at (2, 3, 5) gives
+        // 2^a 3^b 5^c): ascending lexicographic exponents, Z's varying fastest.
+        let expected: [[u32; 3]; 20] = [
+            [0, 0, 0],
+            [0, 0, 1],
+            [0, 0, 2],
+            [0, 0, 3],
+            [0, 1, 0],
+            [0, 1, 1],
+            [0, 1, 2],
+            [0, 2, 0],
+            [0, 2, 1],
+            [0, 3, 0],
+            [1, 0, 0],
+            [1, 0, 1],
+            [1, 0, 2],
+            [1, 1, 0],
+            [1, 1, 1],
+            [1, 2, 0],
+            [2, 0, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+            [3, 0, 0],
+        ];
+        for (t, e) in expected.iter().enumerate() {
+            let mut c = vec![0.0; 20];
+            c[t] = 1.0;
+            let p = MultivariatePolynomial::new(3, 3, c).unwrap();
+            assert_eq!(p.exponents(t), e);
+            let (mut g, mut h) = ([0.0; 3], [0.0; 9]);
+            let v = p.eval(&[2.0, 3.0, 5.0], &mut g, &mut h);
+            let monomial = 2f64.powi(e[0] as i32) * 3f64.powi(e[1] as i32) * 5f64.powi(e[2] as i32);
+            assert_eq!(v, monomial, "term {t}");
+        }
+        // the number of terms is C(n + order, order)
+        for (n, order, count) in [
+            (1, 0, 1),
+            (1, 4, 5),
+            (2, 2, 6),
+            (2, 4, 15),
+            (3, 4, 35),
+            (6, 3, 84),
+        ] {
+            assert_eq!(exponent_table(n, order).len(), count * n);
+            assert_eq!(term_count(n, order), Some(count));
+        }
+    }
+
+    #[test]
+    fn multivariate_polynomial_matches_hand_computed_derivatives() {
+        // dimension 2, order 3, terms 1, y, y², y³, x, xy, xy², x², x²y, x³:
+        // f = 1.5 + 2y − xy + 0.5x²y
+        let mut c = vec![0.0; 10];
+        c[0] = 1.5;
+        c[1] = 2.0;
+        c[5] = -1.0;
+        c[8] = 0.5;
+        let f = Function::MultivariatePolynomial(MultivariatePolynomial::new(2, 3, c).unwrap());
+        assert_eq!(f.arity(), Arity::Exactly(2));
+        let (x, y) = (0.7, -1.3);
+        let (mut g, mut h) = ([0.0; 2], [0.0; 4]);
+        let v = f.eval(&[x, y], &mut g, &mut h);
+        assert!((v - (1.5 + 2.0 * y - x * y + 0.5 * x * x * y)).abs() < 1e-15);
+        // f_x = −y + xy, f_y = 2 − x + 0.5x², f_xx = y, f_xy = −1 + x, f_yy = 0
+        assert!((g[0] - (-y + x * y)).abs() < 1e-15);
+        assert!((g[1] - (2.0 - x + 0.5 * x * x)).abs() < 1e-15);
+        assert!((h[0] - y).abs() < 1e-15 && h[3] == 0.0);
+        assert!((h[1] - (-1.0 + x)).abs() < 1e-15 && h[1] == h[2]);
+        // the only non-zero third derivative is f_xxy = 1: D³f[u, v, w] = u₀v₀w₁ + u₀v₁w₀ + u₁v₀w₀
+        let (u, vv, w) = ([0.3, -0.8], [1.1, 0.4], [-0.6, 0.9]);
+        let d3 = f.third_directional(&[x, y], &u, &vv, &w);
+        let expected = u[0] * vv[0] * w[1] + u[0] * vv[1] * w[0] + u[1] * vv[0] * w[0];
+        assert!((d3 - expected).abs() < 1e-15);
+        assert!(!f.third_order_vanishes() && !f.is_constant());
+    }
+
+    #[test]
+    fn multivariate_polynomial_derivatives_match_finite_differences() {
+        let mut rng = Lcg(7);
+        let h = 1e-6;
+        for (n, order) in [(1, 4), (2, 1), (2, 3), (2, 4), (3, 2), (3, 4)] {
+            let p = random_polynomial(&mut rng, n, order);
+            let f = Function::Multiplier(Box::new(Function::MultivariatePolynomial(p)), 1.7);
+            for _ in 0..5 {
+                let x: Vec<f64> = (0..n).map(|_| 1.5 * rng.next()).collect();
+                let (mut g, mut hs) = (vec![0.0; n], vec![0.0; n * n]);
+                f.eval(&x, &mut g, &mut hs);
+                let [u, v, w]: [Vec<f64>; 3] =
+                    std::array::from_fn(|_| (0..n).map(|_| rng.next()).collect());
+                let d3 = f.third_directional(&x, &u, &v, &w);
+                for a in 0..n {
+                    let (mut xp, mut xm) = (x.clone(), x.clone());
+                    xp[a] += h;
+                    xm[a] -= h;
+                    let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
+                    let (mut hp, mut hm) = (vec![0.0; n * n], vec![0.0; n * n]);
+                    let fd =
+                        (f.eval(&xp, &mut gp, &mut hp) - f.eval(&xm, &mut gm, &mut hm)) / (2.0 * h);
+                    assert!((g[a] - fd).abs() < 1e-8, "n {n} order {order}: f_{a}");
+                    for b in 0..n {
+                        let fd = (gp[b] - gm[b]) / (2.0 * h);
+                        assert!((hs[a * n + b] - fd).abs() < 1e-7, "f_{a}{b}");
+                    }
+                }
+                // D³f[u, v, w] = d/ds (Σ_ab f_ab(x + s w) u_a v_b) at s = 0
+                let bilinear = |s: f64| {
+                    let xs: Vec<f64> = x.iter().zip(&w).map(|(xi, wi)| xi + s * wi).collect();
+                    let (mut g, mut hs) = (vec![0.0; n], vec![0.0; n * n]);
+                    f.eval(&xs, &mut g, &mut hs);
+                    (0..n * n)
+                        .map(|ab| hs[ab] * u[ab / n] * v[ab % n])
+                        .sum::<f64>()
+                };
+                let fd = (bilinear(h) - bilinear(-h)) / (2.0 * h);
+                assert!((d3 - fd).abs() < 1e-6, "n {n} order {order}: {d3} vs {fd}");
+                if n == 1 {
+                    let (v1, d1, d2) = f.eval1(x[0]);
+                    let (mut g1, mut h1) = ([0.0], [0.0]);
+                    assert_eq!(v1, f.eval(&x, &mut g1, &mut h1));
+                    assert_eq!((d1, d2), (g1[0], h1[0]));
+                    let t = f.third_derivative1(x[0]);
+                    assert!((t * u[0] * v[0] * w[0] - d3).abs() < 1e-12);
+                }
+            }
+            assert_eq!(f.third_order_vanishes(), order <= 2);
+        }
+    }
+
+    #[test]
+    fn bad_multivariate_polynomials_are_rejected() {
+        let err = |n, order, c: Vec<f64>| MultivariatePolynomial::new(n, order, c).unwrap_err();
+        assert!(err(2, 2, vec![1.0; 5]).contains("C(2 + 2, 2) = 6"));
+        assert!(err(2, 2, vec![1.0; 7]).contains("has 7 values"));
+        assert!(err(0, 0, vec![1.0]).contains("at least 1"));
+        assert!(err(33, 0, vec![1.0]).contains("exceeds"));
+        assert!(err(2, 1, vec![1.0, f64::NAN, 0.0]).contains("value 1"));
+        // an absurd order is refused without counting its terms
+        assert!(err(3, usize::MAX, vec![1.0; 4]).contains("more than that"));
+        assert!(err(1, 4, vec![1.0; 4]).contains("C(1 + 4, 4) = 5"));
+        assert!(err(usize::MAX, 1, vec![1.0; 4]).contains("exceeds"));
+        // lengths that do not match give NaN, never a panic
+        let p = MultivariatePolynomial::new(2, 1, vec![1.0, 2.0, 3.0]).unwrap();
+        let (mut g, mut h) = ([0.0; 1], [0.0; 1]);
+        assert!(p.eval(&[1.0], &mut g, &mut h).is_nan());
+        assert!(Function::MultivariatePolynomial(p).eval1(0.5).0.is_nan());
+        // a constant of several arguments is its constant term, whatever the arguments
+        let p = MultivariatePolynomial::new(2, 2, vec![0.25, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+        assert!(p.is_constant());
+        assert_eq!(
+            Function::MultivariatePolynomial(p).eval1(0.0),
+            (0.25, 0.0, 0.0)
+        );
     }
 
     #[test]

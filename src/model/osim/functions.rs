@@ -2,7 +2,7 @@
 
 use super::xml::{Ctx, XNode, child, elements};
 use crate::error::Error;
-use crate::model::function::{Function, PiecewiseLinear, SimmSpline};
+use crate::model::function::{Function, MultivariatePolynomial, PiecewiseLinear, SimmSpline};
 use crate::model::knots::{check_knot_spacing, check_xy};
 use crate::model::natural_spline::NaturalSpline;
 
@@ -17,6 +17,7 @@ pub const FUNCTION_TAGS: &[&str] = &[
     "PiecewiseLinearFunction",
     "GCVSpline",
     "MultiplierFunction",
+    "MultivariatePolynomialFunction",
 ];
 
 /// OpenSim function classes musculo does not read (named in the error).
@@ -24,7 +25,6 @@ const UNSUPPORTED_FUNCTION_TAGS: &[&str] = &[
     "Sine",
     "StepFunction",
     "PiecewiseConstantFunction",
-    "MultivariatePolynomialFunction",
     "FunctionAdapter",
     "ExpressionBasedFunction",
     "SmoothSegmentedFunction",
@@ -125,6 +125,31 @@ pub fn parse_function(ctx: &Ctx, node: XNode) -> Result<Function, Error> {
                 Box::new(parse_function(ctx, inner)?),
                 scale,
             ))
+        }
+        "MultivariatePolynomialFunction" => {
+            // OpenSim 4.6's properties are <dimension>, <order> and <coefficients> (defaults
+            // 0, 0 and none); nothing else changes its value.
+            let count = |tag: &str| -> Result<usize, Error> {
+                let v = ctx.f64_or(node, tag, 0.0)?;
+                if v.fract() != 0.0 || v < 0.0 {
+                    return Err(ctx.err(
+                        node,
+                        format!("<{tag}> must be a non-negative integer, found {v}"),
+                    ));
+                }
+                Ok(v as usize) // saturates; an absurd value fails the checks below
+            };
+            if child(node, "dimension").is_none() {
+                return Err(ctx.err(
+                    node,
+                    "missing <dimension> (OpenSim's default, 0, is a function of no coordinate)",
+                ));
+            }
+            let (dimension, order) = (count("dimension")?, count("order")?);
+            let c = ctx.vec_opt(node, "coefficients")?.unwrap_or_default();
+            MultivariatePolynomial::new(dimension, order, c)
+                .map(Function::MultivariatePolynomial)
+                .map_err(|m| ctx.err(node, m))
         }
         other => Err(ctx.err(
             node,

@@ -118,8 +118,22 @@ fn problem_over_ranges(model: &Model, f: &Function, scale: f64, args: &[usize]) 
         }
         return None;
     }
-    // Several arguments (or none): a constant or an affine function, whose extremes over
-    // the box are at the corners its gradient points to.
+    // Several arguments (or none). A polynomial of several arguments is sampled on a grid
+    // over the box of their ranges.
+    if curved(f) {
+        let mut grad = vec![0.0; ranges.len()];
+        let mut hess = vec![0.0; ranges.len() * ranges.len()];
+        for x in box_grid(&ranges) {
+            let v = f.eval(&x, &mut grad, &mut hess);
+            let slope = grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+            let curvature = hess.iter().fold(0.0f64, |m, h| m.max(h.abs()));
+            if let Some(p) = judge(&x, scale * v, scale * slope, scale * curvature) {
+                return Some(p);
+            }
+        }
+    }
+    // A constant or an affine function has its extremes over the box at the corners its
+    // gradient points to (for a curved one these corners are sampled too).
     let k = ranges.len();
     let (mut grad, mut hess) = (vec![0.0; k], vec![0.0; k * k]);
     let mid: Vec<f64> = ranges.iter().map(|r| 0.5 * r[0] + 0.5 * r[1]).collect();
@@ -141,6 +155,45 @@ fn problem_over_ranges(model: &Model, f: &Function, scale: f64, args: &[usize]) 
         }
     }
     None
+}
+
+/// True for a function of several arguments that is not affine (a multivariate polynomial
+/// of order ≥ 2, or a multiple of one).
+fn curved(f: &Function) -> bool {
+    match f {
+        Function::MultivariatePolynomial(p) => p.order() >= 2,
+        Function::Multiplier(g, _) => curved(g),
+        _ => false,
+    }
+}
+
+/// Points of a grid over the box `ranges`: n points per argument, ends included, with
+/// n = ⌊GRID_POINTS^(1/k)⌋ (at least 2, at most SAMPLES + 1) for k arguments; beyond 12
+/// arguments (2¹² points) only the corners of the first 12, the others at their midpoints.
+fn box_grid(ranges: &[[f64; 2]]) -> Vec<Vec<f64>> {
+    const GRID_POINTS: f64 = 4096.0;
+    let k = ranges.len();
+    let gridded = k.min(12);
+    let n = (GRID_POINTS.powf(1.0 / gridded.max(1) as f64).floor() as usize).clamp(2, SAMPLES + 1);
+    let total = n.pow(gridded as u32);
+    (0..total)
+        .map(|mut index| {
+            ranges
+                .iter()
+                .enumerate()
+                .map(|(i, &[lo, hi])| {
+                    let s = if i < gridded {
+                        let s = (index % n) as f64 / (n - 1) as f64;
+                        index /= n;
+                        s
+                    } else {
+                        0.5
+                    };
+                    lo * (1.0 - s) + hi * s
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// The knots of a spline or piecewise-linear function (where its extremes may lie).

@@ -32,7 +32,7 @@ pub(super) struct Edit {
     pub op: Op,
 }
 
-pub(super) const FUNCTION_TAGS: [&str; 10] = [
+pub(super) const FUNCTION_TAGS: [&str; 11] = [
     "Constant",
     "LinearFunction",
     "PolynomialFunction",
@@ -43,6 +43,7 @@ pub(super) const FUNCTION_TAGS: [&str; 10] = [
     "PiecewiseLinearFunction",
     "PiecewiseConstantFunction",
     "MultiplierFunction",
+    "MultivariatePolynomialFunction",
 ];
 const WRAP_OBJECTS: [&str; 4] = ["WrapSphere", "WrapCylinder", "WrapEllipsoid", "WrapTorus"];
 const PATH_POINTS: [&str; 3] = ["PathPoint", "ConditionalPathPoint", "MovingPathPoint"];
@@ -263,7 +264,8 @@ impl<'a, 'd, 'i> Scaler<'a, 'd, 'i> {
                 c
             }
             "Constant" => child(f, "value"),
-            "PolynomialFunction" => child(f, "coefficients"),
+            // every term scales with its coefficient: k f = Σ_t (k c_t) x^(e_t)
+            "PolynomialFunction" | "MultivariatePolynomialFunction" => child(f, "coefficients"),
             "MultiplierFunction" => Some(child(f, "scale").ok_or_else(|| {
                 self.error(f, "a MultiplierFunction without <scale> cannot be rescaled")
             })?),
