@@ -603,3 +603,104 @@ fn default_model_holds_every_moment_arm_within_its_bound() {
     // to a bound
     assert_eq!((s.pass, s.skip), (322, 2));
 }
+
+/// `random_lines` lines on `model` with a largest length change `jump` per step: (the
+/// line-continuity check of `muscle`, "random lines computable").
+fn line_checks(
+    model: &Model,
+    random_lines: usize,
+    jump: f64,
+    muscle: &str,
+) -> (check::Check, Status) {
+    let options = CheckOptions {
+        random_lines,
+        max_line_length_jump: jump,
+        ..CheckOptions::default()
+    };
+    let report = check::run(model, &options).unwrap();
+    let found: Vec<_> = report
+        .find(Family::Paths, muscle)
+        .filter(|c| c.name == "length continuity on random lines")
+        .cloned()
+        .collect();
+    assert_eq!(found.len(), 1, "{found:?}");
+    let name = model.name.clone();
+    (
+        found[0].clone(),
+        status(&report, Family::Paths, "random lines computable", &name),
+    )
+}
+
+#[test]
+fn random_lines_pass_the_demo_and_fail_a_path_that_jumps() {
+    // The demo model's paths are continuous: every muscle passes.
+    let demo = Model::demo();
+    let report = check::run(
+        &demo,
+        &CheckOptions {
+            random_lines: 40,
+            ..CheckOptions::default()
+        },
+    )
+    .unwrap();
+    let lines: Vec<_> = report
+        .checks
+        .iter()
+        .filter(|c| c.name == "length continuity on random lines")
+        .collect();
+    assert!(!lines.is_empty());
+    for c in &lines {
+        assert_eq!(c.status, Status::Pass, "{c:?}");
+        assert!(c.value.unwrap() <= 0.001, "{c:?}");
+    }
+    assert!(report.passed(), "{:?}", failures(&report));
+    // Without the option there is no such check.
+    assert!(
+        !run(&demo)
+            .checks
+            .iter()
+            .any(|c| c.name.contains("random lines"))
+    );
+
+    // The pulley's rope is continuous over theta's whole range (its 0.15 m moment arm
+    // changes the length by 1.3 mm per 0.5° step: the limit is 2 mm here) ...
+    let pulley = Model::from_osim_str(PULLEY_OSIM, "pulley.osim").unwrap();
+    let (c, computable) = line_checks(&pulley, 20, 0.002, "rope");
+    assert_eq!(
+        (c.status, computable),
+        (Status::Pass, Status::Pass),
+        "{c:?}"
+    );
+    // ... and a conditional via point far off the rope, active for theta in [-0.1, 0],
+    // makes its length jump where the point switches on.
+    let jumping = PULLEY_OSIM.replace(
+        r#"<PathPoint name="rope-P2">"#,
+        r#"<ConditionalPathPoint name="rope-C"><socket_parent_frame>/ground</socket_parent_frame><location>0 0.6 0</location><socket_coordinate>/jointset/pin/theta</socket_coordinate><range>-0.1 0</range></ConditionalPathPoint>
+            <PathPoint name="rope-P2">"#,
+    );
+    assert_ne!(jumping, PULLEY_OSIM);
+    let model = Model::from_osim_str(&jumping, "jumping.osim").unwrap();
+    let (c, computable) = line_checks(&model, 20, 0.002, "rope");
+    assert_eq!(
+        (c.status, computable),
+        (Status::Fail, Status::Pass),
+        "{c:?}"
+    );
+    // the jump is the detour over the via point (centimetres), not a 0.5° step's change
+    assert!(c.value.unwrap() > 0.05, "{c:?}");
+    assert!(c.message.contains("theta"), "{c:?}");
+
+    // Option limits.
+    let too_many = CheckOptions {
+        random_lines: check::MAX_RANDOM_LINES + 1,
+        ..CheckOptions::default()
+    };
+    let (argument, _) = expect_invalid_argument(check::run(&demo, &too_many).unwrap_err());
+    assert_eq!(argument, "random_lines");
+    let zero_step = CheckOptions {
+        max_line_step: 0.0,
+        ..CheckOptions::default()
+    };
+    let (argument, _) = expect_invalid_argument(check::run(&demo, &zero_step).unwrap_err());
+    assert_eq!(argument, "max_line_step");
+}

@@ -195,6 +195,10 @@ pub const MAX_GRID_POINTS: usize = 10_000;
 /// take seconds on the default model; ten million would take most of an hour).
 pub const MAX_RANDOM_POSES: usize = 1_000_000;
 
+/// The most random lines of the line-continuity check: each walks a few hundred poses
+/// (1,000 lines take about a minute on the default model).
+pub const MAX_RANDOM_LINES: usize = 100_000;
+
 /// Settings of [`run`], with the defaults in one place.
 #[derive(Clone, Debug)]
 pub struct CheckOptions {
@@ -221,6 +225,20 @@ pub struct CheckOptions {
     pub random_poses: usize,
     /// Seed of those poses (default 1).
     pub random_pose_seed: u64,
+    /// Random straight lines for the length-continuity check (default 0; at most
+    /// [`MAX_RANDOM_LINES`]): each joins two poses drawn like the random poses (every crossed
+    /// rotational coordinate uniform in its physiological range at once) and is walked in
+    /// steps of at most `max_line_step` in every coordinate; a muscle fails when its length
+    /// changes by more than `max_line_length_jump` between neighbouring poses.
+    pub random_lines: usize,
+    /// Seed of those lines (default 1).
+    pub random_line_seed: u64,
+    /// Largest change of any coordinate between neighbouring poses of a line (default 0.5°).
+    pub max_line_step: f64,
+    /// Largest change of a musculotendon length between neighbouring poses of a line
+    /// (default 0.001 m: 0.5° at a 7 cm moment arm changes a length by 0.6 mm, so a larger
+    /// change at that step is a jump of the path, not the step's coarseness).
+    pub max_line_length_jump: f64,
     /// The reference tables (default: the built-in `data/check/*.csv`).
     pub tables: Tables,
 }
@@ -236,6 +254,10 @@ impl Default for CheckOptions {
             max_translation: 10.0,
             random_poses: 0,
             random_pose_seed: 1,
+            random_lines: 0,
+            random_line_seed: 1,
+            max_line_step: 0.5f64.to_radians(),
+            max_line_length_jump: 0.001,
             tables: Tables::builtin(),
         }
     }
@@ -273,8 +295,19 @@ pub fn run_with_progress(
             ),
         ));
     }
+    if options.random_lines > MAX_RANDOM_LINES {
+        return Err(Error::invalid(
+            "random_lines",
+            format!(
+                "{} lines: must be at most {MAX_RANDOM_LINES}",
+                options.random_lines
+            ),
+        ));
+    }
     for (name, v) in [
         ("max_moment_arm_jump", options.max_moment_arm_jump),
+        ("max_line_step", options.max_line_step),
+        ("max_line_length_jump", options.max_line_length_jump),
         ("sign_threshold", options.sign_threshold),
         ("max_grid_step", options.max_grid_step),
         ("max_rotation", options.max_rotation),
@@ -294,6 +327,18 @@ pub fn run_with_progress(
                  {MAX_GRID_POINTS}",
                 options.max_grid_step,
                 options.max_rotation.max(options.max_translation)
+            ),
+        ));
+    }
+    // The longest line: from one end of the widest rotational range to the other.
+    let longest = 2.0 * options.max_rotation / options.max_line_step;
+    if !(longest < MAX_GRID_POINTS as f64) {
+        return Err(Error::invalid(
+            "max_line_step",
+            format!(
+                "{} over ranges up to ±{} would need {longest:.3e} poses per line, more than \
+                 {MAX_GRID_POINTS}",
+                options.max_line_step, options.max_rotation
             ),
         ));
     }

@@ -105,6 +105,9 @@ pub(super) fn all(
         rom_sweeps,
     };
     path_checks(model, options, &swept, out);
+    if options.random_lines > 0 {
+        line_continuity(&mut ctx, tables, options, &swept, out);
+    }
     moment_arm_bounds(&mut ctx, tables, options, &swept, out);
     agonist_signs(model, tables, options, &swept, &q0, out);
     max_isometric_moments(model, tables, &swept, out);
@@ -552,6 +555,165 @@ fn moment_arm_bounds(
     bounds.checks(model, &swept.names, out);
 }
 
+/// The physiological box of every crossed rotational coordinate (its model range within
+/// `max_rotation`, narrowed to `range_of_motion.csv`); None for the rest, held at default.
+fn physiological_box(
+    model: &Model,
+    tables: &ParsedTables,
+    options: &CheckOptions,
+    default_arms: &DMatrix<f64>,
+) -> Vec<Option<[f64; 2]>> {
+    let m = default_arms.ncols();
+    (0..model.nq())
+        .map(|j| {
+            let c = coordinate(model, j);
+            let crossed = (0..m).any(|k| default_arms[(j, k)].abs() > 1e-12);
+            if !rotational(model, j) || !crossed {
+                return None;
+            }
+            let lim = options.max_rotation;
+            let (lo, hi) = (c.range[0].max(-lim), c.range[1].min(lim));
+            let [rlo, rhi] = tables.range_of_motion(&c.name, [lo, hi]);
+            (rlo <= rhi).then_some([rlo, rhi])
+        })
+        .collect()
+}
+
+/// The largest length change of one muscle between neighbouring poses of the random lines:
+/// (|Δℓ|, line, step, the pose after the step, the change its moment arms predict).
+type LineJump = (f64, usize, usize, Vec<f64>, f64);
+
+/// Length continuity along `options.random_lines` seeded straight lines through the
+/// physiological box ([`physiological_box`]): each line joins two uniform poses a, b of the
+/// box and visits q_i = a + (i/s)(b − a), i = 0…s, s = ⌈max_j |b_j − a_j| / max_line_step⌉,
+/// so that no coordinate moves by more than `max_line_step` between neighbours. A muscle
+/// passes when |ℓ(q_i) − ℓ(q_{i−1})| ≤ `max_line_length_jump` at every step of every line
+/// (a non-finite length is an infinite jump). One check per muscle crossing a coordinate of
+/// the box (its largest change, the pose after it, and the change its moment arms at the two
+/// poses predict, Δℓ ≈ −Σ_j ½(r_j(q_{i−1}) + r_j(q_i))(q_i − q_{i−1})_j, which tells a steep
+/// smooth path from a jump), and one that every pose could be computed.
+fn line_continuity(
+    ctx: &mut SweepContext,
+    tables: &ParsedTables,
+    options: &CheckOptions,
+    swept: &Swept,
+    out: &mut Vec<Check>,
+) {
+    let model = ctx.model;
+    let (n, m) = (model.nq(), swept.names.len());
+    let boxes = physiological_box(model, tables, options, &swept.default_arms);
+    let free: Vec<usize> = (0..n).filter(|&j| boxes[j].is_some()).collect();
+    let crosses = |k: usize, j: usize| swept.default_arms[(j, k)].abs() > 1e-12;
+    let mut rng = SplitMix64(options.random_line_seed);
+    let mut worst: Vec<Option<LineJump>> = vec![None; m];
+    let (mut failures, mut failed) = (0usize, None::<(usize, String)>);
+    let (mut q, mut a, mut b) = (ctx.q0.to_vec(), ctx.q0.to_vec(), ctx.q0.to_vec());
+    for line in 0..options.random_lines {
+        for &j in &free {
+            let [lo, hi] = boxes[j].unwrap_or([ctx.q0[j]; 2]);
+            a[j] = rng.uniform(lo, hi);
+            b[j] = rng.uniform(lo, hi);
+        }
+        let span = free
+            .iter()
+            .map(|&j| (b[j] - a[j]).abs())
+            .fold(0.0, f64::max);
+        let steps = ((span / options.max_line_step).ceil() as usize).max(1);
+        // the lengths and moment arms at the line's previous pose (none after a pose that
+        // failed)
+        let mut previous: Option<(Vec<f64>, DMatrix<f64>)> = None;
+        for i in 0..=steps {
+            let t = i as f64 / steps as f64;
+            for &j in &free {
+                q[j] = a[j] + t * (b[j] - a[j]);
+            }
+            if let Err(e) = forward_kinematics(model, ctx.data, &q)
+                .and_then(|_| compute_paths(model, ctx.data, ctx.set, ctx.paths))
+            {
+                failed.get_or_insert((line, e.to_string()));
+                failures += 1;
+                previous = None;
+                continue;
+            }
+            let (length, arms) = (&ctx.paths.length, &ctx.paths.moment_arms);
+            if let Some((prev, prev_arms)) = &previous {
+                for k in 0..m {
+                    let d = (length[k] - prev[k]).abs();
+                    let d = if d.is_finite() { d } else { f64::INFINITY };
+                    if worst[k].as_ref().is_none_or(|w| d > w.0) {
+                        let dq =
+                            (b[0..n].iter().zip(&a[0..n])).map(|(bj, aj)| (bj - aj) / steps as f64);
+                        let predicted: f64 = dq
+                            .enumerate()
+                            .map(|(j, dqj)| -0.5 * (prev_arms[(j, k)] + arms[(j, k)]) * dqj)
+                            .sum();
+                        worst[k] = Some((d, line, i, q.clone(), predicted));
+                    }
+                }
+            }
+            match &mut previous {
+                Some((prev, prev_arms)) => {
+                    prev.copy_from_slice(length);
+                    prev_arms.copy_from(arms);
+                }
+                None => previous = Some((length.clone(), arms.clone())),
+            }
+        }
+    }
+    let limit = format!(
+        "≤ {} between poses ≤ {:.2}° apart",
+        options.max_line_length_jump,
+        options.max_line_step.to_degrees()
+    );
+    for (k, w) in worst.into_iter().enumerate() {
+        if !free.iter().any(|&j| crosses(k, j)) {
+            continue;
+        }
+        let Some((d, line, step, at, predicted)) = w else {
+            continue;
+        };
+        let pose: Vec<String> = free
+            .iter()
+            .filter(|&&j| crosses(k, j))
+            .map(|&j| format!("{} {:.1}°", coordinate(model, j).name, at[j].to_degrees()))
+            .collect();
+        out.push(Check {
+            family: Family::Paths,
+            name: "length continuity on random lines".into(),
+            subject_kind: SubjectKind::Muscle,
+            subject: swept.names[k].into(),
+            status: if d <= options.max_line_length_jump {
+                Status::Pass
+            } else {
+                Status::Fail
+            },
+            value: Some(d),
+            unit: "m",
+            limit: limit.clone(),
+            message: format!(
+                "largest change on line {line}, step {step}, arriving at ({}); its moment arms \
+                 predict {:.2e} m",
+                pose.join(", "),
+                predicted.abs()
+            ),
+        });
+    }
+    let message = match &failed {
+        None => format!("{} random lines", options.random_lines),
+        Some((line, e)) => format!(
+            "{failures} poses on {} random lines failed; first, on line {line}: {e}",
+            options.random_lines
+        ),
+    };
+    out.push(model_check(
+        Family::Paths,
+        "random lines computable",
+        model,
+        failures == 0,
+        message,
+    ));
+}
+
 fn rotational(model: &Model, j: usize) -> bool {
     coordinate(model, j).motion_type != MotionType::Translational
 }
@@ -645,20 +807,7 @@ impl ArmBounds {
     ) -> Check {
         let model = ctx.model;
         let (n, m) = (model.nq(), self.m);
-        // The physiological box of every crossed rotational coordinate; the rest at default.
-        let boxes: Vec<Option<[f64; 2]>> = (0..n)
-            .map(|j| {
-                let c = coordinate(model, j);
-                let crossed = (0..m).any(|k| default_arms[(j, k)].abs() > 1e-12);
-                if !rotational(model, j) || !crossed {
-                    return None;
-                }
-                let lim = options.max_rotation;
-                let (lo, hi) = (c.range[0].max(-lim), c.range[1].min(lim));
-                let [rlo, rhi] = tables.range_of_motion(&c.name, [lo, hi]);
-                (rlo <= rhi).then_some([rlo, rhi])
-            })
-            .collect();
+        let boxes = physiological_box(model, tables, options, default_arms);
         let mut rng = SplitMix64(options.random_pose_seed);
         let (mut failures, mut failed) = (0usize, None::<(usize, String)>);
         let mut q = ctx.q0.to_vec();

@@ -30,7 +30,7 @@ if [ ${#mode[@]} -eq 0 ]; then
 fi
 
 status=0
-for check in paths_compare dynamics_compare muscles_compare scale_compare ik_compare tools_compare augment_speed dynamics_speed; do
+for check in paths_compare arm_paths_compare dynamics_compare muscles_compare scale_compare ik_compare tools_compare augment_speed dynamics_speed; do
     echo "== OpenSim side by side: $check ${mode[*]:-}"
     "$MUSCULO_OPENSIM_PYTHON" "validation/opensim/$check.py" "${mode[@]}" || status=1
 done

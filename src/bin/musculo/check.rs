@@ -33,6 +33,11 @@ pub struct Args {
     /// most 1000000).
     #[arg(long, default_value_t = 0, value_parser = random_poses)]
     random_poses: usize,
+    /// Also walk this many random straight lines through the physiological space (every
+    /// rotational coordinate at once, steps of at most 0.5°; seeded) and fail a muscle whose
+    /// length changes by more than 1 mm between neighbouring poses (0: none; at most 100000).
+    #[arg(long, default_value_t = 0, value_parser = random_lines)]
+    random_lines: usize,
 }
 
 /// `--random-poses`: a count from 0 to [`check::MAX_RANDOM_POSES`].
@@ -42,6 +47,17 @@ fn random_poses(text: &str) -> Result<usize, String> {
         _ => Err(format!(
             "`{text}`: give a whole number of poses from 0 to {}",
             check::MAX_RANDOM_POSES
+        )),
+    }
+}
+
+/// `--random-lines`: a count from 0 to [`check::MAX_RANDOM_LINES`].
+fn random_lines(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if n <= check::MAX_RANDOM_LINES => Ok(n),
+        _ => Err(format!(
+            "`{text}`: give a whole number of lines from 0 to {}",
+            check::MAX_RANDOM_LINES
         )),
     }
 }
@@ -66,6 +82,7 @@ pub fn run(args: &Args) -> Result<bool, musculo::Error> {
     let options = CheckOptions {
         grid_points: args.grid_points,
         random_poses: args.random_poses,
+        random_lines: args.random_lines,
         ..CheckOptions::default()
     };
     // a bar over the coordinates swept (drawn on a terminal only; hidden when piped)
