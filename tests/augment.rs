@@ -452,7 +452,9 @@ fn kill_minus_9_then_resume_gives_the_bytes_of_an_uninterrupted_run() {
     let (w, c) = (bytes_of(&whole), bytes_of(&cut));
     assert!(
         w.iter().map(|f| &f.0).eq(c.iter().map(|f| &f.0)),
-        "same files (no partial file left)"
+        "same files (no partial file left): {:?} vs {:?}",
+        w.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        c.iter().map(|f| &f.0).collect::<Vec<_>>()
     );
     assert!(w == c, "identical bytes after kill -9 and --resume");
     for d in [whole, cut] {
