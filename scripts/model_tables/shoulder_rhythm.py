@@ -59,6 +59,9 @@ f(theta0 psi(theta/theta0)), psi(t) = 3t^2 - 3t^3 + t^4 (psi(0) = psi'(0) = 0, p
 psi'(1) = 1, psi''(1) = 0): the girdle starts at rest and joins MoBL's curve C2 at DEG
 (Inman et al. 1944's "setting phase"; Klopcar & Lenarcic's shoulder-girdle elevation is 0 below
 30 deg of humeral elevation).
+Recommended: --param u (the dependent coordinate u = 1 - cos(arm_flex) cos(arm_add) has a smooth
+derivative everywhere; theta's is 0/0 at the rest pose), no setting phase: <= 0.7 mm off MoBL on
+the GH centre, <= 1.4 mm on the points up to 150 deg (DOCS-NOTES-rhythm.md / data/model/README.md).
 The script prints, for every curve, MoBL's slope at 0 and the largest deviation (mm) of the
 chosen table (evaluated as the SimmSpline musculo's builder uses for NaturalCubicSpline) from
 MoBL's curve sampled every 0.25 deg, and the same for all parameterisations in a summary.
@@ -485,24 +488,29 @@ def main():
         approx = table_curve(param, xk, yk, dense)
         return np.abs(approx - key_vals), spline_slope0(xk, yk), xk, yk
 
-    print('largest deviation from MoBL (mm) over [0, 180] deg | over [0, 10] deg | [10, 180] deg, '
-          'and slope at 0 of the table (per knot unit):')
+    print('largest deviation of the table (SimmSpline through its knots) from MoBL, mm: over [0, 180] deg | '
+          '[0, 10] deg | [10, 180] deg; and the table\'s slope at 0 (m per knot unit):')
     summary = {}
     for param in ('theta', 'even', 'u'):
         for th0 in (0.0, math.radians(30)):
             worst = [0.0, 0.0, 0.0, None]
+            worst_150 = 0.0
             for key, (body, vals) in curves.items():
                 err, sl, _, _ = fit_error(param, th0, vals)
                 e_all, e_lo, e_hi = err.max(), err[dense <= math.radians(10)].max(), err[dense >= math.radians(10)].max()
+                e_150 = err[dense <= math.radians(150)].max()
                 if e_all > worst[0]:
                     worst = [e_all, e_lo, e_hi, key, DENSE_DEG[int(np.argmax(err))]]
+                worst_150 = max(worst_150, e_150)
                 if key[0] == 'gh':
-                    summary[(param, th0, key[3])] = (e_all * 1000, e_lo * 1000, e_hi * 1000, sl, DENSE_DEG[int(np.argmax(err))])
+                    summary[(param, th0, key[3])] = (e_all * 1000, e_lo * 1000, e_hi * 1000, sl, DENSE_DEG[int(np.argmax(err))], e_150 * 1000)
             print('  %-5s setting phase %2d deg: worst curve %s %s: %.3f | %.3f | %.3f mm (at %.2f deg)' % (
                 param, round(math.degrees(th0)), worst[3][1], worst[3][2:], worst[0] * 1000, worst[1] * 1000, worst[2] * 1000, worst[4]))
+            print('        all curves over [0, 150] deg (MoBL\'s data range): %.3f mm' % (worst_150 * 1000))
             for ax in 'xyz':
                 e = summary[(param, th0, ax)]
-                print('        GH %s: %.3f | %.3f | %.3f mm (at %.2f deg), table slope at 0 = %+.6f' % (ax, e[0], e[1], e[2], e[4], e[3]))
+                print('        GH %s: %.3f | %.3f | %.3f mm (at %.2f deg; %.3f mm over [0, 150]), table slope at 0 = %+.6f' % (
+                    ax, e[0], e[1], e[2], e[4], e[5], e[3]))
 
     if a.no_write:
         return
