@@ -413,7 +413,7 @@ def main():
     print('humerus -> humerus_r map recovered from %d table points (residual %.1e m): s = %.4f' % (
         len(Pm), res, np.cbrt(np.linalg.det(A))))
 
-    def to_table(key, body, val):
+    def to_table(body, val):
         """MoBL value (thorax frame, or own frame for moving points) -> musculo frame"""
         if body == 'humerus':
             return 'humerus_r', A @ val
@@ -423,8 +423,8 @@ def main():
     for k in range(3):
         curves[('gh', 'acromial_r', 0, 'xyz'[k])] = ('torso', np.array([s['gh'][k] - gh0[k] for s in S]))
     for (mu, i, body, kind, data) in points:
-        tb, _ = to_table((mu, i), body, S[0][(mu, i)])
-        vals = np.array([to_table((mu, i), body, s[(mu, i)])[1] for s in S])
+        tb, _ = to_table(body, S[0][(mu, i)])
+        vals = np.array([to_table(body, s[(mu, i)])[1] for s in S])
         r0 = row[(mu + '_r', i)]
         frozen = np.array([float(r0[c]) for c in 'xyz'])
         assert r0['body'] == tb, (mu, i, r0['body'], tb)
@@ -465,7 +465,6 @@ def main():
     for deg in (30, 60, 90, 120, 150, 180):
         j = int(round(deg / 0.25))
         d = ghd[j] * 1000
-        R = S[j]
         mobl.pose(math.radians(deg))
         Rs = mobl.body_rotation_in_thorax('scapula')
         Rc = mobl.body_rotation_in_thorax('clavicle')
@@ -473,7 +472,6 @@ def main():
         print('theta %3d deg: GH displacement (torso x ant, y up, z lat) = (%6.1f, %6.1f, %6.1f) mm, '
               '|d| = %5.1f mm; clavicle rotated %5.1f deg, scapula %5.1f deg' % (
                   deg, d[0], d[1], d[2], np.linalg.norm(d), ang(Rc), ang(Rs)))
-        del R
     h = math.radians(0.25)
     print('slopes at theta = 0 (one-sided, MoBL; m/rad):')
     for key, (body, vals) in curves.items():
