@@ -464,7 +464,10 @@ fn rajagopal2016_fails_only_explained_checks() {
         .and_then(|c| c.value)
         .unwrap();
     // above the old voluntary envelope's 400 N·m, below 1.5 × 400
-    assert!(knee_extension > 400.0 && knee_extension < 600.0, "{knee_extension}");
+    assert!(
+        knee_extension > 400.0 && knee_extension < 600.0,
+        "{knee_extension}"
+    );
     assert_eq!(
         status(
             &report,
