@@ -10,7 +10,13 @@
   muscle counts per group and side are exactly EXPECT (57 per side, 114 in all), gait2392's
   psoas is absent (the lumbar psoas fascicles replace it), the gait2392 muscles not taken are
   exactly NOT_TAKEN, and, when lumbar_muscles.csv is present, limb + lumbar = 324 muscles
-  with no shared name.
+  with no shared name;
+  when shoulder_rhythm*.csv are present (scripts/model_tables/shoulder_rhythm.py): every curve has
+  one coordinate, increasing knots and a knot at 0 (theta or u = 1 - cos theta) where the GH
+  displacement is 0, every muscle point's value at 0 equals its path_points.csv row (it names
+  an existing muscle point on the same body), every wrap's pose at 0 equals its wrap_objects.csv
+  row, and the left rows mirror the right ones (z -> -z; wraps also rot_x, rot_y, drot_x,
+  drot_y negated).
 
 usage: check_limb_tables.py [data/model] [--gait2392 PATH]
 """
@@ -172,6 +178,8 @@ def main():
         if len(names | LN) != EXPECT_WITH_LUMBAR:
             err('limb + lumbar = %d muscles, expected %d' % (len(names | LN), EXPECT_WITH_LUMBAR))
         print('limb %d + lumbar %d = %d muscles' % (len(names), len(LN), len(names | LN)))
+    if os.path.exists(os.path.join(d, 'shoulder_rhythm.csv')):
+        check_rhythm(d, P, W)
     # gait2392 reproduction
     if g2392:
         sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -225,6 +233,69 @@ def main():
             print('  ' + e)
         sys.exit(1)
     print('OK')
+
+
+def check_rhythm(d, P, W):
+    """shoulder_rhythm.csv, shoulder_rhythm_points.csv, shoulder_rhythm_wraps.csv"""
+    GH, RP, RW = (rd(d, f) for f in ('shoulder_rhythm.csv', 'shoulder_rhythm_points.csv',
+                                     'shoulder_rhythm_wraps.csv'))
+    prow = {(p['muscle'], p['index']): p for p in P}
+    wrow = {w['name']: w for w in W}
+    curves = defaultdict(list)
+    for r in GH:
+        curves[('gh', r['joint'], '', r['axis'])].append(r)
+    for r in RP:
+        curves[('pt', r['muscle'], r['index'], r['axis'])].append(r)
+    coords = set()
+    for key, rows in curves.items():
+        if not all(r['source'] for r in rows):
+            err('%s: row without source' % (key,))
+        cs = {r['coordinate'] for r in rows}
+        coords |= cs
+        side = key[1][-1]
+        if len(cs) != 1 or not next(iter(cs)).endswith('_' + side):
+            err('%s: coordinates %s' % (key, cs))
+        ks = [num(r['knot'], '%s knot' % (key,)) for r in rows]
+        vs = {k: num(r['value'], '%s value' % (key,)) for k, r in zip(ks, rows)}
+        if None in ks or ks != sorted(ks) or len(set(ks)) != len(ks) or 0.0 not in vs:
+            err('%s: knots not increasing or no knot at 0' % (key,)); continue
+        if key[0] == 'gh' and abs(vs[0.0]) > 1e-12:
+            err('%s: GH displacement at 0 is %g' % (key, vs[0.0]))
+        if key[0] == 'pt':
+            p = prow.get((key[1], key[2]))
+            if p is None or p['body'] != rows[0]['body'] or p['type'] != 'fixed':
+                err('%s: no fixed point on %s in path_points.csv' % (key, rows[0]['body']))
+            elif abs(float(p[key[3]]) - vs[0.0]) > 1e-6:
+                err('%s: value at 0 %g differs from path_points.csv %s' % (key, vs[0.0], p[key[3]]))
+        if side == 'r':
+            twin = curves.get((key[0], mirror_name(key[1]), key[2], key[3]))
+            sg = -1 if key[3] == 'z' else 1
+            if twin is None or len(twin) != len(rows) or any(
+                    not close(float(a['knot']), float(b['knot'])) or not close(sg * float(a['value']), float(b['value']))
+                    for a, b in zip(rows, twin)):
+                err('%s: left rows are not the mirror' % (key,))
+    wraps = defaultdict(list)
+    for r in RW:
+        wraps[r['name']].append(r)
+    for name, rows in wraps.items():
+        w = wrow.get(name)
+        r0 = next((r for r in rows if float(r['knot']) == 0.0), None)
+        if w is None or r0 is None or w['body'] != r0['body'] or w['type'] != r0['type']:
+            err('rhythm wrap %s: no wrap_objects.csv row of that body and type, or no knot at 0' % name); continue
+        for k in ('tx', 'ty', 'tz', 'rot_x', 'rot_y', 'rot_z'):
+            if abs(float(w[k]) - float(r0[k])) > 1e-6:
+                err('rhythm wrap %s: %s at 0 is %s, wrap_objects.csv %s' % (name, k, r0[k], w[k]))
+        if name.endswith('_r'):
+            twin = wraps.get(mirror_name(name), [])
+            neg = ('tz', 'rot_x', 'rot_y', 'drot_x', 'drot_y')
+            for a, b in zip(rows, twin):
+                for k in ('knot', 'tx', 'ty', 'tz', 'rot_x', 'rot_y', 'rot_z', 'drot_x', 'drot_y', 'drot_z'):
+                    if not close((-1 if k in neg else 1) * float(a[k]), float(b[k])):
+                        err('rhythm wrap %s: %s not mirrored' % (mirror_name(name), k)); break
+            if len(twin) != len(rows):
+                err('rhythm wrap %s: %d left rows for %d right' % (name, len(twin), len(rows)))
+    print('shoulder rhythm: %d GH curves, %d muscle-point curves, %d wraps; coordinates %s' % (
+        sum(k[0] == 'gh' for k in curves), sum(k[0] == 'pt' for k in curves), len(wraps), ' '.join(sorted(coords))))
 
 
 if __name__ == '__main__':

@@ -17,6 +17,7 @@
 //! b − a, e_T the body z axis made orthogonal to it, e_S = e_L × e_T). Shares of one body are
 //! combined about their common centre of mass (parallel-axis theorem).
 
+mod rhythm;
 pub mod tables;
 
 pub use crate::error::{BuildError, TableError};
@@ -199,6 +200,7 @@ fn v3(x: f64, y: f64, z: f64) -> String {
 /// constraints, muscles, contact spheres, markers. Each is checked against the tables it
 /// refers to as it is written.
 pub fn build_osim(tables: &ModelTables) -> Result<String, BuildError> {
+    let tables = &rhythm::apply(tables)?;
     let (total_mass, height) = reference_subject(tables)?;
     let bodies = mass_properties(tables)?;
     let known_body = |name: &str| name == "ground" || bodies.iter().any(|(b, _)| b == name);
@@ -429,10 +431,82 @@ fn write_constraint_set(w: &mut String, tables: &ModelTables) -> Result<(), Buil
         );
         let _ = writeln!(w, "\t\t\t\t</CoordinateCouplerConstraint>");
     }
+    for c in &tables.polynomial_couplers {
+        write_polynomial_coupler(w, c, &coordinates)?;
+    }
     let _ = writeln!(
         w,
         "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ConstraintSet>"
     );
+    Ok(())
+}
+
+/// A coupler q_dep = p(q_ind…) with OpenSim's `MultivariatePolynomialFunction` (coefficients
+/// in OpenSim's term order, as the table gives them; their number (N+1)…(N+d)/d! for order N
+/// and d independent coordinates).
+fn write_polynomial_coupler(
+    w: &mut String,
+    c: &tables::PolynomialCouplerRow,
+    coordinates: &[&str],
+) -> Result<(), BuildError> {
+    const TABLE: &str = "polynomial_couplers.csv";
+    let independent: Vec<&str> = c.independent.split_whitespace().collect();
+    for name in independent.iter().chain([&c.dependent.as_str()]) {
+        if !coordinates.contains(name) {
+            return Err(inconsistent(
+                TABLE,
+                format!("{}: unknown coordinate `{name}`", c.name),
+            ));
+        }
+    }
+    let coefficients: Vec<f64> = (c.coefficients.split_whitespace())
+        .map(|x| x.parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| {
+            inconsistent(
+                TABLE,
+                format!("{}: a coefficient is not a finite number", c.name),
+            )
+        })?;
+    // number of monomials of total order ≤ N in d variables: C(N + d, d)
+    let d = independent.len() as u64;
+    let n = u64::from(c.order);
+    let terms = (1..=d).fold(1u64, |acc, k| acc * (n + k) / k);
+    if d == 0 || coefficients.len() as u64 != terms {
+        return Err(inconsistent(
+            TABLE,
+            format!(
+                "{}: {} coefficients; order {n} in {d} coordinates needs {terms}",
+                c.name,
+                coefficients.len()
+            ),
+        ));
+    }
+    let list: Vec<String> = coefficients.iter().map(|x| format!("{x}")).collect();
+    let _ = writeln!(
+        w,
+        "\t\t\t\t<CoordinateCouplerConstraint name=\"{}\">",
+        c.name
+    );
+    let _ = writeln!(w, "\t\t\t\t\t<isEnforced>true</isEnforced>");
+    let _ = writeln!(w, "\t\t\t\t\t<coupled_coordinates_function>");
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t\t<MultivariatePolynomialFunction name=\"function\">\n\t\t\t\t\t\t\t<coefficients>{}</coefficients>\n\t\t\t\t\t\t\t<dimension>{d}</dimension>\n\t\t\t\t\t\t\t<order>{n}</order>\n\t\t\t\t\t\t</MultivariatePolynomialFunction>",
+        list.join(" ")
+    );
+    let _ = writeln!(w, "\t\t\t\t\t</coupled_coordinates_function>");
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<independent_coordinate_names>{}</independent_coordinate_names>",
+        independent.join(" ")
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<dependent_coordinate_name>{}</dependent_coordinate_name>",
+        c.dependent
+    );
+    let _ = writeln!(w, "\t\t\t\t</CoordinateCouplerConstraint>");
     Ok(())
 }
 
@@ -1228,6 +1302,9 @@ mod tests {
             }],
             splines: vec![],
             couplers: vec![],
+            polynomial_couplers: vec![],
+            rhythm: vec![],
+            rhythm_points: vec![],
             markers: vec![MarkerRow {
                 marker: "tip".into(),
                 body: "link".into(),

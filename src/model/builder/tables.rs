@@ -119,6 +119,54 @@ pub struct CouplerRow {
     pub source: String,
 }
 
+/// A coordinate coupled to several others through a multivariate polynomial
+/// (`polynomial_couplers.csv`): dependent = p(independent…), OpenSim's
+/// `MultivariatePolynomialFunction` with its coefficients in OpenSim's term order. The
+/// dependent coordinate belongs to the joint whose axes it drives (`shoulder_rhythm.csv`);
+/// its range is given here.
+#[derive(Clone, Debug, Deserialize)]
+pub struct PolynomialCouplerRow {
+    pub name: String,
+    pub dependent: String,
+    /// The independent coordinates, separated by spaces.
+    pub independent: String,
+    pub order: u32,
+    /// Coefficients separated by spaces.
+    pub coefficients: String,
+    pub range_min: f64,
+    pub range_max: f64,
+    pub source: String,
+}
+
+/// A knot of a joint's rhythm translation (`shoulder_rhythm.csv`): the displacement along the
+/// parent frame's `axis` (x, y or z) of the joint centre, a spline of `coordinate`.
+#[derive(Clone, Debug, Deserialize)]
+pub struct RhythmKnotRow {
+    pub joint: String,
+    pub axis: String,
+    pub function: String,
+    pub coordinate: String,
+    pub knot: f64,
+    pub value: f64,
+    pub source: String,
+}
+
+/// A knot of a rhythm-driven path point (`shoulder_rhythm_points.csv`): the location along
+/// `axis` of point `index` of `muscle` in `body`'s frame, a spline of `coordinate`; the point
+/// becomes a moving point.
+#[derive(Clone, Debug, Deserialize)]
+pub struct RhythmPointKnotRow {
+    pub muscle: String,
+    pub index: u32,
+    pub body: String,
+    pub axis: String,
+    pub function: String,
+    pub coordinate: String,
+    pub knot: f64,
+    pub value: f64,
+    pub source: String,
+}
+
 /// A marker (`markers.csv`), in the body frame of the source geometry.
 #[derive(Clone, Debug, Deserialize)]
 pub struct MarkerRow {
@@ -235,6 +283,9 @@ pub struct ModelTables {
     pub axes: Vec<AxisRow>,
     pub splines: Vec<SplineKnotRow>,
     pub couplers: Vec<CouplerRow>,
+    pub polynomial_couplers: Vec<PolynomialCouplerRow>,
+    pub rhythm: Vec<RhythmKnotRow>,
+    pub rhythm_points: Vec<RhythmPointKnotRow>,
     pub markers: Vec<MarkerRow>,
     pub contacts: Vec<ContactRow>,
     pub muscles: Vec<MuscleRow>,
@@ -260,6 +311,9 @@ sourced!(
     AxisRow,
     SplineKnotRow,
     CouplerRow,
+    PolynomialCouplerRow,
+    RhythmKnotRow,
+    RhythmPointKnotRow,
     MarkerRow,
     ContactRow,
     MuscleRow,
@@ -328,6 +382,9 @@ impl ModelTables {
             axes: read(dir, "coordinates.csv")?,
             splines: read(dir, "joint_splines.csv")?,
             couplers: read(dir, "couplers.csv")?,
+            polynomial_couplers: read(dir, "polynomial_couplers.csv")?,
+            rhythm: read(dir, "shoulder_rhythm.csv")?,
+            rhythm_points: read(dir, "shoulder_rhythm_points.csv")?,
             markers: read(dir, "markers.csv")?,
             contacts: read(dir, "contacts.csv")?,
             muscles: read_all(dir, &["muscles.csv", "lumbar_muscles.csv"])?,
