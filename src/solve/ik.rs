@@ -23,7 +23,9 @@
 //! projected gradient vanishes.
 //! The damping μ carries over from frame to frame. Each frame starts from the previous
 //! frames' solutions extrapolated at constant velocity (the first from `initial_q` or the
-//! model's default pose), so frames within a clip are sequential; clips run in parallel
+//! model's default pose), then the clip is swept backwards, each frame solved again from the
+//! frame after it and the better fit kept ([`backward`]), so frames within a clip are
+//! sequential; clips run in parallel
 //! ([`solve_motions`]) and the result does not depend on the thread count.
 //!
 //! The marker term's H and g are never formed from Jacobians: Σ w_i J_iᵀ J_i is the inertia
@@ -51,6 +53,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use robust::{DisagreeingMarker, RobustMarkers};
 
+mod backward;
 pub mod robust;
 mod start;
 pub use start::{StartOutcome, describe as describe_starts};
@@ -1015,10 +1018,25 @@ fn solve(
         out.q.extend_from_slice(&ws.q);
         out.objective.push(value);
         out.iterations.push(iterations);
-        record_fit(&mut out, model, &ws, tasks, &frame, &moved);
         std::mem::swap(&mut ws.q_prev, &mut ws.q_prev2);
         ws.q_prev.copy_from_slice(&ws.q);
         progress(f + 1);
+    }
+    // Frames given their own starts are not tracked from their neighbours: no sweep.
+    if starts.is_none() {
+        backward::sweep(model, &mut ws, tasks, &observed, settings, &mut out)?;
+    }
+    for f in 0..targets.n_frames() {
+        ws.q.copy_from_slice(out.frame(f));
+        body_poses_only(model, &mut ws.data, &ws.q)?;
+        record_fit(
+            &mut out,
+            model,
+            &ws,
+            tasks,
+            &observed.frame(f, settings),
+            &moved,
+        );
     }
     Ok(out)
 }
