@@ -8,6 +8,7 @@ use crate::model::{Coordinate, CoordinateRole, Model, MotionType};
 use crate::muscle::hill::{HillMuscle, MuscleKind};
 use crate::muscle::path::{PathData, PathSet, compute_paths};
 use crate::random::SplitMix64;
+use crate::spatial::Vec3;
 use nalgebra::DMatrix;
 
 /// Lengths and moment arms of every muscle path while one independent coordinate sweeps a
@@ -609,11 +610,15 @@ fn line_continuity(
     let mut worst: Vec<Option<LineJump>> = vec![None; m];
     let (mut failures, mut failed) = (0usize, None::<(usize, String)>);
     let (mut q, mut a, mut b) = (ctx.q0.to_vec(), ctx.q0.to_vec(), ctx.q0.to_vec());
+    let limits = DirectionLimits::new(model, tables);
     for line in 0..options.random_lines {
-        for &j in &free {
-            let [lo, hi] = boxes[j].unwrap_or([ctx.q0[j]; 2]);
-            a[j] = rng.uniform(lo, hi);
-            b[j] = rng.uniform(lo, hi);
+        let ends = limits
+            .draw(ctx, &boxes, &mut rng, &mut a)
+            .and_then(|_| limits.draw(ctx, &boxes, &mut rng, &mut b));
+        if let Err(e) = ends {
+            failed.get_or_insert((line, e));
+            failures += 1;
+            continue;
         }
         let span = free
             .iter()
@@ -629,9 +634,18 @@ fn line_continuity(
             for &j in &free {
                 q[j] = a[j] + t * (b[j] - a[j]);
             }
-            if let Err(e) = forward_kinematics(model, ctx.data, &q)
-                .and_then(|_| compute_paths(model, ctx.data, ctx.set, ctx.paths))
-            {
+            if let Err(e) = forward_kinematics(model, ctx.data, &q) {
+                failed.get_or_insert((line, e.to_string()));
+                failures += 1;
+                previous = None;
+                continue;
+            }
+            // a pose outside the direction limits is not compared with its neighbours
+            if !limits.hold(ctx.data) {
+                previous = None;
+                continue;
+            }
+            if let Err(e) = compute_paths(model, ctx.data, ctx.set, ctx.paths) {
                 failed.get_or_insert((line, e.to_string()));
                 failures += 1;
                 previous = None;
@@ -714,6 +728,78 @@ fn line_continuity(
         failures == 0,
         message,
     ));
+}
+
+/// Draws of a random pose before giving up on one within the direction limits.
+const MAX_DRAWS: usize = 10_000;
+
+/// The rows of `segment_directions.csv` whose bodies the model has: (body, its unit axis in
+/// its frame, reference body, the unit direction in the reference's frame, cos of the
+/// smallest angle allowed between the two).
+struct DirectionLimits(Vec<(usize, Vec3, usize, Vec3, f64)>);
+
+impl DirectionLimits {
+    fn new(model: &Model, tables: &ParsedTables) -> DirectionLimits {
+        let mut limits = Vec::new();
+        for row in &tables.segment_directions {
+            for (body, side) in sides(&row.body) {
+                let reference = match side {
+                    Some(s) => row.reference.replace("{side}", s),
+                    None => row.reference.clone(),
+                };
+                if let (Some(b), Some(r)) = (model.body_index(&body), model.body_index(&reference))
+                {
+                    limits.push((
+                        b,
+                        Vec3::from(row.axis),
+                        r,
+                        Vec3::from(row.direction),
+                        row.min_angle_deg.to_radians().cos(),
+                    ));
+                }
+            }
+        }
+        DirectionLimits(limits)
+    }
+
+    /// Whether the pose whose body poses `data` holds keeps every limit: the angle between
+    /// the axis and the direction, both carried into ground, is at least the row's,
+    /// cos(angle) = a·d ≤ cos(min).
+    fn hold(&self, data: &Data) -> bool {
+        let origin = Vec3::zeros();
+        self.0.iter().all(|(b, axis, r, direction, cos_min)| {
+            let a = data.point_position(*b, axis) - data.point_position(*b, &origin);
+            let d = data.point_position(*r, direction) - data.point_position(*r, &origin);
+            a.dot(&d) <= *cos_min
+        })
+    }
+
+    /// Draws `q` with every coordinate of the box uniform in its range (the rest at default)
+    /// until the pose keeps the limits, leaving its body poses in `ctx.data`; an error after
+    /// [`MAX_DRAWS`] draws or when a pose cannot be computed.
+    fn draw(
+        &self,
+        ctx: &mut SweepContext,
+        boxes: &[Option<[f64; 2]>],
+        rng: &mut SplitMix64,
+        q: &mut [f64],
+    ) -> Result<(), String> {
+        for _ in 0..MAX_DRAWS {
+            for (j, qj) in q.iter_mut().enumerate() {
+                *qj = match boxes[j] {
+                    Some([lo, hi]) => rng.uniform(lo, hi),
+                    None => ctx.q0[j],
+                };
+            }
+            forward_kinematics(ctx.model, ctx.data, q).map_err(|e| e.to_string())?;
+            if self.hold(ctx.data) {
+                return Ok(());
+            }
+        }
+        Err(format!(
+            "no pose within segment_directions.csv's limits in {MAX_DRAWS} draws"
+        ))
+    }
 }
 
 fn rotational(model: &Model, j: usize) -> bool {
@@ -813,17 +899,12 @@ impl ArmBounds {
         let mut rng = SplitMix64(options.random_pose_seed);
         let (mut failures, mut failed) = (0usize, None::<(usize, String)>);
         let mut q = ctx.q0.to_vec();
+        let limits = DirectionLimits::new(model, tables);
         for pose in 0..options.random_poses {
-            for j in 0..n {
-                q[j] = match boxes[j] {
-                    Some([lo, hi]) => rng.uniform(lo, hi),
-                    None => ctx.q0[j],
-                };
-            }
-            if let Err(e) = forward_kinematics(model, ctx.data, &q)
-                .and_then(|_| compute_paths(model, ctx.data, ctx.set, ctx.paths))
-            {
-                failed.get_or_insert((pose, e.to_string()));
+            if let Err(e) = limits.draw(ctx, &boxes, &mut rng, &mut q).and_then(|_| {
+                compute_paths(model, ctx.data, ctx.set, ctx.paths).map_err(|e| e.to_string())
+            }) {
+                failed.get_or_insert((pose, e));
                 failures += 1;
                 continue;
             }

@@ -18,6 +18,8 @@ pub struct Tables {
     pub range_of_motion: String,
     /// `muscles,coordinates,max_m,source`.
     pub moment_arm_bounds: String,
+    /// `body,axis,reference,direction,min_angle_deg,source`.
+    pub segment_directions: String,
 }
 
 impl Tables {
@@ -31,6 +33,7 @@ impl Tables {
                 .into(),
             range_of_motion: include_str!("../../data/check/range_of_motion.csv").into(),
             moment_arm_bounds: include_str!("../../data/check/moment_arm_bounds.csv").into(),
+            segment_directions: include_str!("../../data/check/segment_directions.csv").into(),
         }
     }
 
@@ -44,6 +47,7 @@ impl Tables {
             moments: parse_moments(&self.max_isometric_moments, &directions)?,
             range_of_motion: parse_range_of_motion(&self.range_of_motion, &directions)?,
             moment_arm_bounds: parse_moment_arm_bounds(&self.moment_arm_bounds)?,
+            segment_directions: parse_segment_directions(&self.segment_directions)?,
             directions,
         })
     }
@@ -201,6 +205,59 @@ fn parse_range_of_motion(text: &str, directions: &[DirectionRow]) -> crate::Resu
         .collect()
 }
 
+/// `segment_directions.csv`: two non-zero 3-vectors (normalised here), min_angle_deg in
+/// [0, 180].
+fn parse_segment_directions(text: &str) -> crate::Result<Vec<SegmentDirectionRow>> {
+    let t = "segment_directions.csv";
+    let vector = |line: usize, field: &str, name: &str| -> crate::Result<[f64; 3]> {
+        let v: Vec<f64> = field
+            .split_whitespace()
+            .map(|x| number(t, line, x))
+            .collect::<crate::Result<_>>()?;
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if v.len() != 3 || !(norm > 0.0 && norm.is_finite()) {
+            return Err(table_err(
+                t,
+                line,
+                format!("{name} must be three numbers, not all zero; found '{field}'"),
+            ));
+        }
+        Ok([v[0] / norm, v[1] / norm, v[2] / norm])
+    };
+    rows(
+        t,
+        text,
+        &[
+            "body",
+            "axis",
+            "reference",
+            "direction",
+            "min_angle_deg",
+            "source",
+        ],
+    )?
+    .into_iter()
+    .map(|(line, f)| {
+        let min_angle_deg = number(t, line, &f[4])?;
+        if !(0.0..=180.0).contains(&min_angle_deg) {
+            return Err(table_err(
+                t,
+                line,
+                format!("min_angle_deg must be in [0, 180], found {min_angle_deg}"),
+            ));
+        }
+        Ok(SegmentDirectionRow {
+            body: f[0].clone(),
+            axis: vector(line, &f[1], "axis")?,
+            reference: f[2].clone(),
+            direction: vector(line, &f[3], "direction")?,
+            min_angle_deg,
+            source: f[5].clone(),
+        })
+    })
+    .collect()
+}
+
 /// `moment_arm_bounds.csv`: `|`-separated non-empty muscle and coordinate patterns, a
 /// positive max_m.
 fn parse_moment_arm_bounds(text: &str) -> crate::Result<Vec<MomentArmBoundRow>> {
@@ -314,6 +371,21 @@ pub struct RomRow {
     pub source: String,
 }
 
+/// A segment's axis kept at least `min_angle_deg` from a direction of another body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SegmentDirectionRow {
+    /// Body name, possibly with `{side}`.
+    pub body: String,
+    /// Unit axis in `body`'s frame.
+    pub axis: [f64; 3],
+    /// Body name, possibly with `{side}`.
+    pub reference: String,
+    /// Unit direction in `reference`'s frame.
+    pub direction: [f64; 3],
+    pub min_angle_deg: f64,
+    pub source: String,
+}
+
 /// The largest plausible |r| of the muscles matching `muscles` about the coordinates matching
 /// `coordinates` (glob patterns, possibly with `{side}`).
 #[derive(Clone, Debug, PartialEq)]
@@ -363,6 +435,7 @@ pub struct ParsedTables {
     pub moments: Vec<MomentRow>,
     pub range_of_motion: Vec<RomRow>,
     pub moment_arm_bounds: Vec<MomentArmBoundRow>,
+    pub segment_directions: Vec<SegmentDirectionRow>,
 }
 
 impl ParsedTables {
@@ -554,6 +627,23 @@ mod tests {
         assert_eq!(t.ranges.len(), PARAMETERS.len());
         assert!(t.agonists.len() >= 15 && t.moments.len() >= 15);
         assert!(t.ranges.iter().all(|r| !r.source.is_empty()));
+        assert!(!t.segment_directions.is_empty());
+        assert!(t.segment_directions.iter().all(|r| !r.source.is_empty()));
+    }
+
+    #[test]
+    fn segment_directions_need_two_vectors_and_an_angle() {
+        let header = "body,axis,reference,direction,min_angle_deg,source\n";
+        let ok = parse_segment_directions(&format!("{header}a,0 -2 0,b,-1 0 0,30,s\n")).unwrap();
+        assert_eq!(ok[0].axis, [0.0, -1.0, 0.0]);
+        for bad in [
+            "a,0 0 0,b,1 0 0,30,s",
+            "a,0 1,b,1 0 0,30,s",
+            "a,0 1 0,b,1 0 0,190,s",
+        ] {
+            let e = parse_segment_directions(&format!("{header}{bad}\n")).unwrap_err();
+            assert!(e.to_string().contains("segment_directions.csv:2"), "{e}");
+        }
     }
 
     #[test]
