@@ -228,12 +228,15 @@ pub struct CheckOptions {
     /// Random straight lines for the length-continuity check (default 0; at most
     /// [`MAX_RANDOM_LINES`]): each joins two poses drawn like the random poses (every crossed
     /// rotational coordinate uniform in its physiological range at once) and is walked in
-    /// steps of at most `max_line_step` in every coordinate; a muscle fails when its length
-    /// changes by more than `max_line_length_jump` between neighbouring poses.
+    /// steps of at most `max_line_step` (the Euclidean distance between neighbouring poses
+    /// over those coordinates); a muscle fails when its length changes by more than
+    /// `max_line_length_jump` between neighbouring poses.
     pub random_lines: usize,
     /// Seed of those lines (default 1).
     pub random_line_seed: u64,
-    /// Largest change of any coordinate between neighbouring poses of a line (default 0.5°).
+    /// Largest distance between neighbouring poses of a line (default 0.5°): the Euclidean
+    /// norm of their difference over the line's coordinates, so a muscle crossing several
+    /// of them changes its length by at most ‖r‖₂ · `max_line_step` on a smooth path.
     pub max_line_step: f64,
     /// Largest change of a musculotendon length between neighbouring poses of a line
     /// (default 0.001 m: 0.5° at a 7 cm moment arm changes a length by 0.6 mm, so a larger
@@ -330,8 +333,9 @@ pub fn run_with_progress(
             ),
         ));
     }
-    // The longest line: from one end of the widest rotational range to the other.
-    let longest = 2.0 * options.max_rotation / options.max_line_step;
+    // The longest line: from one corner of the box of the widest rotational ranges to the
+    // opposite one.
+    let longest = (model.nq() as f64).sqrt() * 2.0 * options.max_rotation / options.max_line_step;
     if !(longest < MAX_GRID_POINTS as f64) {
         return Err(Error::invalid(
             "max_line_step",

@@ -585,8 +585,9 @@ type LineJump = (f64, usize, usize, Vec<f64>, f64);
 
 /// Length continuity along `options.random_lines` seeded straight lines through the
 /// physiological box ([`physiological_box`]): each line joins two uniform poses a, b of the
-/// box and visits q_i = a + (i/s)(b − a), i = 0…s, s = ⌈max_j |b_j − a_j| / max_line_step⌉,
-/// so that no coordinate moves by more than `max_line_step` between neighbours. A muscle
+/// box and visits q_i = a + (i/s)(b − a), i = 0…s, s = ⌈‖b − a‖₂ / max_line_step⌉ (the
+/// Euclidean norm over the box's coordinates), so that neighbouring poses are at most
+/// `max_line_step` apart in configuration space. A muscle
 /// passes when |ℓ(q_i) − ℓ(q_{i−1})| ≤ `max_line_length_jump` at every step of every line
 /// (a non-finite length is an infinite jump). One check per muscle crossing a coordinate of
 /// the box (its largest change, the pose after it, and the change its moment arms at the two
@@ -616,8 +617,9 @@ fn line_continuity(
         }
         let span = free
             .iter()
-            .map(|&j| (b[j] - a[j]).abs())
-            .fold(0.0, f64::max);
+            .map(|&j| (b[j] - a[j]).powi(2))
+            .sum::<f64>()
+            .sqrt();
         let steps = ((span / options.max_line_step).ceil() as usize).max(1);
         // the lengths and moment arms at the line's previous pose (none after a pose that
         // failed)
