@@ -6,7 +6,9 @@
     redistributed with updated axial-rotation couplers by M. Millard,
     github.com/mjhmilla/kinematicPassengerModel,
     models/Christophy2012_axialRotationUpd_skeletonOnly.osim);
-  * gait2392 (opensim-models, Gait2392_Simbody) for the psoas' femoral part.
+  * gait2392 (opensim-models, Gait2392_Simbody) for the psoas' femoral part;
+  * Rajagopal et al. 2016 (opensim-models, Rajagopal2016.osim) for the psoas'
+    pelvic-brim wrap cylinders (brim_paths.py).
 The CSVs are the authored source; this script documents how their figures
 were obtained (see data/model/README_lumbar.md).  Run from the repo root:
     python3 scripts/model_tables/build_lumbar_tables.py
@@ -23,6 +25,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from myotorso_parse import parse_chain, parse_assets, site_body_map  # noqa: E402
 from geometry import body_origins, path_length  # noqa: E402
+from brim_paths import BRIM_RADIUS, assert_outside, brim_sphere, rot_xyz  # noqa: E402
 
 OUT = "data/model"
 GAIT2392 = os.environ.get(
@@ -70,6 +73,11 @@ GROUPS = [("Ps_", "psoas_major"), ("rect_abd", "rectus_abdominis"), ("EO", "exte
           ("MF_", "multifidus"), ("QL_", "quadratus_lumborum")]
 
 MIRROR = np.array([1.0, 1.0, -1.0])
+
+# MyoSuite's torso wraps still enter the neutral lengths (rule R) as when the tables were
+# made, but are left out of the written tables: fitted to MyoSuite's adjusted vertebrae, they wrap around the far side of their
+# surfaces in our geometry (README_lumbar.md, "Wrap surfaces removed from the build").
+WRITE_MYOSUITE_WRAPS = False
 
 
 def group_of(name):
@@ -168,6 +176,16 @@ def main():
                                   quadrant=q)
         return name
 
+    wo_header = ["name", "body", "type", "rot_x", "rot_y", "rot_z", "tx", "ty", "tz",
+                 "radius", "length", "dim_x", "dim_y", "dim_z", "quadrant", "source"]
+    brim_rows = [brim_sphere("PS", s, hip_centre("r"), wo_header) for s in "rl"]
+    for r in brim_rows:
+        rot = [float(r[k]) for k in ("rot_x", "rot_y", "rot_z")]
+        wrapobjs[r["name"]] = dict(name=r["name"], body=r["body"], type=r["type"],
+                                   t=np.array([float(r[k]) for k in ("tx", "ty", "tz")]),
+                                   R=rot_xyz(*rot), radius=float(r["radius"]),
+                                   length="", quadrant=r["quadrant"])
+
     # ---------------- paths --------------------------------------------------
     rights = sorted(n for n in mus if n.endswith("_r"))
     rows_m, rows_p, rows_w = [], [], []
@@ -257,22 +275,31 @@ def main():
             l_lumbar = path_length(pts, wraps, origins, wrapobjs)
             extra = 0.0
             if grp == "psoas_major":
-                # extend to the femur along gait2392's psoas (P3 conditional on
-                # hip flexion, P4-P5 on the femur); P2 of the fascicle is the
-                # pelvic-brim point shared with gait2392's psoas-P2.
+                # extend to the femur along gait2392's psoas (P4-P5 on the femur); P2 of
+                # the fascicle is the pelvic-brim point shared with gait2392's psoas-P2.
+                # gait2392's P3 (a brim point conditional on hip flexion, whose switch
+                # made the length jump) is replaced by Rajagopal2016's PS_at_brim
+                # replaced in turn by a sphere at the hip centre (brim_paths.py).
                 g = g23[side]
                 assert np.allclose(g[1]["xyz"], pts[-1]["xyz"], atol=1e-6), (name, g[1], pts[-1])
-                for gp_ in g[2:]:
+                assert g[2]["type"] == "conditional" and g[2]["body"] == "pelvis", g[2]
+                brim = len(pts)
+                for gp_ in g[3:]:
                     pts.append(dict(index=len(pts) + 1, body=gp_["body"], xyz=np.array(gp_["xyz"]),
                                     type=gp_["type"], coordinate=gp_["coordinate"],
                                     range_min=gp_["range_min"], range_max=gp_["range_max"]))
+                assert_outside(name, pts[brim - 1]["xyz"], pts[brim]["xyz"],
+                               origins[f"femur_{side}"], BRIM_RADIUS["PS"])
+                wraps.append(dict(wrap_object=f"PS_at_brim_{side}", range_start=brim,
+                                  range_end=brim + 1))
                 extra = path_length(pts, wraps, origins, wrapobjs) - l_lumbar
             Lopt = phi * l_lumbar / nfl
             Lts = (1.0 - phi) * l_lumbar + extra
             lengths[name] = (l_lumbar + extra, Lopt, Lts)
             src = f"{SRC_CHR} via {SRC_MYO}: F=gainprm[2] mean r/l; Lopt,Lts rule R ({how}, phi={phi:.3f}, n={nfl:.3f})"
             if grp == "psoas_major":
-                src += f"; +{extra:.4f} m tendon to femur ({SRC_G23} psoas path)"
+                src += (f"; +{extra:.4f} m tendon to femur ({SRC_G23} psoas path without its "
+                        f"conditional brim point, over the PS_at_brim sphere of brim_paths.py)")
             rows_m.append(dict(name=name, group=grp, side=side, max_isometric_force=f"{F:.4f}",
                                optimal_fiber_length=f"{Lopt:.5f}", tendon_slack_length=f"{Lts:.5f}",
                                pennation_angle="0", max_contraction_velocity=f"{vmax:g}", source=src))
@@ -285,6 +312,8 @@ def main():
                                    range_min=("" if p["range_min"] == "" else f"{p['range_min']:g}"),
                                    range_max=("" if p["range_max"] == "" else f"{p['range_max']:g}"),
                                    source=psrc))
+            if not WRITE_MYOSUITE_WRAPS:
+                wraps = [w for w in wraps if "_at_brim_" in w["wrap_object"]]
             for k, w in enumerate(wraps, 1):
                 rows_w.append(dict(muscle=name, order=k, wrap_object=w["wrap_object"], method="hybrid",
                                    range_start=w["range_start"], range_end=w["range_end"]))
@@ -305,17 +334,17 @@ def main():
                                      "range_min", "range_max", "source"], rows_p)
     write("lumbar_muscle_wraps.csv", ["muscle", "order", "wrap_object", "method", "range_start",
                                       "range_end"], rows_w)
-    wo_rows = []
+    wo_rows = list(brim_rows)
     for w in sorted(wrapobjs.values(), key=lambda w: w["name"]):
+        if "_at_brim_" in w["name"] or not WRITE_MYOSUITE_WRAPS:
+            continue
         wo_rows.append(dict(name=w["name"], body=w["body"], type=w["type"], rot_x=0, rot_y=0, rot_z=0,
                             tx=f"{w['t'][0]:.6f}", ty=f"{w['t'][1]:.6f}", tz=f"{w['t'][2]:.6f}",
                             radius=f"{w['radius']:g}",
                             length=("" if w["length"] == "" else f"{w['length']:g}"),
                             dim_x="", dim_y="", dim_z="", quadrant=w["quadrant"],
                             source=f"{SRC_MYO} geom (quadrant from MuJoCo sidesite)"))
-    write("lumbar_wrap_objects.csv", ["name", "body", "type", "rot_x", "rot_y", "rot_z", "tx", "ty", "tz",
-                                      "radius", "length", "dim_x", "dim_y", "dim_z", "quadrant", "source"],
-          wo_rows)
+    write("lumbar_wrap_objects.csv", wo_header, wo_rows)
 
     jrows = []
     for (name, par, ch, lp, lc, rfe, rlb, rar, rar0) in JOINTS:

@@ -63,6 +63,16 @@ def segment_length(P, Q, wrap):
     c, R, r = wrap["centre"], wrap["R"], wrap["radius"]
     p = R.T @ (P - c)
     q = R.T @ (Q - c)
+    if wrap["quadrant"] == "all" and wrap["type"] == "sphere":
+        # unconstrained sphere: with d1, d2 the endpoints' distances from the centre and D the
+        # angle between them, straight while D <= b1 + b2 (b_i = acos(r/d_i)), else the
+        # tangents h_i = sqrt(d_i^2 - r^2) plus the arc r (D - b1 - b2)
+        d1, d2 = np.linalg.norm(p), np.linalg.norm(q)
+        D = math.acos(min(max(np.dot(p, q) / (d1 * d2), -1.0), 1.0))
+        b1, b2 = math.acos(r / d1), math.acos(r / d2)
+        if D <= b1 + b2:
+            return float(np.linalg.norm(Q - P))
+        return float(math.sqrt(d1 * d1 - r * r) + math.sqrt(d2 * d2 - r * r) + r * (D - b1 - b2))
     ax, sg = QUAD[wrap["quadrant"]]
     s3 = np.zeros(3); s3[ax] = sg
     if wrap["type"] == "cylinder":
