@@ -341,21 +341,36 @@ fn humanml3d_both_forms_give_the_same_coordinates() {
     // input's difference over its lever arm (the largest marker displacement per unit of it),
     // and along directions in which f is flat it is only determined as far as f is: the
     // forearm's roll (pro_sup, a lever of ~1.6 cm: the wrist centre lies almost on its axis),
-    // the humerus' roll with a straight elbow, and frames 14–15 (both arms overhead at their
-    // bounds), where one more iteration can move coordinates by ~6e-5 rad and f by < 1e-9 f.
+    // the humerus' roll with a straight elbow, and frames with an arm near the shoulder's
+    // gimbal lock (arm_add = −90°: arm_flex and arm_rot then turn the humerus about nearly one
+    // axis), where one more iteration moves coordinates by up to ~5e-3 rad and f by < 1e-9 f.
     // Asserted: fitted joints ≤ 5 µm, objectives within their bound, every coordinate
-    // ≤ 2e-4 rad, and the others than those rolls and the elbow ≤ 2e-6 outside frames 14–15
-    // (measured 1.6e-6: arm_add_r at frame 47, the last frame with the arms overhead; 9.5e-7
-    // with the dense Cholesky factorization the step used before the tree-sparse one — the
-    // same minimum, ended one rounding later).
+    // ≤ 1e-2 rad, and away from the lock (no arm within 30° of it) every coordinate ≤ 2e-4 and
+    // the others than those rolls and the elbow ≤ 2e-6 (measured 5.2e-3 at pro_sup_r, frame 17;
+    // away from the lock 1.0e-4 and 1.4e-6, hip_rotation_r at frame 42).
     let (n, frames) = (a.solution.nq, a.solution.n_frames());
     let names = a.model().q_names();
+    // frames with an arm near the shoulder's gimbal lock (arm_add = −90°, where arm_flex and
+    // arm_rot turn the humerus about nearly one axis and f is flat along their difference)
+    let add = [
+        names.iter().position(|n| *n == "arm_add_r"),
+        names.iter().position(|n| *n == "arm_add_l"),
+    ];
+    let near_lock = |f: usize| {
+        add.iter().flatten().any(|&j| {
+            (a.solution.frame(f)[j] + std::f64::consts::FRAC_PI_2).abs() < 30f64.to_radians()
+        })
+    };
     let mut worst = (0.0f64, 0, 0);
+    let mut worst_off_lock = (0.0f64, 0, 0);
     for f in 0..frames {
         for j in 0..n {
             let d = (a.solution.frame(f)[j] - b.solution.frame(f)[j]).abs();
             if d > worst.0 {
                 worst = (d, j, f);
+            }
+            if d > worst_off_lock.0 && !near_lock(f) {
+                worst_off_lock = (d, j, f);
             }
         }
     }
@@ -379,8 +394,7 @@ fn humanml3d_both_forms_give_the_same_coordinates() {
             .fold(((0.0f64, 0), 0), |a, b| if b.0.0 > a.0.0 { b } else { a })
     };
     let ((firm_all, _), _) = largest(&mut (0..frames));
-    let ((firm_outside_14_15, firm_j), firm_f) =
-        largest(&mut (0..frames).filter(|f| !(14..=15).contains(f)));
+    let ((firm_off_lock, firm_j), firm_f) = largest(&mut (0..frames).filter(|&f| !near_lock(f)));
     let fit_gap = max_point_gap(&a.fitted(), &b.fitted());
     // Both are minima of their own objective, so with δ the largest target difference and
     // W = Σ w_i: |f_a − f_b| ≤ 2 √(f W) δ + W δ² (Cauchy–Schwarz on f_b(q_a) − f_a(q_a)).
@@ -397,16 +411,24 @@ fn humanml3d_both_forms_give_the_same_coordinates() {
     println!(
         "two forms: fitted joints differ by ≤ {fit_gap:.2e} m, per-frame objectives by ≤ \
          {objective_gap:.2} of their bound; coordinates by ≤ {:.2e} ({} at frame {}); other than \
-         arm_rot, elbow_flex and pro_sup by ≤ {firm_all:.2e}, and by ≤ {firm_outside_14_15:.2e} \
-         outside frames 14–15 ({} at frame {firm_f})",
-        worst.0, names[worst.1], worst.2, names[firm_j]
+         arm_rot, elbow_flex and pro_sup by ≤ {firm_all:.2e}, and by ≤ {firm_off_lock:.2e} \
+         in frames with no arm within 30° of the gimbal lock ({} at frame {firm_f}); every \
+         coordinate there by ≤ {:.2e} ({} at frame {})",
+        worst.0,
+        names[worst.1],
+        worst.2,
+        names[firm_j],
+        worst_off_lock.0,
+        names[worst_off_lock.1],
+        worst_off_lock.2
     );
     assert!(
         fit_gap <= 5e-6 && objective_gap <= 1.0,
         "{fit_gap} {objective_gap}"
     );
-    assert!(worst.0 <= 2e-4, "{worst:?}");
-    assert!(firm_outside_14_15 <= 2e-6, "{firm_outside_14_15}");
+    assert!(worst.0 <= 1e-2, "{worst:?}");
+    assert!(worst_off_lock.0 <= 2e-4, "{worst_off_lock:?}");
+    assert!(firm_off_lock <= 2e-6, "{firm_off_lock}");
 }
 
 #[test]
@@ -426,20 +448,20 @@ fn humanml3d_sample_fits_the_default_model() {
         Bounds::Range,
     );
     assert!((fa.overall - fb.overall).abs() < 1e-6);
-    // The issue's targets are RMSE ≤ 15 mm and worst joint ≤ 30 mm. Measured: RMSE 22.4 mm,
-    // median per-frame RMSE 11.8 mm, worst joint 176 mm (right_elbow, frame 35); asserted
-    // with a margin as a regression guard. The targets are not met: every frame with an
-    // RMSE over 20 mm lies in 11–47, where both arms are raised overhead beyond the default
-    // model's shoulder ranges (arm_flex ≤ 70°, abduction ≤ 120°, no scapula), and SMPL moves
-    // its head, neck and collars relative to the spine while the model's torso is rigid
-    // (head and shoulders have the largest per-joint RMSE after the right arm). The
-    // Bounds::None run below separates range limits from the model's structure.
+    // The issue's targets are RMSE ≤ 15 mm (all joints but the neck and head) and worst
+    // joint ≤ 60 mm. Measured over all 22 joints: RMSE 14.2 mm, median per-frame RMSE
+    // 11.8 mm, worst joint 82.7 mm (left_shoulder, frame 20); asserted with a margin as a
+    // regression guard. Every frame with an RMSE over 20 mm lies in 15–31, where both arms
+    // are raised overhead: SMPL's shoulder joints rise further than the shoulder rhythm
+    // lifts the glenohumeral centres (70 mm at 150°), and SMPL moves its head, neck and
+    // collars relative to the spine while the model's torso is rigid (the head has the
+    // largest per-joint RMSE, 37 mm).
     assert!(
-        fa.overall <= 0.025 && fa.median_frame <= 0.013,
+        fa.overall <= 0.016 && fa.median_frame <= 0.013,
         "{:.4}",
         fa.overall
     );
-    assert!(fa.worst.0 <= 0.20, "worst joint {:.4}", fa.worst.0);
+    assert!(fa.worst.0 <= 0.09, "worst joint {:.4}", fa.worst.0);
     let outside_11_47 = fa
         .over_20mm
         .iter()
@@ -447,8 +469,9 @@ fn humanml3d_sample_fits_the_default_model() {
         .count();
     assert_eq!(outside_11_47, 0, "frames over 20 mm: {:?}", fa.over_20mm);
 
-    // Without bounds. Measured: RMSE 15.4 mm, median 11.6 mm, worst 112 mm (left_shoulder,
-    // frame 19): even unbounded, the rigid torso leaves the head and shoulders ~3 cm off.
+    // Without bounds the fit is no better: the ranges no longer hold the arms away from the
+    // dataset's poses, and the free arms wander out of range (arm_rot, elbow_flex, pro_sup in
+    // most frames) into other minima. Measured: RMSE 17.4 mm (bounded 14.2), worst 78.8 mm.
     let free = a.resolved(Bounds::None);
     let (ff, _) = evaluate(
         "HumanML3D new_joints_012314, scaled, Bounds::None",
@@ -456,13 +479,9 @@ fn humanml3d_sample_fits_the_default_model() {
         Bounds::None,
     );
     assert!(
-        ff.overall < fa.overall,
-        "unbounded fit worse: {}",
-        ff.overall
-    );
-    assert!(
-        ff.overall <= 0.017 && ff.worst.0 <= 0.13,
-        "unbounded fit {:.4}",
+        fa.overall <= ff.overall + 1e-3,
+        "bounded {:.4} worse than unbounded {:.4}",
+        fa.overall,
         ff.overall
     );
 }
@@ -658,7 +677,7 @@ fn musculo_ik_cli_writes_the_motion_and_the_marker_errors() {
     let model = Model::default_fullbody();
     let table = Table::read(&mot).unwrap();
     let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
-    assert_eq!((names.len(), table.n_rows()), (45, 170));
+    assert_eq!((names.len(), table.n_rows()), (47, 170));
     assert_eq!(table.labels, names);
     assert_eq!(table.in_degrees, Some(true));
     assert!((table.time[169] - 169.0 / 20.0).abs() < 1e-12);
@@ -728,9 +747,10 @@ fn musculo_ik_cli_writes_the_motion_and_the_marker_errors() {
         a.values == table.values,
         "the first clip differs from the single-input run"
     );
-    // Degrees: pro_sup differs by up to 8.5e-5 rad (humanml3d_sample_fits_the_default_model).
+    // Degrees: pro_sup differs by up to 5.2e-3 rad (0.30°) with an arm near the shoulder's
+    // gimbal lock, 1e-4 rad away from it (humanml3d_both_forms_give_the_same_coordinates).
     let gap = max_abs_diff(&a.values, &b.values);
-    assert!(gap <= 0.01, "the two forms differ by {gap} (degrees or m)");
+    assert!(gap <= 0.6, "the two forms differ by {gap} (degrees or m)");
 }
 
 /// `musculo ik --map c3d_lower_body --scale auto` on the two C3D trials, every frame (their
