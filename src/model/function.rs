@@ -512,16 +512,16 @@ impl MultivariatePolynomial {
     }
 
     /// ∂^(m_0 + …) f / ∂x_0^(m_0) … of term t without its coefficient: Π_i ∂^(m_i) x_i^(e_ti),
-    /// with `m(i)` the order in argument i.
+    /// with `m(i)` the order in argument i; the powers x_i^k from `powers` (see [`Powers`]).
     #[inline]
-    fn term_derivative(&self, t: usize, x: &[f64], m: impl Fn(usize) -> u32) -> f64 {
+    fn term_derivative(&self, t: usize, powers: &Powers, m: impl Fn(usize) -> u32) -> f64 {
         let mut p = 1.0;
         for (i, &e) in self.exponents(t).iter().enumerate() {
             let mi = m(i);
             if mi > e {
                 return 0.0;
             }
-            p *= falling_power(x[i], e, mi);
+            p *= falling_factor(e, mi) * powers.get(i, e - mi);
         }
         p
     }
@@ -538,6 +538,11 @@ impl MultivariatePolynomial {
         }
         grad.fill(0.0);
         hess.fill(0.0);
+        let powers = Powers::new(x, self.order);
+        if n == 2 && powers.tabulated {
+            return self.eval2(&powers, grad, hess);
+        }
+        let x = &powers;
         let mut v = 0.0;
         for (t, &c) in self.coefficients.iter().enumerate() {
             if c == 0.0 {
@@ -562,6 +567,45 @@ impl MultivariatePolynomial {
         v
     }
 
+    /// [`Self::eval`] for two arguments (x, y) from tabulated powers, term by term
+    /// (c xⁱ yʲ):
+    ///   f += c xⁱ yʲ,  f_x += c i xⁱ⁻¹ yʲ,  f_y += c j xⁱ yʲ⁻¹,
+    ///   f_xx += c i(i−1) xⁱ⁻² yʲ,  f_xy += c i j xⁱ⁻¹ yʲ⁻¹,  f_yy += c j(j−1) xⁱ yʲ⁻².
+    fn eval2(&self, powers: &Powers, grad: &mut [f64], hess: &mut [f64]) -> f64 {
+        let (px, py) = (&powers.table[0], &powers.table[1]);
+        let (mut v, mut gx, mut gy, mut hxx, mut hxy, mut hyy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for (t, &c) in self.coefficients.iter().enumerate() {
+            let e = &self.exponents[2 * t..2 * t + 2];
+            let (i, j) = (e[0] as usize, e[1] as usize);
+            let (fi, fj) = (e[0] as f64, e[1] as f64);
+            let (xi, yj) = (px[i], py[j]);
+            v += c * xi * yj;
+            if i >= 1 {
+                let xi1 = c * fi * px[i - 1];
+                gx += xi1 * yj;
+                if j >= 1 {
+                    hxy += xi1 * fj * py[j - 1];
+                }
+                if i >= 2 {
+                    hxx += c * fi * (fi - 1.0) * px[i - 2] * yj;
+                }
+            }
+            if j >= 1 {
+                gy += c * fj * xi * py[j - 1];
+                if j >= 2 {
+                    hyy += c * fj * (fj - 1.0) * xi * py[j - 2];
+                }
+            }
+        }
+        grad[0] = gx;
+        grad[1] = gy;
+        hess[0] = hxx;
+        hess[1] = hxy;
+        hess[2] = hxy;
+        hess[3] = hyy;
+        v
+    }
+
     /// D³f(x)[u, v, w] = Σ_t c_t Σ_abc ∂_abc(Π_i x_i^(e_ti)) u_a v_b w_c; NaN when the lengths
     /// do not match the dimension.
     pub fn third_directional(&self, x: &[f64], u: &[f64], v: &[f64], w: &[f64]) -> f64 {
@@ -572,6 +616,8 @@ impl MultivariatePolynomial {
         if self.order < 3 {
             return 0.0;
         }
+        let powers = Powers::new(x, self.order);
+        let x = &powers;
         let mut d = 0.0;
         for (t, &c) in self.coefficients.iter().enumerate() {
             if c == 0.0 || self.exponents(t).iter().sum::<u32>() < 3 {
@@ -595,15 +641,56 @@ impl MultivariatePolynomial {
     }
 }
 
-/// ∂ᵐ(xᵉ)/∂xᵐ = e (e − 1) … (e − m + 1) x^(e − m), for m ≤ e.
+/// e (e − 1) … (e − m + 1), the factor of ∂ᵐ(xᵉ)/∂xᵐ = e (e − 1) … (e − m + 1) x^(e − m), for
+/// m ≤ e.
 #[inline]
-fn falling_power(x: f64, e: u32, m: u32) -> f64 {
+fn falling_factor(e: u32, m: u32) -> f64 {
     let mut k = 1.0;
     for j in 0..m {
         k *= f64::from(e - j);
     }
-    // e − m ≤ order, which the coefficient count bounds
-    k * x.powi((e - m) as i32)
+    k
+}
+
+/// The powers x_i^k, k = 0…order, of every argument, computed once per evaluation by repeated
+/// multiplication (x^k = x^(k−1) x) and kept on the stack for up to [`Powers::DIMENSIONS`]
+/// arguments and order [`Powers::ORDER`]; beyond that each power is computed where it is used.
+struct Powers<'a> {
+    x: &'a [f64],
+    table: [[f64; Powers::ORDER + 1]; Powers::DIMENSIONS],
+    tabulated: bool,
+}
+
+impl<'a> Powers<'a> {
+    const DIMENSIONS: usize = 3;
+    const ORDER: usize = 24;
+
+    fn new(x: &'a [f64], order: usize) -> Powers<'a> {
+        let mut table = [[1.0; Powers::ORDER + 1]; Powers::DIMENSIONS];
+        let tabulated = x.len() <= Powers::DIMENSIONS && order <= Powers::ORDER;
+        if tabulated {
+            for (row, &xi) in table.iter_mut().zip(x) {
+                for k in 1..=order {
+                    row[k] = row[k - 1] * xi;
+                }
+            }
+        }
+        Powers {
+            x,
+            table,
+            tabulated,
+        }
+    }
+
+    /// x_i^k (k ≤ the polynomial's order).
+    #[inline]
+    fn get(&self, i: usize, k: u32) -> f64 {
+        if self.tabulated {
+            self.table[i][k as usize]
+        } else {
+            self.x[i].powi(k as i32)
+        }
+    }
 }
 
 /// C(dimension + order, order), the number of terms, computed as the running product
