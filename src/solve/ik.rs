@@ -24,7 +24,7 @@
 //! The damping μ carries over from frame to frame. Each frame starts from the previous
 //! frames' solutions extrapolated at constant velocity (the first from `initial_q` or the
 //! model's default pose), then the clip is swept backwards, each frame solved again from the
-//! frame after it and the better fit kept ([`backward`]), so frames within a clip are
+//! frame after it and the better fit kept (module `backward`), so frames within a clip are
 //! sequential; clips run in parallel
 //! ([`solve_motions`]) and the result does not depend on the thread count.
 //!
