@@ -406,30 +406,11 @@ fn write_constraint_set(w: &mut String, tables: &ModelTables) -> Result<(), Buil
                 ));
             }
         }
-        let _ = writeln!(
-            w,
-            "\t\t\t\t<CoordinateCouplerConstraint name=\"{}\">",
-            c.name
-        );
-        let _ = writeln!(w, "\t\t\t\t\t<isEnforced>true</isEnforced>");
-        let _ = writeln!(w, "\t\t\t\t\t<coupled_coordinates_function>");
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t\t<LinearFunction name=\"function\">\n\t\t\t\t\t\t\t<coefficients>{} 0</coefficients>\n\t\t\t\t\t\t</LinearFunction>",
+        let function = format!(
+            "<LinearFunction name=\"function\">\n\t\t\t\t\t\t\t<coefficients>{} 0</coefficients>\n\t\t\t\t\t\t</LinearFunction>",
             c.ratio
         );
-        let _ = writeln!(w, "\t\t\t\t\t</coupled_coordinates_function>");
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<independent_coordinate_names>{}</independent_coordinate_names>",
-            c.independent
-        );
-        let _ = writeln!(
-            w,
-            "\t\t\t\t\t<dependent_coordinate_name>{}</dependent_coordinate_name>",
-            c.dependent
-        );
-        let _ = writeln!(w, "\t\t\t\t</CoordinateCouplerConstraint>");
+        write_coupler(w, &c.name, &function, &c.independent, &c.dependent);
     }
     for c in &tables.polynomial_couplers {
         write_polynomial_coupler(w, c, &coordinates)?;
@@ -439,6 +420,25 @@ fn write_constraint_set(w: &mut String, tables: &ModelTables) -> Result<(), Buil
         "\t\t\t</objects>\n\t\t\t<groups />\n\t\t</ConstraintSet>"
     );
     Ok(())
+}
+
+/// One `<CoordinateCouplerConstraint>` holding `function` (its XML element) between the
+/// space-separated `independent` coordinates and `dependent`.
+fn write_coupler(w: &mut String, name: &str, function: &str, independent: &str, dependent: &str) {
+    let _ = writeln!(w, "\t\t\t\t<CoordinateCouplerConstraint name=\"{name}\">");
+    let _ = writeln!(w, "\t\t\t\t\t<isEnforced>true</isEnforced>");
+    let _ = writeln!(w, "\t\t\t\t\t<coupled_coordinates_function>");
+    let _ = writeln!(w, "\t\t\t\t\t\t{function}");
+    let _ = writeln!(w, "\t\t\t\t\t</coupled_coordinates_function>");
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<independent_coordinate_names>{independent}</independent_coordinate_names>"
+    );
+    let _ = writeln!(
+        w,
+        "\t\t\t\t\t<dependent_coordinate_name>{dependent}</dependent_coordinate_name>"
+    );
+    let _ = writeln!(w, "\t\t\t\t</CoordinateCouplerConstraint>");
 }
 
 /// A coupler q_dep = p(q_ind…) with OpenSim's `MultivariatePolynomialFunction` (coefficients
@@ -483,30 +483,11 @@ fn write_polynomial_coupler(
         ));
     }
     let list: Vec<String> = coefficients.iter().map(|x| format!("{x}")).collect();
-    let _ = writeln!(
-        w,
-        "\t\t\t\t<CoordinateCouplerConstraint name=\"{}\">",
-        c.name
-    );
-    let _ = writeln!(w, "\t\t\t\t\t<isEnforced>true</isEnforced>");
-    let _ = writeln!(w, "\t\t\t\t\t<coupled_coordinates_function>");
-    let _ = writeln!(
-        w,
-        "\t\t\t\t\t\t<MultivariatePolynomialFunction name=\"function\">\n\t\t\t\t\t\t\t<coefficients>{}</coefficients>\n\t\t\t\t\t\t\t<dimension>{d}</dimension>\n\t\t\t\t\t\t\t<order>{n}</order>\n\t\t\t\t\t\t</MultivariatePolynomialFunction>",
+    let function = format!(
+        "<MultivariatePolynomialFunction name=\"function\">\n\t\t\t\t\t\t\t<coefficients>{}</coefficients>\n\t\t\t\t\t\t\t<dimension>{d}</dimension>\n\t\t\t\t\t\t\t<order>{n}</order>\n\t\t\t\t\t\t</MultivariatePolynomialFunction>",
         list.join(" ")
     );
-    let _ = writeln!(w, "\t\t\t\t\t</coupled_coordinates_function>");
-    let _ = writeln!(
-        w,
-        "\t\t\t\t\t<independent_coordinate_names>{}</independent_coordinate_names>",
-        independent.join(" ")
-    );
-    let _ = writeln!(
-        w,
-        "\t\t\t\t\t<dependent_coordinate_name>{}</dependent_coordinate_name>",
-        c.dependent
-    );
-    let _ = writeln!(w, "\t\t\t\t</CoordinateCouplerConstraint>");
+    write_coupler(w, &c.name, &function, &independent.join(" "), &c.dependent);
     Ok(())
 }
 
