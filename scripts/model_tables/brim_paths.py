@@ -61,12 +61,14 @@ rewrites the iliacus and BRA rows of path_points.csv, adds IL_at_brim_r/l to
 wrap_objects.csv and iliacus' links to muscle_wraps.csv)
 """
 
-import csv
-import math
 import os
 import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from extract_limb_muscles import rot_xyz  # noqa: E402  (OpenSim body-fixed x-y-z: Rx Ry Rz)
+from shoulder_paths import read, write  # noqa: E402
 
 # Sphere radii (table units, gait2392 size), below every endpoint's distance from the hip
 # centre (iliacus 0.0463 pelvis / 0.0546 femur, psoas 0.0484 / 0.0509).
@@ -76,21 +78,6 @@ BRIM_SOURCE = ("this model (scripts/model_tables/brim_paths.py): sphere centred 
                "Rajagopal et al. 2016 replaced it by a wrap surface (IL_at_brim, PS_at_brim)")
 BRA_NOTE = ("; moved onto the segment P1-P4 at elbow_flex = %s rad, where it switches "
             "(scripts/model_tables/brim_paths.py)")
-
-
-def read(path):
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    with open(path, newline="") as f:
-        header = next(csv.reader(f))
-    return header, rows
-
-
-def write(path, header, rows):
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
-        w.writeheader()
-        w.writerows(rows)
 
 
 def brim_sphere(prefix, side, hip_ours_r, header, radius=None):
@@ -123,15 +110,6 @@ def hip_centre(joints, side="r"):
         if j["joint"] == f"hip_{side}":
             return np.array([float(j[k]) for k in ("parent_x", "parent_y", "parent_z")])
     sys.exit(f"joints.csv: no hip_{side}")
-
-
-def rot_xyz(a, b, c):
-    """OpenSim body-fixed x-y-z Euler rotation: R = Rx(a) Ry(b) Rz(c)."""
-    ca, sa, cb, sb, cc, sc = math.cos(a), math.sin(a), math.cos(b), math.sin(b), math.cos(c), math.sin(c)
-    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
-    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
-    return rx @ ry @ rz
 
 
 def elbow_transform(joints, side, theta):

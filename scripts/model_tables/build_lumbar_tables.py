@@ -8,7 +8,7 @@
     models/Christophy2012_axialRotationUpd_skeletonOnly.osim);
   * gait2392 (opensim-models, Gait2392_Simbody) for the psoas' femoral part;
   * Rajagopal et al. 2016 (opensim-models, Rajagopal2016.osim) for the psoas'
-    pelvic-brim wrap cylinders (brim_paths.py).
+    pelvic-brim wrap idea (here a sphere at the hip centre, brim_paths.py).
 The CSVs are the authored source; this script documents how their figures
 were obtained (see data/model/README_lumbar.md).  Run from the repo root:
     python3 scripts/model_tables/build_lumbar_tables.py
