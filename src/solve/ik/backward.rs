@@ -69,12 +69,19 @@ pub(super) fn sweep(
             settings.relative_decrease,
         )?;
         out.evaluations[f] += ws.evaluations;
-        let fit = Frame {
-            smoothness: 0.0,
-            ..frame
+        // without a smoothness term the two solves' own f are f₀
+        let (backward, forward) = if frame.smoothness == 0.0 {
+            (value, out.objective[f])
+        } else {
+            let fit = Frame {
+                smoothness: 0.0,
+                ..frame
+            };
+            (
+                objective(model, &mut ws.data, tasks, &fit, &ws.q, &ws.q_prev)?,
+                objective(model, &mut ws.data, tasks, &fit, out.frame(f), &ws.q_prev)?,
+            )
         };
-        let backward = objective(model, &mut ws.data, tasks, &fit, &ws.q, &ws.q_prev)?;
-        let forward = objective(model, &mut ws.data, tasks, &fit, out.frame(f), &ws.q_prev)?;
         if backward < (1.0 - EPSILON) * forward {
             out.q[f * n..(f + 1) * n].copy_from_slice(&ws.q);
             out.objective[f] = value;
