@@ -738,10 +738,51 @@ fn solve_frame(
     tolerance: f64,
     relative_decrease: f64,
 ) -> crate::Result<(f64, u32)> {
+    let (f, iterations, _) = solve_frame_joining(
+        model,
+        ws,
+        tasks,
+        frame,
+        max_iterations,
+        tolerance,
+        relative_decrease,
+        None,
+    )?;
+    Ok((f, iterations))
+}
+
+/// How close (rad, or m for a translation; every coordinate) an iterate of
+/// [`solve_frame_joining`] must come to the known solution to be taken as converging to it.
+/// A thousandth of a radian is far inside any basin of f (the minima a limb can fall into
+/// lie tens of degrees apart), and a step of the damped Gauss–Newton iteration that started
+/// there would not leave it.
+const JOIN_RADIUS: f64 = 1e-3;
+
+/// [`solve_frame`], stopping early once every coordinate of an iterate (the start included)
+/// lies within [`JOIN_RADIUS`] of `join`, a minimum of the same frame's f found before: the
+/// solve would converge to it. Returns (f, iterations, joined); when joined, f is that of the
+/// last iterate, not the minimum's, and the body poses are not updated.
+#[allow(clippy::too_many_arguments)]
+fn solve_frame_joining(
+    model: &Model,
+    ws: &mut IkWorkspace,
+    tasks: &IkTasks,
+    frame: &Frame,
+    max_iterations: usize,
+    tolerance: f64,
+    relative_decrease: f64,
+    join: Option<&[f64]>,
+) -> crate::Result<(f64, u32, bool)> {
+    let joined = |q: &[f64]| {
+        join.is_some_and(|r| q.iter().zip(r).all(|(a, b)| (a - b).abs() <= JOIN_RADIUS))
+    };
     let mut f = objective(model, &mut ws.data, tasks, frame, &ws.q, &ws.q_prev)?;
     ws.evaluations += 1;
     let mut mu = ws.mu;
     let mut iterations = 0u32;
+    if joined(&ws.q) {
+        return Ok((f, iterations, true));
+    }
     normal_equations(model, ws, tasks, frame)?;
     while (iterations as usize) < max_iterations {
         iterations += 1;
@@ -789,7 +830,10 @@ fn solve_frame(
                     ws.mu = mu;
                     accepted = true;
                     if largest <= tolerance || decrease <= relative_decrease * f {
-                        return Ok((f, iterations));
+                        return Ok((f, iterations, false));
+                    }
+                    if joined(&ws.q) {
+                        return Ok((f, iterations, true));
                     }
                     break;
                 }
@@ -803,7 +847,7 @@ fn solve_frame(
     }
     // Leave the body poses at the solution.
     body_poses_only(model, &mut ws.data, &ws.q)?;
-    Ok((f, iterations))
+    Ok((f, iterations, false))
 }
 
 /// Inverse kinematics of one clip. `targets` must be in the model's frame and metres (see

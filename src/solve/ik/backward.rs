@@ -15,11 +15,13 @@
 //! neighbours) and ε = 10⁻⁶, a hundred times the relative decrease at which a frame's solve
 //! stops ([`super::RELATIVE_DECREASE`]), so that two solutions of one minimum are never told
 //! apart. The sweep goes on from the kept solution, so a stretch left by the forward pass in
-//! a worse minimum is replaced from its end back to where the two passes meet. Each frame is
-//! solved twice: the sweep costs about one more forward pass.
+//! a worse minimum is replaced from its end back to where the two passes meet. A backward
+//! solve that comes within [`super::JOIN_RADIUS`] of q⁺ (in every coordinate) is converging
+//! to q⁺ and stops there, keeping q⁺: where the two passes agree, the sweep costs a few
+//! evaluations of f per frame instead of a whole solve.
 
 use super::{
-    Frame, IkSettings, IkSolution, IkTasks, IkWorkspace, Observed, objective, solve_frame,
+    Frame, IkSettings, IkSolution, IkTasks, IkWorkspace, Observed, objective, solve_frame_joining,
 };
 use crate::model::Model;
 
@@ -59,7 +61,7 @@ pub(super) fn sweep(
         }
         let frame = observed.frame(f, settings);
         ws.evaluations = 0;
-        let (value, iterations) = solve_frame(
+        let (value, iterations, joined) = solve_frame_joining(
             model,
             ws,
             tasks,
@@ -67,8 +69,13 @@ pub(super) fn sweep(
             settings.max_iterations,
             settings.tolerance,
             settings.relative_decrease,
+            Some(out.frame(f)),
         )?;
         out.evaluations[f] += ws.evaluations;
+
+        if joined {
+            continue;
+        }
         // without a smoothness term the two solves' own f are f₀
         let (backward, forward) = if frame.smoothness == 0.0 {
             (value, out.objective[f])
