@@ -800,3 +800,58 @@ fn a_belt_under_still_feet_is_detected_as_a_treadmill() {
     assert!(states.treadmill);
     assert!((states.floor_velocity - Vec3::new(-1.5, 0.0, 0.0)).norm() < 1e-9);
 }
+
+/// A wide stance (feet about 1 m apart) held still, with the right foot fitted 3–4 cm above
+/// the floor over the middle 40 of 100 frames, as a poorly fitted foot is: kinematics
+/// alone put that foot in the air, but the body's weight lies midway between the feet, far
+/// outside the left foot alone, so the balance evidence keeps both feet in contact. With
+/// the balance evidence off (σ_b huge) the right foot is in the air in those frames.
+#[test]
+fn a_foot_fitted_above_the_floor_under_a_centred_body_stays_in_contact() {
+    let model = Model::default_fullbody();
+    let set = ContactSet::from_model(&model).unwrap();
+    let nq = model.nq();
+    let (add_r, add_l) = (
+        model.q_index("hip_adduction_r").unwrap(),
+        model.q_index("hip_adduction_l").unwrap(),
+    );
+    let frames = 100;
+    let mut q = Vec::with_capacity(frames * nq);
+    for f in 0..frames {
+        let mut qf = model.default_q();
+        qf[add_l] = (-30.0f64).to_radians();
+        // the right leg abducted 4° more in the middle frames: its foot 3–4 cm up
+        qf[add_r] = if (30..70).contains(&f) {
+            -34.0f64
+        } else {
+            -30.0
+        }
+        .to_radians();
+        q.extend(qf);
+    }
+    let (qd, qdd) = (vec![0.0; q.len()], vec![0.0; q.len()]);
+    let states = contact::detect(
+        &model,
+        &set,
+        &ContactOptions::default(),
+        &q,
+        &qd,
+        &qdd,
+        100.0,
+    )
+    .unwrap();
+    let right = set.groups().iter().position(|g| g.ends_with("_r")).unwrap();
+    let left = 1 - right;
+    let heel_r = set.points.iter().position(|p| p.name == "heel_r").unwrap();
+    let lifted = states.height[50 * set.points.len() + heel_r] - states.height[heel_r];
+    assert!((0.03..0.04).contains(&lifted), "right heel {lifted} m up");
+    assert_eq!(states.group_frames(left), frames);
+    assert_eq!(states.group_frames(right), frames);
+    let no_balance = ContactOptions {
+        balance_scale: 1e9,
+        ..ContactOptions::default()
+    };
+    let states = contact::detect(&model, &set, &no_balance, &q, &qd, &qdd, 100.0).unwrap();
+    assert_eq!(states.group_frames(left), frames);
+    assert_eq!(states.group_frames(right), frames - 40);
+}

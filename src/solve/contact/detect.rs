@@ -28,6 +28,17 @@
 //! ends, where the accelerations rest on the filter's end conditions). A running flight phase (d < 0) thus has no
 //! contact however low the feet, and support (d > 0) goes to the foot the kinematics favour.
 //!
+//! **Balance.** The ground must also supply the moment
+//!   M_o = Σ_b [(c_b − o) × m_b (a_b − g) + I_b α_b + ω_b × I_b ω_b]
+//! about a point o of the floor (c_b, ω_b, α_b body b's centre of mass, angular velocity and
+//! angular acceleration, I_b its inertia in ground), so its force passes through the centre
+//! of pressure p = o + (M_o·t₂ / F·n) t₁ − (M_o·t₁ / F·n) t₂ (floor tangents t₁, t₂ = t₁ × n;
+//! see [`super::ground_reaction`]). A state whose groups' points span a floor region (the
+//! convex hull of their lowest points' projections) at a distance e from p cannot give that
+//! moment: it costs ½(d⁺ e / σ_b)² (σ_b = `balance_scale`, faded at the ends as the demand
+//! is). No contact gives no moment either: it is charged the cost of all groups together. A foot landing while the other pushes off is thus in double support when the
+//! centre of pressure lies between the feet, even where the trailing foot already moves.
+//!
 //! **Decision.** The states are the 2^G subsets of the G groups in contact; the cost of a
 //! state is the sum of its groups' kinematic costs and its dynamic cost; a group changing
 //! state between frames costs ln(rate / `transition_rate`) (the negative log-probability of a
@@ -166,8 +177,11 @@ pub fn detect(
     let o = options;
     let Kinematics {
         mut height,
+        position,
         velocity,
         demand,
+        force,
+        moment,
     } = lowest_points_and_demand(model, set, &states)?;
     let floor = match o.floor_height {
         Some(h) => h,
@@ -184,7 +198,8 @@ pub fn detect(
     let energy: Vec<f64> = (0..frames * np)
         .map(|i| 0.5 * ((above[i] / o.height_scale).powi(2) + (speed[i] / o.speed_scale).powi(2)))
         .collect();
-    let group_contact = decide_groups(set, o, &energy, &demand, rate_hz);
+    let balance = Balance::new(set, floor, &position, &force, &moment);
+    let group_contact = decide_groups(set, o, &energy, &demand, &balance, rate_hz);
     // factors within each group in contact, then the double-support ramps
     let mut factor = group_factors(set, &energy, &group_contact, frames);
     let longest = ((o.transition_time * rate_hz).round() as usize).max(1);
@@ -244,8 +259,14 @@ fn check_inputs(
 /// The kinematic and dynamic evidence of [`lowest_points_and_demand`].
 struct Kinematics {
     height: Vec<f64>,
+    /// The lowest points, T × P.
+    position: Vec<Vec3>,
     velocity: Vec<Vec3>,
     demand: Vec<f64>,
+    /// Per frame the ground's force Σ m_b (a_b − g) and its moment about ground's origin
+    /// (the balance section of the module documentation), both over M ‖g‖.
+    force: Vec<Vec3>,
+    moment: Vec<Vec3>,
 }
 
 /// Per frame and point (T × P): the height n·b of the lowest point b = c − r n (not yet
@@ -262,8 +283,11 @@ fn lowest_points_and_demand(
     let n = set.floor_normal;
     let mut data = Data::new(model);
     let mut height = vec![0.0; frames * np];
+    let mut position = vec![Vec3::zeros(); frames * np];
     let mut velocity = vec![Vec3::zeros(); frames * np];
     let mut demand = vec![0.0; frames];
+    let mut forces = vec![Vec3::zeros(); frames];
+    let mut moments = vec![Vec3::zeros(); frames];
     let mass: f64 = model.bodies.iter().map(|b| b.mass).sum();
     let weight = mass * model.gravity.norm();
     for t in 0..frames {
@@ -279,25 +303,143 @@ fn lowest_points_and_demand(
             let (rot, _) = data.body_pose(point.body);
             // b = c − r n, as a point of the body
             let bottom = point.location_in_body - rot.transpose() * n * point.radius;
-            height[t * np + p] = n.dot(&data.point_position(point.body, &bottom));
+            position[t * np + p] = data.point_position(point.body, &bottom);
+            height[t * np + p] = n.dot(&position[t * np + p]);
             velocity[t * np + p] = data.point_velocity(point.body, &bottom);
         }
         if weight > 0.0 {
-            let mut force = Vec3::zeros();
+            let (mut force, mut moment) = (Vec3::zeros(), Vec3::zeros());
             for (b, body) in model.bodies.iter().enumerate() {
                 if body.mass > 0.0 {
-                    let (_, a) = data.point_acceleration(b, &body.com_in_body);
-                    force += body.mass * (a - model.gravity);
+                    let (alpha, a) = data.point_acceleration(b, &body.com_in_body);
+                    let (omega, _) = data.body_velocity(b);
+                    let (rot, _) = data.body_pose(b);
+                    let inertia = rot * body.inertia_about_com * rot.transpose();
+                    let f = body.mass * (a - model.gravity);
+                    force += f;
+                    moment += data.point_position(b, &body.com_in_body).cross(&f)
+                        + inertia * alpha
+                        + omega.cross(&(inertia * omega));
                 }
             }
             demand[t] = n.dot(&force) / weight;
+            forces[t] = force / weight;
+            moments[t] = moment / weight;
         }
     }
     Ok(Kinematics {
         height,
+        position,
         velocity,
         demand,
+        force: forces,
+        moment: moments,
     })
+}
+
+/// The balance evidence in floor coordinates (along t₁, t₂): per frame the centre of pressure
+/// the motion needs (None where it needs no normal force), per frame and point the lowest
+/// point's projection.
+struct Balance {
+    points: usize,
+    foot: Vec<[f64; 2]>,
+    cop: Vec<Option<[f64; 2]>>,
+}
+
+impl Balance {
+    fn new(
+        set: &ContactSet,
+        floor: f64,
+        position: &[Vec3],
+        force: &[Vec3],
+        moment: &[Vec3],
+    ) -> Balance {
+        let n = set.floor_normal;
+        let (t1, t2) = set.floor_tangents();
+        let origin = n * floor;
+        let cop = force
+            .iter()
+            .zip(moment)
+            .map(|(f, m)| {
+                let normal = n.dot(f);
+                // the moment about o, then x = M_o·t₂ / F·n, z = −M_o·t₁ / F·n
+                let m = m - origin.cross(f);
+                (normal > 0.0).then(|| [m.dot(&t2) / normal, -m.dot(&t1) / normal])
+            })
+            .collect();
+        Balance {
+            points: set.points.len(),
+            foot: position.iter().map(|p| [p.dot(&t1), p.dot(&t2)]).collect(),
+            cop,
+        }
+    }
+
+    /// Distance (m) from frame `t`'s centre of pressure to the convex hull of the points of
+    /// the groups in `state` (bit g for group g); 0 without a centre of pressure or points.
+    fn distance(&self, set: &ContactSet, t: usize, state: usize) -> f64 {
+        let Some(cop) = self.cop[t] else {
+            return 0.0;
+        };
+        let np = self.points;
+        let support: Vec<[f64; 2]> = (0..np)
+            .filter(|&p| state & (1 << set.group_of(p)) != 0)
+            .map(|p| self.foot[t * np + p])
+            .collect();
+        distance_to_hull(cop, support)
+    }
+}
+
+/// Distance from `p` to the convex hull of `points` (0 inside; 0 for no points). The hull by
+/// Andrew's monotone chain, counter-clockwise; outside, the nearest of its edges (or its one
+/// point).
+fn distance_to_hull(p: [f64; 2], mut points: Vec<[f64; 2]>) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    points.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    points.dedup();
+    // (b − a) × (c − a): positive for a left turn
+    let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    };
+    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * points.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        let chain: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(points.iter())
+        } else {
+            Box::new(points.iter().rev())
+        };
+        for &q in chain {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    if hull.is_empty() {
+        hull.push(points[0]);
+    }
+    let m = hull.len();
+    let edge_distance = |a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        let s = if len2 > 0.0 {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (p[0] - a[0] - s * dx).hypot(p[1] - a[1] - s * dy)
+    };
+    if m >= 3 && (0..m).all(|i| cross(hull[i], hull[(i + 1) % m], p) >= 0.0) {
+        return 0.0;
+    }
+    (0..m)
+        .map(|i| edge_distance(hull[i], hull[(i + 1) % m]))
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// (h − μ_p)⁺ per frame and point (T × P), μ_p each point's resting level: the
@@ -361,6 +503,7 @@ fn decide_groups(
     o: &ContactOptions,
     energy: &[f64],
     demand: &[f64],
+    balance: &Balance,
     rate_hz: f64,
 ) -> Vec<bool> {
     let frames = demand.len();
@@ -382,20 +525,31 @@ fn decide_groups(
     // the accelerations of the first and last frames rest on the filter's and splines' end
     // conditions: their evidence fades out towards the clip's ends over `end_time`
     let end_frames = o.end_time * rate_hz;
-    let dynamic = |t: usize, any: bool| {
-        let d = demand[t];
-        let unexplained = if any { (-d).max(0.0) } else { d.max(0.0) };
+    let trust = |t: usize| {
         let from_end = t.min(frames - 1 - t) as f64;
-        let trust = if end_frames > 0.0 {
+        if end_frames > 0.0 {
             smoothstep(from_end / end_frames)
         } else {
             1.0
-        };
-        trust * 0.5 * (unexplained / o.demand_scale).powi(2)
+        }
+    };
+    let dynamic = |t: usize, any: bool| {
+        let d = demand[t];
+        let unexplained = if any { (-d).max(0.0) } else { d.max(0.0) };
+        trust(t) * 0.5 * (unexplained / o.demand_scale).powi(2)
     };
     let switch = (rate_hz / o.transition_rate).ln().max(0.0);
     if ng <= MAX_JOINT_GROUPS {
-        viterbi_joint(frames, ng, &cost_on, &cost_off, &dynamic, switch)
+        // the support demand and the balance the state cannot give; no contact gives no
+        // moment either, and is charged what the whole support leaves (so that balance never
+        // argues for flight: that is the demand's to say)
+        let all = (1usize << ng) - 1;
+        let joint = |t: usize, state: usize| {
+            let support = if state == 0 { all } else { state };
+            let unbalanced = demand[t].max(0.0) * balance.distance(set, t, support);
+            dynamic(t, state != 0) + trust(t) * 0.5 * (unbalanced / o.balance_scale).powi(2)
+        };
+        viterbi_joint(frames, ng, &cost_on, &cost_off, &joint, switch)
     } else {
         viterbi_separate(frames, ng, &cost_on, &cost_off, &dynamic, switch)
     }
@@ -532,18 +686,19 @@ fn contact_intervals(contact: &[bool], frames: usize, ng: usize) -> Vec<(usize, 
     out
 }
 
-/// Viterbi over the 2^G subsets of groups in contact (bit g set: group g in contact).
+/// Viterbi over the 2^G subsets of groups in contact (bit g set: group g in contact);
+/// `dynamic(t, state)` is the dynamic cost of a state.
 fn viterbi_joint(
     frames: usize,
     ng: usize,
     cost_on: &[f64],
     cost_off: &[f64],
-    dynamic: &dyn Fn(usize, bool) -> f64,
+    dynamic: &dyn Fn(usize, usize) -> f64,
     switch: f64,
 ) -> Vec<bool> {
     let ns = 1usize << ng;
     let state_cost = |t: usize, s: usize| {
-        let mut c = dynamic(t, s != 0);
+        let mut c = dynamic(t, s);
         for g in 0..ng {
             c += if s & (1 << g) != 0 {
                 cost_on[t * ng + g]
@@ -626,4 +781,43 @@ fn viterbi_separate(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distance_to_hull;
+
+    /// Distances to hulls worked out by hand: a unit square given with an interior point and
+    /// a repeated corner, a segment and a single point.
+    #[test]
+    fn distance_to_hull_matches_the_geometry() {
+        let square = vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [0.5, 0.5],
+            [1.0, 1.0],
+            [0.0, 1.0],
+            [1.0, 1.0],
+        ];
+        let cases = [
+            ([0.5, 0.5], 0.0),
+            ([0.0, 0.3], 0.0),
+            ([1.5, 0.5], 0.5),
+            ([0.5, -2.0], 2.0),
+            ([2.0, 2.0], 2.0f64.sqrt()),
+            ([-3.0, -4.0], 5.0),
+        ];
+        for (p, d) in cases {
+            assert!(
+                (distance_to_hull(p, square.clone()) - d).abs() < 1e-12,
+                "{p:?}"
+            );
+        }
+        let segment = vec![[0.0, 0.0], [2.0, 0.0], [1.0, 0.0]];
+        assert!((distance_to_hull([1.0, 0.5], segment.clone()) - 0.5).abs() < 1e-12);
+        assert!((distance_to_hull([3.0, 0.0], segment.clone()) - 1.0).abs() < 1e-12);
+        assert_eq!(distance_to_hull([1.0, 0.0], segment), 0.0);
+        assert!((distance_to_hull([3.0, 4.0], vec![[0.0, 0.0]]) - 5.0).abs() < 1e-12);
+        assert_eq!(distance_to_hull([3.0, 4.0], Vec::new()), 0.0);
+    }
 }

@@ -455,6 +455,13 @@ pub struct ContactOptions {
     /// contact would have to give), σ_d, in body weights. Default 0.1: the accuracy of a
     /// whole-body acceleration from low-pass filtered kinematics.
     pub demand_scale: f64,
+    /// Scale of the ground moment the motion needs about the support of a contact state and
+    /// that state's contacts cannot give, σ_b, in body weight × metres: with d the normal
+    /// demand and e the distance (m) from the centre of pressure the motion needs to the
+    /// hull of the state's points on the floor, the state costs ½(d e / σ_b)². Default 0.1:
+    /// σ_d times a lever arm of a metre, the height of the centre of mass whose acceleration
+    /// errors make it.
+    pub balance_scale: f64,
     /// Time over which the dynamic evidence fades out towards the clip's first and last
     /// frames (s), whose accelerations rest on the low-pass filter's and the splines' end
     /// conditions. Default 0.05 s.
@@ -509,6 +516,7 @@ impl Default for ContactOptions {
             height_scale: 0.02,
             speed_scale: 0.5,
             demand_scale: 0.1,
+            balance_scale: 0.2,
             end_time: 0.05,
             transition_rate: 4.0,
             max_point_offset: 0.1,
@@ -551,6 +559,7 @@ impl ContactOptions {
             ("height_scale", self.height_scale),
             ("speed_scale", self.speed_scale),
             ("demand_scale", self.demand_scale),
+            ("balance_scale", self.balance_scale),
             ("transition_rate", self.transition_rate),
         ] {
             if !(value > 0.0 && value.is_finite()) {
