@@ -374,25 +374,34 @@ impl Balance {
         }
     }
 
-    /// Distance (m) from frame `t`'s centre of pressure to the convex hull of the points of
-    /// the groups in `state` (bit g for group g); 0 without a centre of pressure or points.
-    fn distance(&self, set: &ContactSet, t: usize, state: usize) -> f64 {
-        let Some(cop) = self.cop[t] else {
-            return 0.0;
-        };
+    /// Per frame and joint state (T × 2^G, bit g for group g): the distance (m) from the
+    /// frame's centre of pressure to the convex hull of the state's points; 0 without a
+    /// centre of pressure or points.
+    fn distances(&self, set: &ContactSet) -> Vec<f64> {
         let np = self.points;
-        let support: Vec<[f64; 2]> = (0..np)
-            .filter(|&p| state & (1 << set.group_of(p)) != 0)
-            .map(|p| self.foot[t * np + p])
-            .collect();
-        distance_to_hull(cop, support)
+        let ns = 1usize << set.groups().len();
+        let (mut support, mut hull) = (Vec::with_capacity(np), Vec::with_capacity(2 * np));
+        let mut out = vec![0.0; self.cop.len() * ns];
+        for (t, cop) in self.cop.iter().enumerate() {
+            let Some(cop) = *cop else { continue };
+            for state in 1..ns {
+                support.clear();
+                support.extend(
+                    (0..np)
+                        .filter(|&p| state & (1 << set.group_of(p)) != 0)
+                        .map(|p| self.foot[t * np + p]),
+                );
+                out[t * ns + state] = distance_to_hull(cop, &mut support, &mut hull);
+            }
+        }
+        out
     }
 }
 
-/// Distance from `p` to the convex hull of `points` (0 inside; 0 for no points). The hull by
-/// Andrew's monotone chain, counter-clockwise; outside, the nearest of its edges (or its one
-/// point).
-fn distance_to_hull(p: [f64; 2], mut points: Vec<[f64; 2]>) -> f64 {
+/// Distance from `p` to the convex hull of `points` (0 inside; 0 for no points; `points` is
+/// sorted and deduplicated, `hull` is scratch). The hull by Andrew's monotone chain,
+/// counter-clockwise; outside, the nearest of its edges (or its one point).
+fn distance_to_hull(p: [f64; 2], points: &mut Vec<[f64; 2]>, hull: &mut Vec<[f64; 2]>) -> f64 {
     if points.is_empty() {
         return 0.0;
     }
@@ -402,15 +411,11 @@ fn distance_to_hull(p: [f64; 2], mut points: Vec<[f64; 2]>) -> f64 {
     let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
         (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
     };
-    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * points.len());
+    hull.clear();
     for pass in 0..2 {
         let start = hull.len();
-        let chain: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(points.iter())
-        } else {
-            Box::new(points.iter().rev())
-        };
-        for &q in chain {
+        for i in 0..points.len() {
+            let q = points[if pass == 0 { i } else { points.len() - 1 - i }];
             while hull.len() >= start + 2
                 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
             {
@@ -543,10 +548,11 @@ fn decide_groups(
         // the support demand and the balance the state cannot give; no contact gives no
         // moment either, and is charged what the whole support leaves (so that balance never
         // argues for flight: that is the demand's to say)
-        let all = (1usize << ng) - 1;
+        let (all, ns) = ((1usize << ng) - 1, 1usize << ng);
+        let distance = balance.distances(set);
         let joint = |t: usize, state: usize| {
             let support = if state == 0 { all } else { state };
-            let unbalanced = demand[t].max(0.0) * balance.distance(set, t, support);
+            let unbalanced = demand[t].max(0.0) * distance[t * ns + support];
             dynamic(t, state != 0) + trust(t) * 0.5 * (unbalanced / o.balance_scale).powi(2)
         };
         viterbi_joint(frames, ng, &cost_on, &cost_off, &joint, switch)
@@ -791,6 +797,9 @@ mod tests {
     /// a repeated corner, a segment and a single point.
     #[test]
     fn distance_to_hull_matches_the_geometry() {
+        let distance = |p: [f64; 2], mut points: Vec<[f64; 2]>| {
+            distance_to_hull(p, &mut points, &mut Vec::new())
+        };
         let square = vec![
             [0.0, 0.0],
             [1.0, 0.0],
@@ -808,16 +817,13 @@ mod tests {
             ([-3.0, -4.0], 5.0),
         ];
         for (p, d) in cases {
-            assert!(
-                (distance_to_hull(p, square.clone()) - d).abs() < 1e-12,
-                "{p:?}"
-            );
+            assert!((distance(p, square.clone()) - d).abs() < 1e-12, "{p:?}");
         }
         let segment = vec![[0.0, 0.0], [2.0, 0.0], [1.0, 0.0]];
-        assert!((distance_to_hull([1.0, 0.5], segment.clone()) - 0.5).abs() < 1e-12);
-        assert!((distance_to_hull([3.0, 0.0], segment.clone()) - 1.0).abs() < 1e-12);
-        assert_eq!(distance_to_hull([1.0, 0.0], segment), 0.0);
-        assert!((distance_to_hull([3.0, 4.0], vec![[0.0, 0.0]]) - 5.0).abs() < 1e-12);
-        assert_eq!(distance_to_hull([3.0, 4.0], Vec::new()), 0.0);
+        assert!((distance([1.0, 0.5], segment.clone()) - 0.5).abs() < 1e-12);
+        assert!((distance([3.0, 0.0], segment.clone()) - 1.0).abs() < 1e-12);
+        assert_eq!(distance([1.0, 0.0], segment), 0.0);
+        assert!((distance([3.0, 4.0], vec![[0.0, 0.0]]) - 5.0).abs() < 1e-12);
+        assert_eq!(distance([3.0, 4.0], Vec::new()), 0.0);
     }
 }
