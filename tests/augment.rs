@@ -913,12 +913,12 @@ fn reference_clips_end_to_end() {
 }
 
 /// `--muscle-strength 2` (every muscle's maximum isometric force doubled): on the dataset
-/// clips whose demands exceed the default model's muscles (HumanML3D 012314: a jump with the
-/// arms swung overhead, 13.5 % of the joint moments on the reserves; CMU 131_01: deep squats,
-/// 5.3 %) the reserves fall to less than half (measured 5.46 / 1.23 %), the arrays still
-/// satisfy the equations of motion on the strengthened model, and the manifest's run says so
-/// (factor, and the model hash of the strengthened text). The command's hint at clips over
-/// 5 % shows at × 1 and goes at × 3 (HumanML3D 012314: 3.39 %).
+/// clips with the largest demands on the default model's muscles (HumanML3D 012314: a jump
+/// with the arms swung overhead, 13.0 % of the joint moments on the reserves; CMU 131_01: deep
+/// squats and kneeling, 4.7 %) the reserves fall to less than half (measured 5.36 / 1.13 %),
+/// the arrays still satisfy the equations of motion on the strengthened model, and the
+/// manifest's run says so (factor, and the model hash of the strengthened text). The command's
+/// hint at clips over 5 % shows at × 1 and goes at × 3 (HumanML3D 012314: 3.36 %).
 #[test]
 fn strengthened_muscles_carry_the_dataset_clips() {
     let Some(clips) = reference_clips(&[
