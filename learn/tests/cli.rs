@@ -183,6 +183,77 @@ fn train_reconstruct_train_diffusion_and_generate() {
         assert!(body.warning.is_none(), "{name}: {:?}", body.warning);
         assert_eq!(body.model.name, model.name, "{name}");
     }
+    // the built-in text encoder (captions: the clip names, there being no texts.json): a
+    // caption, a conjunction and a negation on the command line; the composed concepts change
+    // the motion that the caption alone gives from the same seed
+    let diff_text = dir.join("diffusion-text");
+    let (ok, out) = run(&[
+        "train-diffusion",
+        "--autoencoder",
+        s(&ae),
+        "--data",
+        s(&data),
+        "--out",
+        s(&diff_text),
+        "--steps",
+        "4",
+        "--window",
+        "32",
+        "--batch",
+        "2",
+    ]);
+    assert!(ok, "{out}");
+    let generate_text = |extra: &[&str], name: &str| {
+        let mut args = vec![
+            "generate",
+            "--diffusion",
+            s(&diff_text),
+            "--text",
+            "a squat",
+            "--frames",
+            "32",
+            "--sampling-steps",
+            "4",
+            "--name",
+            name,
+            "--out",
+            s(&gen_dir),
+        ];
+        args.extend_from_slice(extra);
+        let (ok, out) = run(&args);
+        assert!(ok, "{args:?}: {out}");
+        musculo::loss::tensor_file::TensorFrames::read(
+            &gen_dir.join(format!("{name}_000.npz")),
+            &model,
+        )
+        .unwrap()
+    };
+    let alone = generate_text(&[], "squat");
+    let composed = generate_text(&["--and", "march", "--not", "reach"], "composed");
+    assert_eq!((alone.frames, composed.frames), (32, 32));
+    let largest = alone
+        .q
+        .iter()
+        .zip(&composed.q)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f64, f64::max);
+    assert!(largest > 1e-6, "--and/--not left the motion unchanged");
+    // --and on a model trained on precomputed embeddings is refused, naming the way out
+    let (ok, out) = run(&[
+        "generate",
+        "--diffusion",
+        s(&diff),
+        "--text-embedding",
+        s(&prompt),
+        "--and",
+        "march",
+        "--out",
+        s(&gen_dir),
+    ]);
+    assert!(
+        !ok && out.contains("--and/--not need the built-in text encoder"),
+        "{out}"
+    );
     // a model other than the autoencoder's is refused (its identity would be wrong)
     let other = dir.join("other.osim");
     std::fs::write(
