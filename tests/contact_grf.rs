@@ -855,3 +855,45 @@ fn a_foot_fitted_above_the_floor_under_a_centred_body_stays_in_contact() {
     assert_eq!(states.group_frames(left), frames);
     assert_eq!(states.group_frames(right), frames - 40);
 }
+
+/// Kneeling: the default model's pelvis lowered until the knee centres are 5 cm above the
+/// floor, the right knee bent 90° — the shanks' bodies are reported (their origins are the
+/// knees), the feet are not (nor, pushed through the floor, their own bodies); standing,
+/// nothing is.
+#[test]
+fn kneeling_brings_the_shanks_down_to_the_floor_and_standing_does_not() {
+    let model = Model::default_fullbody();
+    let set = ContactSet::from_model(&model).unwrap();
+    let mut data = Data::new(&model);
+    let standing = model.default_q();
+    dynamics::forward_kinematics(&model, &mut data, &standing).unwrap();
+    let tibia_r = model.body_index("tibia_r").unwrap();
+    let knee = data.body_pose(tibia_r).1.y;
+    assert!(
+        contact::low_bodies(&model, &set, 0.1, &standing)
+            .unwrap()
+            .is_empty()
+    );
+    let mut kneeling = standing.clone();
+    kneeling[model.q_index("pelvis_ty").unwrap()] -= knee - 0.05;
+    kneeling[model.q_index("knee_angle_r").unwrap()] = (-90.0f64).to_radians();
+    let q: Vec<f64> = [standing.clone(), kneeling.clone(), kneeling, standing].concat();
+    let low = contact::low_bodies(&model, &set, 0.1, &q).unwrap();
+    let names: Vec<&str> = low
+        .iter()
+        .map(|l| model.bodies[l.body].name.as_str())
+        .collect();
+    assert_eq!(names, ["tibia_r", "tibia_l"], "{low:?}");
+    for l in &low {
+        assert_eq!((l.frames, l.first, l.last), (2, 1, 2));
+        // the straight knee at 5 cm; the bent one's centre slides lower with the knee's
+        // coupled translation
+        assert!(l.lowest > 0.0 && l.lowest <= 0.05 + 1e-9, "{}", l.lowest);
+    }
+    assert!(
+        contact::low_bodies(&model, &set, f64::NAN, &q)
+            .unwrap_err()
+            .to_string()
+            .contains("height")
+    );
+}

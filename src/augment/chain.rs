@@ -322,6 +322,14 @@ impl Chain {
             self.filtered_kinematics(&model, source, &targets, &solution, &mut warnings)?;
         let loads = measured_loads(&model, source, external_loads, &kinematics, targets.rate_hz)?;
         let solvers = self.clip_solvers(&model, &kinematics, targets.rate_hz, loads.as_ref())?;
+        low_body_warnings(
+            &model,
+            source,
+            &solvers.set,
+            self.options.contact.max_point_offset,
+            &kinematics.q,
+            &mut warnings,
+        )?;
         let per_frame = self.dynamics_per_frame(&PerFrameInputs {
             model: &model,
             source,
@@ -974,6 +982,35 @@ fn measured_contact(
         &mut ws.groups,
         &mut ws.body_contact,
     );
+    Ok(())
+}
+
+/// A warning per body without contact points that comes as low as a foot at rest
+/// (`max_point_offset` of the floor; see [`contact::low_bodies`]): the floor may carry it
+/// there, which the contacts — the feet — cannot show.
+fn low_body_warnings(
+    model: &Model,
+    source: &str,
+    set: &ContactSet,
+    max_point_offset: f64,
+    q: &[f64],
+    warnings: &mut Vec<String>,
+) -> crate::Result<()> {
+    for low in contact::low_bodies(model, set, max_point_offset, q)? {
+        warnings.push(format!(
+            "{}: {} comes within {} m of the floor in {} frame(s) ({}–{}, lowest {:.3} m): the \
+             floor may carry it there (kneeling, a hand put down, sitting), but the contacts \
+             are the feet's, so its load goes through them and those frames' joint moments \
+             and muscle forces are not the body's",
+            source,
+            model.bodies[low.body].name,
+            max_point_offset,
+            low.frames,
+            low.first,
+            low.last,
+            low.lowest
+        ));
+    }
     Ok(())
 }
 

@@ -44,10 +44,12 @@
 
 mod detect;
 mod distribute;
+mod low_bodies;
 mod wrench;
 
 pub use detect::{ContactStates, detect};
 pub use distribute::{ContactFrame, ContactWorkspace};
+pub use low_bodies::{LowBody, low_bodies};
 pub use wrench::{GroupWrench, ground_reaction};
 
 use crate::error::Error;
