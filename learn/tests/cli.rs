@@ -86,23 +86,9 @@ fn train_reconstruct_train_diffusion_and_generate() {
     let views: Vec<(&str, ndarray::ArrayViewD<'_, f32>)> =
         arrays.iter().map(|(k, a)| (k.as_str(), a.view())).collect();
     musculo::motion::npy::write_npz(&embeddings, &views, false).unwrap();
-    let (ok, out) = run(&[
-        "train-diffusion",
-        "--autoencoder",
-        s(&ae),
-        "--data",
-        s(&data),
-        "--out",
-        s(&diff),
-        "--text-embeddings",
-        s(&embeddings),
-        "--steps",
-        "4",
-        "--window",
-        "32",
-        "--batch",
-        "2",
-    ]);
+    let mut args = diffusion_args(&ae, &data, &diff, "4");
+    args.extend(["--text-embeddings", s(&embeddings)]);
+    let (ok, out) = run(&args);
     assert!(ok, "{out}");
     for file in ["denoiser.bpk", "denoiser.json", "loss.csv", "loss.html"] {
         assert!(diff.join(file).is_file(), "{file}");
@@ -187,21 +173,7 @@ fn train_reconstruct_train_diffusion_and_generate() {
     // caption, a conjunction and a negation on the command line; the composed concepts change
     // the motion that the caption alone gives from the same seed
     let diff_text = dir.join("diffusion-text");
-    let (ok, out) = run(&[
-        "train-diffusion",
-        "--autoencoder",
-        s(&ae),
-        "--data",
-        s(&data),
-        "--out",
-        s(&diff_text),
-        "--steps",
-        "4",
-        "--window",
-        "32",
-        "--batch",
-        "2",
-    ]);
+    let (ok, out) = run(&diffusion_args(&ae, &data, &diff_text, "4"));
     assert!(ok, "{out}");
     let generate_text = |extra: &[&str], name: &str| {
         let mut args = vec![
@@ -363,6 +335,26 @@ fn train_args<'a>(data: &'a Path, out: &'a Path, steps: &'a str) -> Vec<&'a str>
     ]
 }
 
+/// The arguments of a toy `train-diffusion` run of `steps` steps on the autoencoder `ae`
+/// into `out`.
+fn diffusion_args<'a>(ae: &'a Path, data: &'a Path, out: &'a Path, steps: &'a str) -> Vec<&'a str> {
+    vec![
+        "train-diffusion",
+        "--autoencoder",
+        s(ae),
+        "--data",
+        s(data),
+        "--out",
+        s(out),
+        "--steps",
+        steps,
+        "--window",
+        "32",
+        "--batch",
+        "2",
+    ]
+}
+
 #[test]
 fn a_killed_train_ae_resumes_to_the_uninterrupted_network() {
     let dir: PathBuf =
@@ -434,34 +426,17 @@ fn a_killed_train_ae_resumes_to_the_uninterrupted_network() {
 
     // the same for the denoiser: killed after its first snapshot, resumed, then both models
     // generate the same motion from the same seed
-    let diffusion_args = |out: &Path| -> Vec<String> {
-        [
-            "train-diffusion",
-            "--autoencoder",
-            s(&whole),
-            "--data",
-            s(&data),
-            "--out",
-            s(out),
-            "--steps",
-            "40",
-            "--window",
-            "32",
-            "--batch",
-            "2",
-            "--save-every",
-            "3",
-        ]
-        .iter()
-        .map(|a| a.to_string())
-        .collect()
+    let resumable_args = |out: &Path| -> Vec<String> {
+        let mut args = diffusion_args(&whole, &data, out, "40");
+        args.extend(["--save-every", "3"]);
+        args.iter().map(|a| a.to_string()).collect()
     };
     let (d_whole, d_killed) = (dir.join("diffusion_whole"), dir.join("diffusion_killed"));
-    let args = diffusion_args(&d_whole);
+    let args = resumable_args(&d_whole);
     let (ok, out) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(ok, "{out}");
     let mut child = Command::new(BIN)
-        .args(diffusion_args(&d_killed))
+        .args(resumable_args(&d_killed))
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
@@ -472,7 +447,7 @@ fn a_killed_train_ae_resumes_to_the_uninterrupted_network() {
     }
     child.kill().unwrap();
     child.wait().unwrap();
-    let mut args = diffusion_args(&d_killed);
+    let mut args = resumable_args(&d_killed);
     args.push("--resume".into());
     let (ok, out) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(ok, "{out}");
