@@ -382,6 +382,12 @@ fn a_run_removes_only_its_own_abandoned_temporaries() {
         // a writer named by a bare process id (no host): it cannot be probed, and its
         // lease is fresh
         (format!(".walk.osim.tmp-{}-5", ended.id()), true),
+        // a commit journal killed while being written (its clip's files are still
+        // temporaries): removed, whichever shard owns the clip
+        (
+            format!("..musculo-commit-{ended_pid}-6.tmp-{ended_pid}-7"),
+            false,
+        ),
         // another shard's clip (whatever its writer)
         (format!(".walk_fast.npz.tmp-{ended_pid}-3"), true),
         (format!("{records}/.walk_fast.json.tmp-{ended_pid}-4"), true),
@@ -398,7 +404,7 @@ fn a_run_removes_only_its_own_abandoned_temporaries() {
     for (f, kept) in &files {
         assert_eq!(dir.join(f).exists(), *kept, "{f}");
     }
-    assert_eq!(removed, 3);
+    assert_eq!(removed, 4);
     let _ = std::fs::remove_dir_all(dir);
 }
 

@@ -531,7 +531,9 @@ pub fn clip_files(clip: &str, suffixes: &[&str]) -> Vec<String> {
 /// Removes the temporary files that interrupted runs left in `out` (recursively) for the
 /// targets `owns` accepts (paths relative to `out`, `/`-separated), and finishes the commits
 /// they left journaled (a clip whose files were all written but not all named); returns how
-/// many temporaries were removed.
+/// many temporaries were removed. A journal that was still being written when its run was
+/// killed is removed whoever owns the clip: its commit never began, so the clip's files are
+/// all still temporaries.
 ///
 /// Only a file whose writer has certainly ended is touched
 /// ([`npy::abandoned_temporary_target`]: on this host and in this PID namespace, a process
@@ -561,7 +563,8 @@ pub fn remove_temporaries(out: &Path, owns: impl Fn(&str) -> bool) -> crate::Res
             } else if crate::io::output::is_abandoned_journal(&dir, &name) {
                 journals.push(path);
             } else if let Some(target) = npy::abandoned_temporary_target(&dir, &name)
-                && owns(&format!("{relative}{target}"))
+                && (crate::io::output::is_journal_name(target)
+                    || owns(&format!("{relative}{target}")))
             {
                 temporaries.push(path);
             }

@@ -543,6 +543,11 @@ fn tidy_folder(folder: &Path, notes: &mut Vec<String>) {
     }
 }
 
+/// True for a name a commit journal has (`.musculo-commit-<owner>-<n>`), whoever wrote it.
+pub fn is_journal_name(name: &str) -> bool {
+    name.starts_with(JOURNAL_PREFIX)
+}
+
 /// True for the name of a commit journal whose writer has certainly ended.
 pub(crate) fn is_abandoned_journal(folder: &Path, name: &str) -> bool {
     name.starts_with(JOURNAL_PREFIX)
