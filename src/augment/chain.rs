@@ -36,6 +36,7 @@ use crate::solve::filter::HIGHEST_CUTOFF_FRACTION;
 use crate::solve::ik::robust as ik_robust;
 use crate::solve::ik::{self, IkSettings};
 use crate::solve::kinematics::{CoordinateTrajectory, Differentiation, KinematicsOptions};
+use crate::solve::orientation_filter::{EulerJoint, OrientationTrajectory};
 use crate::solve::scale_from_clip;
 use crate::solve::static_optimization::{
     SoFrame, SoStatus, SoWorkspace, StaticOptimization, StaticOptimizationOptions,
@@ -444,13 +445,32 @@ impl Chain {
                 differentiation: Differentiation::SecondDerivative,
             },
         )?;
-        let mut q = vec![0.0; frames * n];
+        // Three-axis rotations are filtered and differentiated as orientations, which stay
+        // smooth where their angles swing through gimbal lock (`solve::orientation_filter`).
+        let orientations = OrientationTrajectory::fit(
+            EulerJoint::of_model(model),
+            &times,
+            &solution.q,
+            n,
+            lowpass_hz,
+        )
+        .map_err(|m| Error::invalid("motion", format!("{source}: joint orientations: {m}")))?;
+        let mut q = solution.q.clone();
         let mut qd = vec![0.0; frames * n];
         let mut qdd = vec![0.0; frames * n];
+        let mut raw = vec![0.0; n];
         for f in 0..frames {
             let r = f * n..(f + 1) * n;
             let (a, b, c) = (&mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r]);
+            // the frame's own coordinates start the orientations' decomposition
+            raw.copy_from_slice(a);
             trajectory.eval_finite(times[f], a, b, c)?;
+            for joint in orientations.joints() {
+                for &k in &joint.q {
+                    a[k] = raw[k];
+                }
+            }
+            orientations.eval(times[f], a, b, c);
         }
         // The dynamics are computed for the kinematics as emitted (float32), so that
         // M q̈ + C q̇ + G = τ + J_cᵀλ holds for the arrays in the file, not only for values

@@ -148,6 +148,23 @@ fn millihertz(hz: f64, round: fn(f64) -> f64) -> f64 {
     if hz >= 1.0 { round(hz * 1e3) / 1e3 } else { hz }
 }
 
+/// OpenSim's low-pass of a record sampled `dt` apart: every column padded by odd reflection
+/// with half the record at each end ([`pad_odd`]), then filtered by [`lowpass_butterworth3`].
+/// Returns the padded times, which the filtered columns then span. An error names the index
+/// of the column that could not be filtered.
+pub fn lowpass_padded(
+    time: &[f64],
+    columns: &mut [Vec<f64>],
+    dt: f64,
+    cutoff: f64,
+) -> Result<Vec<f64>, (usize, String)> {
+    let pad = time.len() / 2;
+    for (k, column) in columns.iter_mut().enumerate() {
+        *column = lowpass_butterworth3(&pad_odd(column, pad), dt, cutoff).map_err(|m| (k, m))?;
+    }
+    Ok(pad_odd(time, pad))
+}
+
 /// Third-order low-pass Butterworth filter with cutoff `cutoff` Hz for samples `dt` apart,
 /// applied forward then backward (zero phase; the amplitude response is squared, so the
 /// effective cutoff is lower, as in OpenSim's Signal::LowpassIIR).

@@ -14,7 +14,7 @@
 //!   q̈ is the derivative of a second quintic spline through the speeds S'(t_i) sampled at
 //!   the data times.
 
-use super::filter::{cutoff_problem, lowpass_butterworth3, pad_odd};
+use super::filter::{cutoff_problem, lowpass_padded};
 use crate::error::Error;
 use crate::io::{Table, TableLocator};
 use crate::model::natural_spline::NaturalSpline;
@@ -87,12 +87,10 @@ impl CoordinateTrajectory {
             if let Some(problem) = cutoff_problem(fc, dt, time[n - 1] - time[0]) {
                 return Err(err("column \"time\"".into(), problem));
             }
-            let pad = n / 2;
-            time = pad_odd(&time, pad);
-            for (col, &c) in columns.iter_mut().zip(&model.reduction.independent) {
-                *col = lowpass_butterworth3(&pad_odd(col, pad), dt, fc)
-                    .map_err(|m| err(format!("column \"{}\"", model.coordinates[c].name), m))?;
-            }
+            time = lowpass_padded(&time, &mut columns, dt, fc).map_err(|(k, m)| {
+                let c = model.reduction.independent[k];
+                err(format!("column \"{}\"", model.coordinates[c].name), m)
+            })?;
         }
         // One quintic spline per coordinate, all on the same knots (built together).
         let q = NaturalSpline::interpolating_many(3, time.clone(), columns).map_err(|(k, m)| {

@@ -11,6 +11,7 @@ pub mod ik_tool;
 pub mod inverse_dynamics;
 pub mod kinematics;
 pub mod ltl;
+pub mod orientation_filter;
 pub mod qp;
 pub mod scale;
 pub mod scale_from_clip;
