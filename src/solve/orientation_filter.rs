@@ -17,11 +17,10 @@
 //! 2. each of the four components low-passed as the coordinates are (OpenSim's padding and
 //!    zero-lag Butterworth, [`crate::solve::filter::lowpass_padded`]) and interpolated by the
 //!    same quintic spline;
-//! 3. at time t, the spline's p, ṗ, p̈ normalised to r = p/n, n = |p|:
-//!      ṙ = (ṗ − ṅ r)/n,  r̈ = (p̈ − 2ṅ ṙ − n̈ r)/n,  ṅ = r·ṗ,  n̈ = (ṗ·ṗ + p·p̈ − ṅ²)/n,
-//!    and the angular velocity and acceleration in the joint's child frame (ṙ = ½ r ⊗ ω;
-//!    the real part of r̄ ⊗ r̈ is −|ṙ|², which Im drops)
-//!      ω = 2 Im(r̄ ⊗ ṙ),  α = 2 Im(r̄ ⊗ r̈);
+//! 3. at time t, the spline's p, ṗ, p̈ normalised to r = p/n, n = |p|, with
+//!    ṙ = (ṗ − ṅ r)/n, r̈ = (p̈ − 2ṅ ṙ − n̈ r)/n, ṅ = r·ṗ and n̈ = (ṗ·ṗ + p·p̈ − ṅ²)/n;
+//!    then the angular velocity and acceleration in the joint's child frame, ω = 2 Im(r̄ ⊗ ṙ)
+//!    and α = 2 Im(r̄ ⊗ r̈) (ṙ = ½ r ⊗ ω; the real part of r̄ ⊗ r̈ is −|ṙ|², which Im drops);
 //! 4. the coordinates of R(r) by damped Gauss–Newton from the frame's own coordinates: the
 //!    nearest solution, and at the lock the one that moves them least;
 //! 5. q̇ and q̈ from ω = E(q) q̇ and α = E(q) q̈ + b(q, q̇) ([`EulerJoint::angular_terms`]).
@@ -200,7 +199,7 @@ impl OrientationTrajectory {
         let mut columns = Vec::with_capacity(4 * joints.len());
         for joint in &joints {
             let mut previous: Option<Quaternion<f64>> = None;
-            let mut components = vec![Vec::with_capacity(frames); 4];
+            let mut components: [Vec<f64>; 4] = std::array::from_fn(|_| Vec::with_capacity(frames));
             for f in 0..frames {
                 let rotation =
                     Rotation3::from_matrix_unchecked(joint.rotation(&q[f * nq..(f + 1) * nq]));
