@@ -1304,6 +1304,100 @@ fn augmented_tensors_have_a_zero_euler_lagrange_residual() {
     );
 }
 
+/// The layout maps back to the coordinates of a dataset clip too, on the clip's scaled model.
+/// HumanML3D 012314 swings both arms overhead through the shoulder's gimbal lock, where other
+/// angles give the same rotations: there the inverse's continuation from frame to frame may
+/// take another set than augment's (which stays nearest IK's own angles). Every coordinate
+/// outside the shoulders comes back to 1e-5, and the recovered angles give the layout's
+/// rotations everywhere.
+#[test]
+fn the_joint_layout_maps_back_through_the_shoulders_gimbal_lock() {
+    use musculo::augment::layout::JointLayout;
+    use musculo::augment::layout_inverse::{LayoutClip, coordinates_from_layout};
+    use musculo::motion::npy::read_npz_as_f64;
+    let Some(sample) = reference_file("humanml3d/new_joints_012314.npy") else {
+        return;
+    };
+    let out = temp_dir("layout-inverse-hml");
+    let (ok, _, err) = run_musculo(&[
+        "augment".to_string(),
+        "--input".into(),
+        sample.display().to_string(),
+        "--opensim-files".into(),
+        "--out".into(),
+        out.display().to_string(),
+    ]);
+    assert!(ok, "{err}");
+    let model = musculo::Model::from_osim_file(&out.join("new_joints_012314.osim")).unwrap();
+    let n = model.nq();
+    let muscles = musculo::muscle::MuscleSet::new(&model).unwrap().len();
+    let layout = JointLayout::new(&model, muscles);
+    let arrays = read_npz_as_f64(&out.join("new_joints_012314.npz")).unwrap();
+    let get = |name: &str| -> Vec<f64> {
+        (arrays.iter().find(|(k, _)| k == name).unwrap().1.iter())
+            .copied()
+            .collect()
+    };
+    let (pos, rot, vel, acc, torque) = (
+        get("joint_pos"),
+        get("joint_rot"),
+        get("joint_vel"),
+        get("joint_acc"),
+        get("joint_torque"),
+    );
+    let frames = get("time").len();
+    let c = coordinates_from_layout(
+        &model,
+        &layout,
+        &LayoutClip {
+            frames,
+            rate_hz: 20.0,
+            joint_pos: &pos,
+            joint_rot: &rot,
+            joint_vel: &vel,
+            joint_acc: &acc,
+            joint_torque: &torque,
+        },
+    )
+    .unwrap();
+    let q = get("q");
+    let names = model.q_names();
+    let shoulder = |j: usize| names[j].starts_with("arm_") && !names[j].starts_with("arm_elev");
+    let mut worst = (0.0f64, 0, 0);
+    let mut other_angles = std::collections::BTreeSet::new();
+    for (i, (a, b)) in c.q.iter().zip(&q).enumerate() {
+        let (f, j) = (i / n, i % n);
+        if shoulder(j) {
+            if (a - b).abs() > 1e-5 {
+                other_angles.insert(f);
+            }
+        } else if (a - b).abs() > worst.0 {
+            worst = ((a - b).abs(), f, j);
+        }
+    }
+    let rot_err = c.rotation_error.iter().fold(0.0f64, |m, v| m.max(*v));
+    eprintln!(
+        "HumanML3D 012314: q outside the shoulders off by at most {:.1e} ({} at frame {}); \
+         other shoulder angles for the same rotations at frames {other_angles:?}; rotation \
+         error {rot_err:.1e} rad",
+        worst.0, names[worst.2], worst.1
+    );
+    assert!(rot_err < 1e-5, "{rot_err}");
+    assert!(
+        worst.0 < 1e-5,
+        "q off by {} at frame {}, {}",
+        worst.0,
+        worst.1,
+        names[worst.2]
+    );
+    // the other angles are the lock's: frames of the arms' swing overhead (12 of 170 at
+    // commit ddb136e), none elsewhere in the clip
+    assert!(
+        other_angles.iter().all(|f| (10..=35).contains(f)),
+        "{other_angles:?}"
+    );
+}
+
 /// The per-joint layout `augment` writes maps back to its coordinates
 /// (`augment::layout_inverse`): q and the rotational rates to the float32 rounding of the
 /// stored blocks, the root translation rates to the accuracy of central differences at the

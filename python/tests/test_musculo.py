@@ -326,7 +326,15 @@ def test_the_joint_layout_maps_back_to_the_coordinates():
     c = scaled.coordinates_from_layout(*(out[k] for k in ("joint_pos", "joint_rot", "joint_vel",
                                                           "joint_acc", "joint_torque")), fps=20.0)
     assert c["q"].shape == out["q"].shape and c["rotation_error"].max() < 1e-5
-    np.testing.assert_allclose(c["q"], out["q"], atol=1e-5)
+    # through the shoulder's gimbal lock (the arms swung overhead, frames 10-35) other shoulder
+    # angles give the same rotations, and the inverse's continuation may take them; every other
+    # coordinate comes back to float32 rounding
+    names = scaled.coordinate_names
+    shoulder = [j for j, n in enumerate(names) if n.startswith("arm_") and not n.startswith("arm_elev")]
+    others = [j for j in range(len(names)) if j not in shoulder]
+    np.testing.assert_allclose(c["q"][:, others], out["q"][:, others], atol=1e-5)
+    off = np.abs(c["q"][:, shoulder] - out["q"][:, shoulder]).max(axis=1) > 1e-5
+    assert all(10 <= f <= 35 for f in np.flatnonzero(off)), np.flatnonzero(off)
     with pytest.raises(musculo.MusculoError, match="joint_rot"):
         scaled.coordinates_from_layout(out["joint_pos"], out["joint_rot"][:, :3], out["joint_vel"],
                                        out["joint_acc"], out["joint_torque"], fps=20.0)

@@ -33,7 +33,11 @@
 //!
 //! For a layout written by `musculo augment` this returns its q to the float32 rounding of the
 //! stored rotations, q̇ and q̈ of the rotational coordinates likewise, the root translation rates
-//! to the accuracy of the finite differences, and τ_K. The per-frame rotation error left by
+//! to the accuracy of the finite differences, and τ_K — except where a joint of three rotations
+//! passes near gimbal lock, where other angles give the same rotations: augment keeps the
+//! angles nearest IK's own, the continuation here may take others (HumanML3D 012314: 12 of 170
+//! frames, at the shoulders while the arms swing overhead; `tests/augment.rs`). Both give the
+//! same rotations, and so the same joint torques. The per-frame rotation error left by
 //! the fit (the largest |log(exp(r_j) R_j(q)ᵀ)| over the joints) is reported: zero up to
 //! rounding for a consistent layout, the inconsistency of a generated one otherwise.
 //!
