@@ -1328,7 +1328,7 @@ fn the_joint_layout_maps_back_through_the_shoulders_gimbal_lock() {
         out.display().to_string(),
     ]);
     assert!(ok, "{err}");
-    let model = musculo::Model::from_osim_file(&out.join("new_joints_012314.osim")).unwrap();
+    let model = musculo::Model::from_osim_file(out.join("new_joints_012314.osim")).unwrap();
     let n = model.nq();
     let muscles = musculo::muscle::MuscleSet::new(&model).unwrap().len();
     let layout = JointLayout::new(&model, muscles);
